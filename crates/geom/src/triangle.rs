@@ -1,0 +1,155 @@
+//! Measures of one triangle: area, normal, angles and shape quality.
+//!
+//! Every function is total: a degenerate triangle gives area 0, quality 0, angles that
+//! sum to π where they are defined and 0 where an edge has zero length — never NaN.
+
+use glam::DVec3;
+
+/// Twice-area normal `(b − a) × (c − a)`; its length is twice the area.
+#[inline]
+pub fn cross(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    (b - a).cross(c - a)
+}
+
+/// Area of the triangle.
+#[inline]
+pub fn area(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    0.5 * cross(a, b, c).length()
+}
+
+/// Unit normal, or zero for a degenerate triangle.
+#[inline]
+pub fn normal(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    cross(a, b, c).normalize_or_zero()
+}
+
+/// Centroid (mean of the three corners).
+#[inline]
+pub fn centroid(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    (a + b + c) / 3.0
+}
+
+/// Angle in radians between vectors `u` and `v`; 0 when either is zero.
+///
+/// Uses `atan2(|u × v|, u · v)`, accurate for angles near 0 and π where `acos` is not.
+#[inline]
+pub fn angle_between(u: DVec3, v: DVec3) -> f64 {
+    let s = u.cross(v).length();
+    let c = u.dot(v);
+    if s == 0.0 && c == 0.0 {
+        0.0
+    } else {
+        s.atan2(c)
+    }
+}
+
+/// Interior angles in radians at `a`, `b` and `c`.
+#[inline]
+pub fn angles(a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
+    [
+        angle_between(b - a, c - a),
+        angle_between(c - b, a - b),
+        angle_between(a - c, b - c),
+    ]
+}
+
+/// Smallest interior angle in radians.
+#[inline]
+pub fn min_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let [x, y, z] = angles(a, b, c);
+    x.min(y).min(z)
+}
+
+/// Cotangent of the angle between `u` and `v`, clamped to ±1e6 for near-degenerate corners.
+#[inline]
+pub fn cot(u: DVec3, v: DVec3) -> f64 {
+    let s = u.cross(v).length();
+    let c = u.dot(v);
+    const LIMIT: f64 = 1e6;
+    if s <= c.abs() / LIMIT {
+        if c >= 0.0 { LIMIT } else { -LIMIT }
+    } else {
+        (c / s).clamp(-LIMIT, LIMIT)
+    }
+}
+
+/// Frey–Borouchaki quality `(6/√3)·area / (half-perimeter · longest edge)`:
+/// 1 for an equilateral triangle, 0 for a degenerate one.
+#[inline]
+pub fn quality(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (la, lb, lc) = ((b - c).length(), (c - a).length(), (a - b).length());
+    let half_perimeter = 0.5 * (la + lb + lc);
+    let longest = la.max(lb).max(lc);
+    let denom = half_perimeter * longest;
+    if denom == 0.0 {
+        0.0
+    } else {
+        (6.0 / 3f64.sqrt() * area(a, b, c) / denom).min(1.0)
+    }
+}
+
+/// True when an interior angle is larger than π/2.
+#[inline]
+pub fn is_obtuse(a: DVec3, b: DVec3, c: DVec3) -> bool {
+    (b - a).dot(c - a) < 0.0 || (c - b).dot(a - b) < 0.0 || (a - c).dot(b - c) < 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn equilateral() -> (DVec3, DVec3, DVec3) {
+        (
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(0.5, 3f64.sqrt() / 2.0, 0.0),
+        )
+    }
+
+    #[test]
+    fn equilateral_triangle_has_quality_one_and_sixty_degree_angles() {
+        let (a, b, c) = equilateral();
+        assert!((quality(a, b, c) - 1.0).abs() < 1e-12);
+        for t in angles(a, b, c) {
+            assert!((t.to_degrees() - 60.0).abs() < 1e-9);
+        }
+        assert!((area(a, b, c) - 3f64.sqrt() / 4.0).abs() < 1e-12);
+        assert!(!is_obtuse(a, b, c));
+    }
+
+    #[test]
+    fn right_triangle_measures() {
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        let t = angles(a, b, c);
+        assert!((t[0].to_degrees() - 90.0).abs() < 1e-9);
+        assert!((t[1].to_degrees() - 45.0).abs() < 1e-9);
+        assert!((t.iter().sum::<f64>() - std::f64::consts::PI).abs() < 1e-12);
+        assert_eq!(normal(a, b, c), DVec3::Z);
+        // Q = (6/√3)·0.5 / (((2+√2)/2)·√2)
+        let expect = 6.0 / 3f64.sqrt() * 0.5 / ((2.0 + 2f64.sqrt()) / 2.0 * 2f64.sqrt());
+        assert!((quality(a, b, c) - expect).abs() < 1e-12);
+        assert!(cot(b - a, c - a).abs() < 1e-12);
+    }
+
+    #[test]
+    fn degenerate_triangles_give_zero_not_nan() {
+        let p = DVec3::new(1.0, 2.0, 3.0);
+        assert_eq!(area(p, p, p), 0.0);
+        assert_eq!(quality(p, p, p), 0.0);
+        assert_eq!(normal(p, p, p), DVec3::ZERO);
+        assert!(angles(p, p, p).iter().all(|t| !t.is_nan()));
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::X * 2.0);
+        assert_eq!(quality(a, b, c), 0.0);
+        assert_eq!(min_angle(a, b, c), 0.0);
+        assert!(cot(DVec3::X, DVec3::X * 2.0).is_finite());
+    }
+
+    #[test]
+    fn obtuse_triangle_detected() {
+        assert!(is_obtuse(
+            DVec3::ZERO,
+            DVec3::X * 2.0,
+            DVec3::new(1.0, 0.1, 0.0)
+        ));
+    }
+}

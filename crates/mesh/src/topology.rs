@@ -1,0 +1,3 @@
+//! Topology built from the arrays (CSR).
+/// Placeholder replaced by the topology module.
+pub struct Topology;
