@@ -1,0 +1,141 @@
+//! Running a checked pipeline on a mesh.
+
+use crate::{Pipeline, RunReport, StageRecord};
+use coarsen_mesh::{Mesh, Topology, sanity};
+use coarsen_stage::{Context, NoProgress, Progress, StageError, StageReport};
+use std::time::Instant;
+
+/// How to run a pipeline.
+#[derive(Clone, Copy)]
+pub struct RunOptions<'a> {
+    /// Where stages report progress.
+    pub progress: &'a dyn Progress,
+    /// Run the exhaustive `sanity_check` after every stage (default: in debug builds).
+    pub sanity: bool,
+}
+
+impl Default for RunOptions<'_> {
+    fn default() -> Self {
+        RunOptions {
+            progress: &NoProgress,
+            sanity: cfg!(debug_assertions),
+        }
+    }
+}
+
+/// Why a run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// A stage failed.
+    #[error("stage {index} `{kind}` failed: {source}")]
+    Stage {
+        /// 1-based position.
+        index: usize,
+        /// Kind.
+        kind: &'static str,
+        /// The stage's error.
+        source: StageError,
+    },
+    /// A stage needs a manifold mesh and did not get one.
+    #[error(
+        "stage {index} `{kind}` needs a manifold mesh, but its input has {edges} non-manifold edges and {vertices} non-manifold vertices"
+    )]
+    NotManifold {
+        /// 1-based position.
+        index: usize,
+        /// Kind.
+        kind: &'static str,
+        /// Non-manifold edge count.
+        edges: usize,
+        /// Non-manifold vertex count.
+        vertices: usize,
+    },
+    /// A stage produced a mesh that breaks the mesh invariants: a bug.
+    #[error(
+        "stage {index} `{kind}` produced an invalid mesh (a bug in coarsen; please report it with the input): {detail}"
+    )]
+    Invalid {
+        /// 1-based position.
+        index: usize,
+        /// Kind.
+        kind: &'static str,
+        /// What the sanity check found.
+        detail: String,
+    },
+}
+
+impl Pipeline {
+    /// Runs every stage in order on `input`.
+    ///
+    /// `input` is also kept as the original for stages that measure against it or
+    /// project onto it. The report's `input` and `input_notes` are left for the caller.
+    pub fn run(&self, input: Mesh, opts: RunOptions<'_>) -> Result<(Mesh, RunReport), RunError> {
+        let original = input.clone();
+        let mut mesh = input;
+        let mut report = RunReport {
+            pipeline: self.name.clone(),
+            target: self.target,
+            input_vertices: mesh.n_vertices(),
+            input_faces: mesh.n_faces(),
+            ..Default::default()
+        };
+        let start = Instant::now();
+        for (i, s) in self.stages.iter().enumerate() {
+            let index = i + 1;
+            let contract = s.stage.contract();
+            if contract.needs.manifold {
+                let summary = Topology::build(&mesh).summary(&mesh);
+                if !summary.manifold {
+                    return Err(RunError::NotManifold {
+                        index,
+                        kind: s.kind,
+                        edges: summary.n_non_manifold_edges,
+                        vertices: summary.n_non_manifold_vertices,
+                    });
+                }
+            }
+            let (vb, fb) = (mesh.n_vertices(), mesh.n_faces());
+            let mut stage_report = StageReport::default();
+            let t = Instant::now();
+            let mut cx = Context {
+                original: &original,
+                target: self.target,
+                report: &mut stage_report,
+                progress: opts.progress,
+            };
+            mesh = s
+                .stage
+                .run(mesh, &mut cx)
+                .map_err(|source| RunError::Stage {
+                    index,
+                    kind: s.kind,
+                    source,
+                })?;
+            let seconds = t.elapsed().as_secs_f64();
+            if opts.sanity {
+                sanity::sanity_check(&mesh).map_err(|e| RunError::Invalid {
+                    index,
+                    kind: s.kind,
+                    detail: e.to_string(),
+                })?;
+            }
+            report.stages.push(StageRecord {
+                index,
+                kind: s.kind.to_string(),
+                id: s.id.clone(),
+                params: serde_json::to_value(s.stage.params()).unwrap_or_default(),
+                seconds,
+                vertices_before: vb,
+                faces_before: fb,
+                vertices_after: mesh.n_vertices(),
+                faces_after: mesh.n_faces(),
+                figures: stage_report.figures.into_iter().collect(),
+                warnings: stage_report.warnings,
+            });
+        }
+        report.seconds = start.elapsed().as_secs_f64();
+        report.output_vertices = mesh.n_vertices();
+        report.output_faces = mesh.n_faces();
+        Ok((mesh, report))
+    }
+}

@@ -1,0 +1,314 @@
+//! Tests of parsing, checking and running, with two small stages defined here.
+
+use crate::{Overrides, Pipeline, RunOptions, parse_set};
+use coarsen_mesh::{AttrKind, AttrValues, DVec3, Mesh};
+use coarsen_stage::{
+    AttrRef, Context, Contract, Needs, ParamIssue, Params, Registry, Stage, StageError, Target,
+    params,
+};
+
+params! {
+    /// Parameters of `test.mark`.
+    pub struct MarkParams {
+        /// Name of the vertex scalar written.
+        pub name: String = "height".to_string(),
+        /// Scale applied to the z coordinate.
+        pub scale: f64 = 1.0,
+    }
+}
+impl Params for MarkParams {
+    fn validate(&self) -> Vec<ParamIssue> {
+        let mut v = Vec::new();
+        coarsen_stage::params::check_range(&mut v, "scale", self.scale, 0.0, 10.0);
+        v
+    }
+}
+/// Writes a vertex scalar: scaled z.
+struct Mark(MarkParams);
+impl Stage for Mark {
+    type Params = MarkParams;
+    const KIND: &'static str = "test.mark";
+    const SUMMARY: &'static str = "Writes scaled z as a vertex scalar.";
+    fn new(p: MarkParams) -> Self {
+        Mark(p)
+    }
+    fn contract(&self) -> Contract {
+        Contract {
+            writes: vec![AttrRef::vertex(self.0.name.clone(), AttrKind::Scalar)],
+            ..Default::default()
+        }
+    }
+    fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let v = mesh.positions.iter().map(|p| p.z * self.0.scale).collect();
+        mesh.vertex_attrs
+            .insert(self.0.name.clone(), AttrValues::Scalar(v));
+        cx.report.figure("marked", mesh.n_vertices());
+        Ok(mesh)
+    }
+}
+
+params! {
+    /// Parameters of `test.drop-high`.
+    pub struct DropParams {
+        /// The vertex scalar read.
+        pub field: String = "height".to_string(),
+    }
+}
+impl Params for DropParams {}
+/// Drops faces whose vertices' scalars sum above zero; needs a target (unused).
+struct DropHigh(DropParams);
+impl Stage for DropHigh {
+    type Params = DropParams;
+    const KIND: &'static str = "test.drop-high";
+    const SUMMARY: &'static str = "Drops faces above zero.";
+    fn new(p: DropParams) -> Self {
+        DropHigh(p)
+    }
+    fn contract(&self) -> Contract {
+        Contract {
+            reads: vec![AttrRef::vertex(self.0.field.clone(), AttrKind::Scalar)],
+            needs: Needs {
+                target: true,
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+    fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        cx.require_target(Self::KIND)?;
+        let h = mesh
+            .vertex_attrs
+            .scalar(&self.0.field)
+            .ok_or_else(|| StageError::Internal("attribute missing".into()))?
+            .to_vec();
+        mesh.faces
+            .retain(|f| f.iter().map(|&v| h[v as usize]).sum::<f64>() <= 0.0);
+        if mesh.faces.is_empty() {
+            return Err(StageError::Input("every face was dropped".into()));
+        }
+        Ok(mesh)
+    }
+}
+
+mod mark {
+    coarsen_stage::export_stage!(super::Mark);
+}
+mod drop_high {
+    coarsen_stage::export_stage!(super::DropHigh);
+}
+
+fn registry() -> Registry {
+    Registry::from_descriptors([mark::descriptor(), drop_high::descriptor()]).unwrap()
+}
+
+fn parse(text: &str, overrides: &Overrides) -> Result<Pipeline, Vec<String>> {
+    Pipeline::parse(text, "p.toml", &registry(), overrides)
+        .map_err(|d| d.0.into_iter().map(|d| d.to_string()).collect())
+}
+
+fn square() -> Mesh {
+    // 3---2
+    // | / |      z = −1 at 0 and 1, +1 at 2 and 3
+    // 0---1
+    Mesh::new(
+        vec![
+            DVec3::new(0.0, 0.0, -1.0),
+            DVec3::new(1.0, 0.0, -1.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(0.0, 1.0, 1.0),
+        ],
+        vec![[0, 1, 2], [0, 2, 3]],
+    )
+}
+
+const GOOD: &str = r#"
+[pipeline]
+name = "demo"
+description = "mark then drop"
+target = { vertices = 10 }
+
+[[stage]]
+kind = "test.mark"
+scale = 2.0
+
+[[stage]]
+kind = "test.drop-high"
+"#;
+
+#[test]
+fn a_good_file_parses_and_runs_with_a_report() {
+    let p = parse(GOOD, &Overrides::default()).unwrap();
+    assert_eq!(p.name, "demo");
+    assert_eq!(p.target, Some(Target::Vertices(10)));
+    assert_eq!(p.stages.len(), 2);
+    let (out, report) = p.run(square(), RunOptions::default()).unwrap();
+    assert_eq!(out.n_faces(), 1);
+    assert_eq!(report.stages[0].figures["marked"], 4);
+    assert_eq!(report.stages[0].params["scale"], 2.0);
+    assert_eq!(
+        (report.stages[1].faces_before, report.stages[1].faces_after),
+        (2, 1)
+    );
+    assert_eq!(report.output_faces, 1);
+    assert!(report.to_json().contains("\"kind\": \"test.drop-high\""));
+}
+
+#[test]
+fn every_problem_is_reported_at_once_with_its_line() {
+    let text = r#"[pipeline]
+name = "bad"
+
+[[stage]]
+kind = "test.mrak"
+
+[[stage]]
+kind = "test.mark"
+scael = 2.0
+scale = "big"
+
+[[stage]]
+kind = "test.mark"
+scale = 20.0
+"#;
+    let errs = parse(text, &Overrides::default()).unwrap_err();
+    assert_eq!(errs.len(), 4, "{errs:#?}");
+    assert!(
+        errs[0]
+            .starts_with("p.toml:5:8: unknown stage kind `test.mrak` (did you mean `test.mark`?)"),
+        "{}",
+        errs[0]
+    );
+    assert!(
+        errs[1].starts_with(
+            "p.toml:9:1: test.mark: `test.mark` has no parameter `scael` (did you mean `scale`?)"
+        ),
+        "{}",
+        errs[1]
+    );
+    assert!(
+        errs[2].starts_with("p.toml:10:1: test.mark: invalid type"),
+        "{}",
+        errs[2]
+    );
+    assert!(
+        errs[3].starts_with("p.toml:14:1: test.mark: must be in 0..=10, got 20"),
+        "{}",
+        errs[3]
+    );
+}
+
+#[test]
+fn reading_an_attribute_nothing_writes_is_an_error_before_running() {
+    let text = "[pipeline]\ntarget = { faces = 1 }\n[[stage]]\nkind = \"test.mark\"\nname = \"z\"\n[[stage]]\nkind = \"test.drop-high\"\n";
+    let errs = parse(text, &Overrides::default()).unwrap_err();
+    assert_eq!(errs.len(), 1);
+    assert!(
+        errs[0].contains(
+            "stage 2 `test.drop-high` reads vertex scalar `height`, which no earlier stage writes"
+        ),
+        "{}",
+        errs[0]
+    );
+    assert!(errs[0].starts_with("p.toml:6:"), "{}", errs[0]);
+}
+
+#[test]
+fn declared_inputs_satisfy_reads_and_kinds_must_match() {
+    let ok = "[pipeline]\ntarget = { faces = 1 }\ninputs = [{ domain = \"vertex\", name = \"height\", kind = \"scalar\" }]\n[[stage]]\nkind = \"test.drop-high\"\n";
+    assert!(parse(ok, &Overrides::default()).is_ok());
+    let bad = ok.replace("\"scalar\"", "\"label\"");
+    let errs = parse(&bad, &Overrides::default()).unwrap_err();
+    assert!(errs[0].contains("provides it as label"), "{}", errs[0]);
+}
+
+#[test]
+fn a_missing_target_is_reported_and_the_command_line_supplies_it() {
+    let text = GOOD.replace("target = { vertices = 10 }\n", "");
+    let errs = parse(&text, &Overrides::default()).unwrap_err();
+    assert!(errs[0].contains("needs a target"), "{}", errs[0]);
+    let o = Overrides {
+        target: Some(Target::Ratio(0.5)),
+        ..Default::default()
+    };
+    assert_eq!(parse(&text, &o).unwrap().target, Some(Target::Ratio(0.5)));
+    let o = Overrides {
+        target: Some(Target::Ratio(1.5)),
+        ..Default::default()
+    };
+    assert!(parse(&text, &o).unwrap_err()[0].starts_with("command line: ratio"));
+}
+
+#[test]
+fn set_overrides_apply_by_kind_or_id_and_are_checked_like_the_file() {
+    let o = Overrides {
+        sets: vec![parse_set("test.mark.scale=3").unwrap()],
+        ..Default::default()
+    };
+    let p = parse(GOOD, &o).unwrap();
+    assert_eq!(
+        p.stages[0].stage.params()["scale"],
+        toml::Value::Integer(3)
+            .try_into::<f64>()
+            .map(toml::Value::Float)
+            .unwrap()
+    );
+    let o = Overrides {
+        sets: vec![parse_set("test.mark.scale=99").unwrap()],
+        ..Default::default()
+    };
+    let errs = parse(GOOD, &o).unwrap_err();
+    assert!(
+        errs[0].starts_with("--set test.mark.scale=99: test.mark: must be in"),
+        "{}",
+        errs[0]
+    );
+    let o = Overrides {
+        sets: vec![parse_set("nope.scale=1").unwrap()],
+        ..Default::default()
+    };
+    assert!(
+        parse(GOOD, &o).unwrap_err()[0]
+            .contains("no stage of this pipeline has the id or kind `nope`")
+    );
+    // An id selects one stage even when another has the same kind.
+    let text = format!("{GOOD}\n[[stage]]\nkind = \"test.mark\"\nid = \"second\"\n");
+    let o = Overrides {
+        sets: vec![parse_set("second.scale=5").unwrap()],
+        ..Default::default()
+    };
+    let p = parse(&text, &o).unwrap();
+    assert_eq!(p.stages[0].stage.params()["scale"], toml::Value::Float(2.0));
+    assert_eq!(p.stages[2].stage.params()["scale"], toml::Value::Float(5.0));
+    assert_eq!(
+        parse_set("cluster.cvt.energy=shu2009").unwrap().value,
+        toml::Value::String("shu2009".into())
+    );
+    assert!(parse_set("noequals").is_err());
+}
+
+#[test]
+fn syntax_errors_and_empty_pipelines_are_located() {
+    let errs = parse(
+        "[[stage]]\nkind = \"test.mark\"\nscale = [1,\n",
+        &Overrides::default(),
+    )
+    .unwrap_err();
+    assert!(errs[0].starts_with("p.toml:3:"), "{}", errs[0]);
+    let errs = parse(
+        "[pipeline]\nname = \"x\"\nbogus = 1\n",
+        &Overrides::default(),
+    )
+    .unwrap_err();
+    assert!(errs[0].contains("bogus"), "{}", errs[0]);
+    let errs = parse("[pipeline]\nname = \"x\"\n", &Overrides::default()).unwrap_err();
+    assert!(errs[0].contains("no [[stage]]"), "{}", errs[0]);
+}
+
+#[test]
+fn a_failing_stage_names_itself() {
+    let mut m = square();
+    m.positions.iter_mut().for_each(|p| p.z = 1.0);
+    let p = parse(GOOD, &Overrides::default()).unwrap();
+    let e = p.run(m, RunOptions::default()).unwrap_err().to_string();
+    assert_eq!(e, "stage 2 `test.drop-high` failed: every face was dropped");
+}

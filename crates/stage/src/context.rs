@@ -1,0 +1,175 @@
+//! What a running stage sees besides the mesh: the original input, the run target, its
+//! report and a progress sink.
+
+use coarsen_mesh::Mesh;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The size a coarsening run aims for.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase", deny_unknown_fields)]
+pub enum Target {
+    /// Exactly this many output vertices.
+    Vertices(u64),
+    /// This many output faces (exactly where the method allows, else as near as it can).
+    Faces(u64),
+    /// This fraction of the input's faces removed, in `[0, 1)` (paper 2's 70 % is `0.7`).
+    Ratio(f64),
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Target::Vertices(n) => write!(f, "{n} vertices"),
+            Target::Faces(n) => write!(f, "{n} faces"),
+            Target::Ratio(r) => write!(f, "{:.4}% of faces removed", r * 100.0),
+        }
+    }
+}
+
+impl Target {
+    /// The target as a vertex count for `mesh`.
+    ///
+    /// Face counts and ratios convert with the mesh's own vertex/face proportion, which
+    /// for triangle meshes is close to ½ (exactly so, up to the Euler characteristic and
+    /// the boundary, for closed meshes).
+    pub fn vertices_for(&self, mesh: &Mesh) -> u64 {
+        let (v, f) = (mesh.n_vertices() as f64, mesh.n_faces().max(1) as f64);
+        match *self {
+            Target::Vertices(n) => n,
+            Target::Faces(n) => (n as f64 * v / f).round() as u64,
+            Target::Ratio(r) => (v * (1.0 - r)).round() as u64,
+        }
+    }
+
+    /// The target as a face count for `mesh`.
+    pub fn faces_for(&self, mesh: &Mesh) -> u64 {
+        let (v, f) = (mesh.n_vertices().max(1) as f64, mesh.n_faces() as f64);
+        match *self {
+            Target::Vertices(n) => (n as f64 * f / v).round() as u64,
+            Target::Faces(n) => n,
+            Target::Ratio(r) => (f * (1.0 - r)).round() as u64,
+        }
+    }
+
+    /// A problem with the target's value itself, if any.
+    pub fn check(&self) -> Result<(), String> {
+        match *self {
+            Target::Ratio(r) if !(0.0..1.0).contains(&r) => Err(format!(
+                "ratio is the fraction of faces removed and must be in [0, 1), got {r}"
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Where a long-running stage reports progress; the CLI draws it, tests ignore it.
+pub trait Progress: Send + Sync {
+    /// A step of `total` units begins (0 when the total is unknown).
+    fn begin(&self, label: &str, total: u64);
+    /// `done` units of the current step are finished; `message` says e.g. the energy.
+    fn advance(&self, done: u64, message: &str);
+    /// The current step ended.
+    fn end(&self);
+}
+
+/// A progress sink that shows nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoProgress;
+
+impl Progress for NoProgress {
+    fn begin(&self, _: &str, _: u64) {}
+    fn advance(&self, _: u64, _: &str) {}
+    fn end(&self) {}
+}
+
+/// What a stage tells the run report: named figures and warnings.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct StageReport {
+    /// Named figures (numbers, tables as arrays of objects), in the order they were given.
+    pub figures: Vec<(String, serde_json::Value)>,
+    /// Findings that are not failures (repairs made, attributes dropped, targets missed).
+    pub warnings: Vec<String>,
+}
+
+impl StageReport {
+    /// Records a figure; a second figure of the same name replaces the first.
+    pub fn figure(&mut self, name: &str, value: impl Serialize) {
+        let v = serde_json::to_value(value)
+            .unwrap_or_else(|e| serde_json::Value::String(e.to_string()));
+        match self.figures.iter_mut().find(|(n, _)| n == name) {
+            Some((_, old)) => *old = v,
+            None => self.figures.push((name.to_string(), v)),
+        }
+    }
+
+    /// The figure called `name`.
+    pub fn get(&self, name: &str) -> Option<&serde_json::Value> {
+        self.figures.iter().find(|(n, _)| n == name).map(|(_, v)| v)
+    }
+
+    /// Records a warning.
+    pub fn warn(&mut self, message: impl Into<String>) {
+        self.warnings.push(message.into());
+    }
+}
+
+/// The run as a stage sees it.
+pub struct Context<'a> {
+    /// The mesh the run started from (after load-time clean-up).
+    pub original: &'a Mesh,
+    /// The run target, if the pipeline or the command line gave one.
+    pub target: Option<Target>,
+    /// This stage's part of the run report.
+    pub report: &'a mut StageReport,
+    /// Progress sink for long loops.
+    pub progress: &'a dyn Progress,
+}
+
+impl<'a> Context<'a> {
+    /// A context with no target, no progress display and a fresh report.
+    pub fn new(original: &'a Mesh, report: &'a mut StageReport) -> Self {
+        Context {
+            original,
+            target: None,
+            report,
+            progress: &NoProgress,
+        }
+    }
+
+    /// The run target, or an error naming the stage that needs one.
+    pub fn require_target(&self, kind: &str) -> Result<Target, crate::StageError> {
+        self.target.ok_or_else(|| {
+            crate::StageError::Input(format!(
+                "`{kind}` needs a target: give the pipeline a target or pass --vertices, --faces or --ratio"
+            ))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_mesh::DVec3;
+
+    #[test]
+    fn targets_convert_with_the_mesh_proportions() {
+        let m = Mesh::new(vec![DVec3::ZERO; 100], vec![[0, 1, 2]; 200]);
+        assert_eq!(Target::Vertices(10).faces_for(&m), 20);
+        assert_eq!(Target::Faces(50).vertices_for(&m), 25);
+        assert_eq!(Target::Ratio(0.7).faces_for(&m), 60);
+        assert_eq!(Target::Ratio(0.7).vertices_for(&m), 30);
+        assert!(Target::Ratio(1.0).check().is_err());
+        assert!(Target::Ratio(f64::NAN).check().is_err());
+    }
+
+    #[test]
+    fn report_figures_replace_by_name() {
+        let mut r = StageReport::default();
+        r.figure("passes", 3);
+        r.figure("lambda", [1.5, 2.1]);
+        r.figure("passes", 4);
+        assert_eq!(r.figures.len(), 2);
+        assert_eq!(r.get("passes"), Some(&serde_json::json!(4)));
+    }
+}

@@ -1,0 +1,68 @@
+//! What a stage reads, writes and needs: checked for a whole pipeline before it runs.
+
+use coarsen_mesh::{AttrKind, Domain};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// A named attribute of one domain and kind.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttrRef {
+    /// Vertex or face.
+    pub domain: Domain,
+    /// Column name.
+    pub name: String,
+    /// Value type.
+    pub kind: AttrKind,
+}
+
+impl AttrRef {
+    /// A vertex attribute.
+    pub fn vertex(name: impl Into<String>, kind: AttrKind) -> Self {
+        AttrRef {
+            domain: Domain::Vertex,
+            name: name.into(),
+            kind,
+        }
+    }
+
+    /// A face attribute.
+    pub fn face(name: impl Into<String>, kind: AttrKind) -> Self {
+        AttrRef {
+            domain: Domain::Face,
+            name: name.into(),
+            kind,
+        }
+    }
+}
+
+impl fmt::Display for AttrRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {} `{}`", self.domain, self.kind, self.name)
+    }
+}
+
+/// What a stage needs from the mesh and the run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Needs {
+    /// The input must be an edge- and vertex-manifold mesh.
+    pub manifold: bool,
+    /// The stage reads the original input mesh (kept in memory for it).
+    pub original: bool,
+    /// The stage needs a run target (`--vertices`, `--faces`, `--ratio` or the pipeline's).
+    pub target: bool,
+}
+
+/// A stage's declared data flow.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Contract {
+    /// Attributes that must exist when the stage starts.
+    pub reads: Vec<AttrRef>,
+    /// Attributes present when the stage ends.
+    pub writes: Vec<AttrRef>,
+    /// Domains whose attributes do not survive the stage (other than those it writes),
+    /// e.g. a dual triangulation drops every face attribute.
+    pub clears: Vec<Domain>,
+    /// Requirements on the input and the run.
+    pub needs: Needs,
+}
