@@ -1,1 +1,547 @@
+//! Explicit, reported clean-up applied after loading a file.
+//!
+//! [`clean`] runs these steps in order; each one is counted in the [`HygieneReport`], and a
+//! step that is switched off or finds nothing is still listed (with 0):
+//!
+//! 1. **reject** invalid indices and NaN/infinite positions or float attributes (an
+//!    error naming the element; nothing is repaired silently);
+//! 2. **weld** (optional) vertices at exactly the same position: coordinates compared
+//!    bit for bit after turning `-0.0` into `0.0`; the lowest-numbered vertex of each
+//!    group survives and keeps its attributes;
+//! 3. **drop degenerate faces** (optional): faces repeating a vertex index (also those
+//!    that welding creates), and faces of zero area, i.e. area exactly 0 or below
+//!    [`HygieneOptions::degenerate_area_rel`]` · (bbox diagonal)²`;
+//! 4. **drop duplicate faces** (optional): a face with the same vertex triple as an earlier
+//!    face, up to rotation, is dropped; a face on the same vertices in the *opposite*
+//!    orientation is kept and only counted (two-sided sheets are real geometry);
+//! 5. **drop unreferenced vertices** (optional), compacting the indices.
+//!
+//! All re-indexing happens once, at the end, through [`Mesh::rebuilt`], so every
+//! attribute column travels with its vertices and faces.
 
+use crate::sanity::{
+    NonFinite, area_threshold, faces_by_vertex_set, find_non_finite, is_degenerate_area,
+};
+use crate::{Domain, FaceOrigins, Index, IndexError, Mesh, VertexOrigins};
+use coarsen_geom::DVec3;
+use serde::{Deserialize, Serialize};
+
+/// Which clean-up steps [`clean`] runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HygieneOptions {
+    /// Merge vertices at bit-identical positions. Default `false`: right for indexed
+    /// formats (OBJ, PLY) whose duplicated positions may be intended seams; the loader
+    /// turns it on for triangle soups (STL).
+    pub weld: bool,
+    /// Drop faces that repeat an index or have zero area. Default `true`.
+    pub drop_degenerate: bool,
+    /// Relative area threshold of the degenerate test: a face is dropped when its area is
+    /// 0 or below this times the squared bounding-box diagonal. Default `0.0` (only
+    /// exactly flat faces; dropping slivers would open holes in the surface).
+    pub degenerate_area_rel: f64,
+    /// Drop faces repeating an earlier face's vertex triple in the same orientation.
+    /// Default `true`.
+    pub drop_duplicate_faces: bool,
+    /// Drop vertices that no remaining face references. Default `true`.
+    pub drop_unreferenced: bool,
+}
+
+impl Default for HygieneOptions {
+    fn default() -> Self {
+        Self {
+            weld: false,
+            drop_degenerate: true,
+            degenerate_area_rel: 0.0,
+            drop_duplicate_faces: true,
+            drop_unreferenced: true,
+        }
+    }
+}
+
+impl HygieneOptions {
+    /// The defaults for triangle soups (every face with its own corners): welding on.
+    pub fn soup() -> Self {
+        Self {
+            weld: true,
+            ..Self::default()
+        }
+    }
+}
+
+/// Input that clean-up refuses to repair.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum HygieneError {
+    /// A face index out of range, a column of the wrong length, or too many elements.
+    #[error(transparent)]
+    Index(#[from] IndexError),
+    /// A position with a NaN or infinite coordinate.
+    #[error("vertex {vertex} has a non-finite position {position:?}")]
+    NonFinitePosition {
+        /// The vertex.
+        vertex: usize,
+        /// Its position.
+        position: [f64; 3],
+    },
+    /// A float attribute value that is NaN or infinite.
+    #[error("{domain} attribute `{name}` is not finite at element {element}")]
+    NonFiniteAttribute {
+        /// Vertex or face column.
+        domain: Domain,
+        /// The column.
+        name: String,
+        /// The element.
+        element: usize,
+    },
+}
+
+/// What [`clean`] did, step by step.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HygieneReport {
+    /// The options the steps ran with.
+    pub options: HygieneOptions,
+    /// Vertices before clean-up.
+    pub vertices_in: usize,
+    /// Faces before clean-up.
+    pub faces_in: usize,
+    /// Vertices merged into an earlier vertex at the same position.
+    pub welded_vertices: usize,
+    /// Faces dropped for repeating a vertex index.
+    pub repeated_index_faces: usize,
+    /// Faces dropped for zero area.
+    pub zero_area_faces: usize,
+    /// Faces dropped for repeating an earlier face (same vertices, same orientation).
+    pub duplicate_faces: usize,
+    /// Vertex triples present in both orientations (kept).
+    pub opposite_duplicate_pairs: usize,
+    /// Vertices dropped because no face references them.
+    pub unreferenced_vertices: usize,
+    /// Vertices after clean-up.
+    pub vertices_out: usize,
+    /// Faces after clean-up.
+    pub faces_out: usize,
+    /// Attribute columns that could not be carried (`"vertex k"`, `"face cluster"`).
+    pub dropped_attributes: Vec<String>,
+}
+
+impl HygieneReport {
+    /// One line per step, for people.
+    pub fn lines(&self) -> Vec<String> {
+        let o = &self.options;
+        let off = |on: bool| if on { "" } else { " (off)" };
+        let mut lines = vec![
+            format!(
+                "weld coincident positions{}: {} vertices merged",
+                off(o.weld),
+                self.welded_vertices
+            ),
+            format!(
+                "drop faces with a repeated index{}: {}",
+                off(o.drop_degenerate),
+                self.repeated_index_faces
+            ),
+            format!(
+                "drop zero-area faces{}: {}",
+                off(o.drop_degenerate),
+                self.zero_area_faces
+            ),
+            format!(
+                "drop duplicate faces{}: {}",
+                off(o.drop_duplicate_faces),
+                self.duplicate_faces
+            ),
+            format!(
+                "opposite-orientation face pairs kept: {}",
+                self.opposite_duplicate_pairs
+            ),
+            format!(
+                "drop unreferenced vertices{}: {}",
+                off(o.drop_unreferenced),
+                self.unreferenced_vertices
+            ),
+            format!(
+                "result: {} → {} vertices, {} → {} faces",
+                self.vertices_in, self.vertices_out, self.faces_in, self.faces_out
+            ),
+        ];
+        lines.extend(
+            self.dropped_attributes
+                .iter()
+                .map(|a| format!("attribute {a} dropped")),
+        );
+        lines
+    }
+
+    /// True when clean-up changed nothing.
+    pub fn is_clean(&self) -> bool {
+        self.vertices_in == self.vertices_out && self.faces_in == self.faces_out
+    }
+}
+
+/// Runs the clean-up steps `opts` selects on `mesh` (see the module docs).
+pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport), HygieneError> {
+    mesh.validate_indices()?;
+    reject_non_finite(&mesh)?;
+    let nv = mesh.n_vertices();
+    let mut report = HygieneReport {
+        options: opts.clone(),
+        vertices_in: nv,
+        faces_in: mesh.n_faces(),
+        welded_vertices: 0,
+        repeated_index_faces: 0,
+        zero_area_faces: 0,
+        duplicate_faces: 0,
+        opposite_duplicate_pairs: 0,
+        unreferenced_vertices: 0,
+        vertices_out: 0,
+        faces_out: 0,
+        dropped_attributes: Vec::new(),
+    };
+
+    // Every vertex maps to the surviving vertex of its position group (itself without welding).
+    let rep = if opts.weld {
+        weld_map(&mesh.positions)
+    } else {
+        (0..nv as Index).collect()
+    };
+    report.welded_vertices = rep
+        .iter()
+        .enumerate()
+        .filter(|&(v, &r)| r as usize != v)
+        .count();
+    let faces: Vec<[Index; 3]> = mesh
+        .faces
+        .iter()
+        .map(|f| f.map(|v| rep[v as usize]))
+        .collect();
+
+    let mut keep = vec![true; faces.len()];
+    if opts.drop_degenerate {
+        let threshold = area_threshold(&mesh, opts.degenerate_area_rel);
+        for (f, &[a, b, c]) in faces.iter().enumerate() {
+            if a == b || b == c || a == c {
+                keep[f] = false;
+                report.repeated_index_faces += 1;
+            } else {
+                if is_degenerate_area(mesh.face_area(f), threshold) {
+                    keep[f] = false;
+                    report.zero_area_faces += 1;
+                }
+            }
+        }
+    }
+    let (dups, opposite) = mark_duplicates(&faces, &mut keep, opts.drop_duplicate_faces);
+    report.duplicate_faces = dups;
+    report.opposite_duplicate_pairs = opposite;
+
+    // Surviving vertices: group representatives, referenced ones unless told to keep all.
+    let mut referenced = vec![false; nv];
+    for (f, face) in faces.iter().enumerate() {
+        if keep[f] {
+            face.iter().for_each(|&v| referenced[v as usize] = true);
+        }
+    }
+    let mut new_index = vec![Index::MAX; nv];
+    let mut old_of_new: Vec<Index> = Vec::with_capacity(nv);
+    for v in 0..nv {
+        if rep[v] as usize != v {
+            continue;
+        }
+        if referenced[v] || !opts.drop_unreferenced {
+            new_index[v] = old_of_new.len() as Index;
+            old_of_new.push(v as Index);
+        } else {
+            report.unreferenced_vertices += 1;
+        }
+    }
+    let kept_faces: Vec<Index> = (0..faces.len() as Index)
+        .filter(|&f| keep[f as usize])
+        .collect();
+    let new_faces: Vec<[Index; 3]> = kept_faces
+        .iter()
+        .map(|&f| faces[f as usize].map(|v| new_index[v as usize]))
+        .collect();
+    let positions: Vec<DVec3> = old_of_new
+        .iter()
+        .map(|&v| mesh.positions[v as usize])
+        .collect();
+    let (out, carry) = mesh.rebuilt(
+        positions,
+        new_faces,
+        &VertexOrigins::from_map(&old_of_new),
+        &FaceOrigins::from_parents(kept_faces),
+    );
+    report.dropped_attributes = carry
+        .dropped
+        .iter()
+        .map(|(d, n)| format!("{d} {n}"))
+        .collect();
+    report.vertices_out = out.n_vertices();
+    report.faces_out = out.n_faces();
+    Ok((out, report))
+}
+
+fn reject_non_finite(mesh: &Mesh) -> Result<(), HygieneError> {
+    match find_non_finite(mesh) {
+        None => Ok(()),
+        Some(NonFinite::Position(vertex)) => Err(HygieneError::NonFinitePosition {
+            vertex,
+            position: mesh.positions[vertex].to_array(),
+        }),
+        Some(NonFinite::Attribute(domain, name, element)) => {
+            Err(HygieneError::NonFiniteAttribute {
+                domain,
+                name,
+                element,
+            })
+        }
+    }
+}
+
+/// For each vertex, the lowest-numbered vertex at the bit-identical position
+/// (`-0.0` counted as `0.0`). Sorting, not hashing: same result on every run.
+fn weld_map(positions: &[DVec3]) -> Vec<Index> {
+    // Adding +0.0 turns -0.0 into +0.0 and leaves every other value alone.
+    let key = |p: DVec3| {
+        [
+            (p.x + 0.0).to_bits(),
+            (p.y + 0.0).to_bits(),
+            (p.z + 0.0).to_bits(),
+        ]
+    };
+    let mut order: Vec<([u64; 3], Index)> = positions
+        .iter()
+        .enumerate()
+        .map(|(v, &p)| (key(p), v as Index))
+        .collect();
+    order.sort_unstable();
+    let mut rep: Vec<Index> = (0..positions.len() as Index).collect();
+    let mut first = 0;
+    for i in 1..order.len() {
+        if order[i].0 == order[first].0 {
+            rep[order[i].1 as usize] = order[first].1;
+        } else {
+            first = i;
+        }
+    }
+    rep
+}
+
+/// Among kept faces, marks same-orientation repeats of an earlier face as dropped (when
+/// `drop`) and counts them; also counts vertex triples present in both orientations.
+fn mark_duplicates(faces: &[[Index; 3]], keep: &mut [bool], drop: bool) -> (usize, usize) {
+    let order = faces_by_vertex_set(faces, |f| keep[f]);
+    let (mut dups, mut opposite) = (0, 0);
+    for group in order.chunk_by(|a, b| a.0 == b.0) {
+        // Within a group: one orientation, then the other, each in face order.
+        for w in group.windows(2) {
+            if w[0].1 == w[1].1 && drop {
+                dups += 1;
+                keep[w[1].2 as usize] = false;
+            }
+        }
+        if group.first().map(|g| g.1) != group.last().map(|g| g.1) {
+            opposite += 1;
+        }
+    }
+    (dups, opposite)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::AttrValues;
+    use crate::topology::Topology;
+    use crate::topology::tests::{read_obj, shared_data};
+
+    /// A unit cube as a soup: each of its 12 triangles with three corners of its own.
+    fn cube_soup() -> Mesh {
+        let corner = |i: u32| {
+            DVec3::new(
+                f64::from(i & 1),
+                f64::from((i >> 1) & 1),
+                f64::from((i >> 2) & 1),
+            )
+        };
+        // Corner i at (x, y, z) = bits of i; outward-facing quads as two triangles.
+        let quads = [
+            [0, 2, 3, 1], // z = 0
+            [4, 5, 7, 6], // z = 1
+            [0, 1, 5, 4], // y = 0
+            [2, 6, 7, 3], // y = 1
+            [0, 4, 6, 2], // x = 0
+            [1, 3, 7, 5], // x = 1
+        ];
+        let mut positions = Vec::new();
+        let mut faces = Vec::new();
+        for q in quads {
+            for tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                let base = positions.len() as u32;
+                positions.extend(tri.map(corner));
+                faces.push([base, base + 1, base + 2]);
+            }
+        }
+        // -0.0 must weld with 0.0.
+        positions[0].x = -0.0;
+        let mut m = Mesh::new(positions, faces);
+        let ids: Vec<f64> = (0..m.n_vertices()).map(|i| i as f64).collect();
+        m.vertex_attrs.insert("id", AttrValues::Scalar(ids));
+        m
+    }
+
+    #[test]
+    fn cube_soup_welds_to_eight_vertices_and_a_closed_surface() {
+        let (m, r) = clean(cube_soup(), &HygieneOptions::soup()).unwrap();
+        assert_eq!((m.n_vertices(), m.n_faces()), (8, 12));
+        assert_eq!(r.welded_vertices, 36 - 8);
+        assert_eq!(r.unreferenced_vertices, 0);
+        let s = Topology::build(&m).summary(&m);
+        assert!(s.manifold && s.consistently_oriented);
+        assert_eq!(s.genus, vec![Some(0)]);
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12);
+        // The first occurrence of each position wins: ids are the lowest of each group.
+        let ids = m.vertex_attrs.scalar("id").unwrap();
+        assert_eq!(ids[0], 0.0);
+        assert!(ids.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn without_weld_a_soup_only_loses_nothing() {
+        let (m, r) = clean(cube_soup(), &HygieneOptions::default()).unwrap();
+        assert_eq!((m.n_vertices(), m.n_faces()), (36, 12));
+        assert!(r.is_clean());
+        assert_eq!(r.lines().len(), 7);
+        assert!(r.lines()[0].contains("(off): 0 vertices merged"));
+    }
+
+    #[test]
+    fn nan_vertex_is_rejected_with_its_index() {
+        let mut m = cube_soup();
+        m.positions[7].z = f64::NAN;
+        assert!(matches!(
+            clean(m, &HygieneOptions::default()),
+            Err(HygieneError::NonFinitePosition { vertex: 7, .. })
+        ));
+    }
+
+    #[test]
+    fn infinite_attribute_is_rejected_with_its_element() {
+        let mut m = cube_soup();
+        let mut ids = vec![0.0; 36];
+        ids[30] = f64::NEG_INFINITY;
+        m.vertex_attrs.insert("id", AttrValues::Scalar(ids));
+        assert_eq!(
+            clean(m, &HygieneOptions::default()),
+            Err(HygieneError::NonFiniteAttribute {
+                domain: Domain::Vertex,
+                name: "id".into(),
+                element: 30
+            })
+        );
+    }
+
+    #[test]
+    fn degenerate_and_duplicate_faces_are_dropped_and_counted_separately() {
+        // 3---2
+        // | / |      faces: 0-1-2, 0-2-3, then 1-2-0 (rotation of face 0: dropped),
+        // 0---1      2-1-0 (opposite of face 0: kept), 1-1-3 (repeated), 0-1-4 (flat),
+        //            and vertex 5 unused.
+        let positions = vec![
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::Y,
+            DVec3::X * 2.0,
+            DVec3::Z,
+        ];
+        let faces = vec![
+            [0, 1, 2],
+            [0, 2, 3],
+            [1, 2, 0],
+            [2, 1, 0],
+            [1, 1, 3],
+            [0, 1, 4],
+        ];
+        let mut m = Mesh::new(positions, faces);
+        m.face_attrs
+            .insert("tag", AttrValues::Label(vec![10, 11, 12, 13, 14, 15]));
+        let (out, r) = clean(m, &HygieneOptions::default()).unwrap();
+        assert_eq!(r.repeated_index_faces, 1);
+        assert_eq!(r.zero_area_faces, 1);
+        assert_eq!(r.duplicate_faces, 1);
+        assert_eq!(r.opposite_duplicate_pairs, 1);
+        assert_eq!(
+            r.unreferenced_vertices, 2,
+            "4 (only on the flat face) and 5"
+        );
+        assert_eq!(out.faces, vec![[0, 1, 2], [0, 2, 3], [2, 1, 0]]);
+        assert_eq!(out.face_attrs.label("tag").unwrap(), &[10, 11, 13]);
+        assert_eq!(out.n_vertices(), 4);
+    }
+
+    #[test]
+    fn switched_off_steps_keep_everything_and_say_so() {
+        let m = Mesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
+            vec![[0, 1, 2], [0, 1, 2], [1, 1, 2]],
+        );
+        let opts = HygieneOptions {
+            weld: false,
+            drop_degenerate: false,
+            degenerate_area_rel: 0.0,
+            drop_duplicate_faces: false,
+            drop_unreferenced: false,
+        };
+        let (out, r) = clean(m.clone(), &opts).unwrap();
+        assert_eq!(out, m);
+        assert!(r.lines().iter().filter(|l| l.contains("(off)")).count() >= 4);
+    }
+
+    #[test]
+    fn clean_is_deterministic() {
+        let a = clean(cube_soup(), &HygieneOptions::soup()).unwrap();
+        let b = clean(cube_soup(), &HygieneOptions::soup()).unwrap();
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn bunny_loses_its_unreferenced_vertices() {
+        let Some(dir) = shared_data() else {
+            return;
+        };
+        let m = read_obj(&dir.join("stanford-bunny.obj"));
+        let (out, r) = clean(m, &HygieneOptions::default()).unwrap();
+        assert_eq!(r.unreferenced_vertices, 1113);
+        assert_eq!(out.n_vertices(), 35947 - 1113);
+        assert_eq!(out.n_faces(), 69451);
+        let s = Topology::build(&out).summary(&out);
+        assert_eq!(s.n_isolated_vertices, 0);
+        assert_eq!(s.n_boundary_loops, 5);
+    }
+
+    #[test]
+    fn suzanne_keeps_and_reports_its_two_sided_face() {
+        let Some(dir) = shared_data() else {
+            return;
+        };
+        let m = read_obj(&dir.join("suzanne.obj"));
+        let (out, r) = clean(m, &HygieneOptions::default()).unwrap();
+        assert_eq!(r.opposite_duplicate_pairs, 1);
+        assert_eq!(r.duplicate_faces, 0);
+        assert_eq!(out.n_faces(), 968);
+    }
+
+    #[test]
+    fn welding_the_teapot_merges_its_403_duplicated_positions() {
+        let Some(dir) = shared_data() else {
+            return;
+        };
+        let m = read_obj(&dir.join("teapot.obj"));
+        let (out, r) = clean(m, &HygieneOptions::soup()).unwrap();
+        assert_eq!(r.welded_vertices, 403);
+        assert_eq!(out.n_vertices(), 3644 - 403);
+        // Welded, the seams close: the README's 4 parts become 4 components.
+        let s = Topology::build(&out).summary(&out);
+        assert_eq!(s.n_components, 4);
+    }
+}

@@ -32,7 +32,10 @@ pub mod topology;
 pub use attribute::{AttrKind, AttrValues, Attributes, Domain};
 pub use carry::{CarryReport, FaceOrigins, VertexOrigins};
 pub use coarsen_geom::{Aabb, DVec2, DVec3};
+pub use hygiene::{HygieneError, HygieneOptions, HygieneReport, clean};
+pub use sanity::{SanityError, SanityOptions, sanity_check, sanity_check_with};
 pub use topology::Topology;
+pub use topology::{TopologyError, TopologySummary};
 
 use coarsen_geom::triangle;
 
