@@ -1,0 +1,443 @@
+//! Mesh file formats for coarsen: OBJ, PLY, STL and OFF, read and written.
+//!
+//! This is the only crate of the workspace that knows file formats. It turns bytes into a
+//! [`Mesh`] faithfully — every vertex of the file (also unreferenced ones), every face
+//! (also degenerate ones), in file order — and a [`Mesh`] back into bytes. Cleaning a mesh
+//! is not its job: load-time hygiene lives in `coarsen_mesh::hygiene`. The one exception
+//! is STL, a triangle soup, whose corners are welded where their positions are
+//! bit-identical (see below).
+//!
+//! ```
+//! use coarsen_io::{read_bytes, write_to, Format, ReadOptions, WriteOptions};
+//! let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+//! let loaded = read_bytes(obj, Format::Obj, "square.obj", &ReadOptions::default())?;
+//! assert_eq!(loaded.mesh.faces, vec![[0, 1, 2], [0, 2, 3]]); // the quad as a fan
+//!
+//! let mut ply = Vec::new();
+//! write_to(&loaded.mesh, Format::Ply, &mut ply, &WriteOptions::default())?;
+//! let back = read_bytes(&ply, Format::Ply, "square.ply", &ReadOptions::default())?;
+//! assert_eq!(back.mesh, loaded.mesh);
+//! # Ok::<(), coarsen_io::IoError>(())
+//! ```
+//!
+//! # What each format reads and writes
+//!
+//! | format | reads | writes |
+//! | --- | --- | --- |
+//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` kept when per vertex | positions, `uv`, `normal` |
+//! | PLY | ASCII and both binary encodings, every scalar type, `vertex`, `face`, `tristrips`; other elements skipped | every attribute kind (binary little endian by default) |
+//! | STL | ASCII and binary (via `stl_io`), welded by exact position | binary, positions only (as `f32`) |
+//! | OFF | `OFF`, `COFF`, `NOFF`, … (colours and normals ignored) | positions and faces |
+//!
+//! Polygons are split into the triangles of a fan from their first corner:
+//! `(c0, c1, c2), (c0, c2, c3), …`; a polygon's face properties go to each of its
+//! triangles.
+//!
+//! # Errors and notes
+//!
+//! Every failure is an [`IoError`] naming the file and the line (text) or element
+//! (binary): `bunny.obj:1234: face refers to vertex 40000 but only 35947 vertices are
+//! defined`. Nothing panics on any input, NaN and infinite coordinates are refused, and
+//! header counts never drive allocation beyond what the file's remaining bytes could hold.
+//! Whatever a reader ignores or drops (an unknown PLY element, OBJ texture coordinates
+//! with seams) is said in [`Loaded::notes`].
+
+mod error;
+mod obj;
+mod off;
+mod ply;
+mod stl;
+mod text;
+
+pub use error::{ErrorKind, IoError, Location, RefKind};
+
+use coarsen_mesh::Mesh;
+use std::fmt;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::str::FromStr;
+
+/// A mesh file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Format {
+    /// Wavefront OBJ (text).
+    Obj,
+    /// Stanford PLY (ASCII or binary).
+    Ply,
+    /// STL (ASCII or binary), a triangle soup.
+    Stl,
+    /// Object File Format (text).
+    Off,
+}
+
+impl Format {
+    /// Every format, in a fixed order.
+    pub const ALL: [Format; 4] = [Format::Obj, Format::Ply, Format::Stl, Format::Off];
+
+    /// The format named by a path's extension (case-insensitive), if any.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        path.extension()?.to_str()?.parse().ok()
+    }
+
+    /// The usual file extension, lower case and without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Obj => "obj",
+            Format::Ply => "ply",
+            Format::Stl => "stl",
+            Format::Off => "off",
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::Obj => "OBJ",
+            Format::Ply => "PLY",
+            Format::Stl => "STL",
+            Format::Off => "OFF",
+        })
+    }
+}
+
+/// A format name or extension that names no known format.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown mesh format `{0}` (expected obj, ply, stl or off)")]
+pub struct UnknownFormat(pub String);
+
+impl FromStr for Format {
+    type Err = UnknownFormat;
+
+    /// Parses `obj`, `ply`, `stl` or `off`, in any case, with or without a leading dot.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let name = s.strip_prefix('.').unwrap_or(s);
+        Format::ALL
+            .into_iter()
+            .find(|f| f.extension().eq_ignore_ascii_case(name))
+            .ok_or_else(|| UnknownFormat(s.to_string()))
+    }
+}
+
+/// Limits that a reader enforces while reading.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Refuse files with more triangles than this (after splitting polygons).
+    /// Default `None`: no limit beyond 32-bit indices.
+    pub max_faces: Option<usize>,
+    /// Refuse files with more vertices than this. Default `None`: no limit beyond 32-bit
+    /// indices.
+    pub max_vertices: Option<usize>,
+}
+
+/// The encoding of a written PLY file.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PlyEncoding {
+    /// Text, one element per line, numbers in shortest round-trip form.
+    Ascii,
+    /// Binary, little endian (the default: compact, exact and fast).
+    #[default]
+    BinaryLittleEndian,
+    /// Binary, big endian.
+    BinaryBigEndian,
+}
+
+/// How meshes are written.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// Encoding of PLY files. Default [`PlyEncoding::BinaryLittleEndian`].
+    pub ply_encoding: PlyEncoding,
+    /// Write the attributes the format can hold (OBJ: `uv`, `normal`; PLY: all).
+    /// Default `true`; `false` writes positions and faces only.
+    pub attributes: bool,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            ply_encoding: PlyEncoding::default(),
+            attributes: true,
+        }
+    }
+}
+
+/// A mesh read from a file, with what the reader had to leave out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Loaded {
+    /// The mesh, exactly as the file gives it (indices checked, nothing cleaned).
+    pub mesh: Mesh,
+    /// The format it was read as.
+    pub format: Format,
+    /// One sentence per thing ignored or not kept (unknown elements, seamed UVs, …).
+    pub notes: Vec<String>,
+}
+
+/// Reads the mesh file at `path`; the format comes from the extension.
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Loaded, IoError> {
+    let name = path.display().to_string();
+    let format =
+        Format::from_path(path).ok_or_else(|| IoError::file(&name, ErrorKind::UnknownFormat))?;
+    let bytes = std::fs::read(path).map_err(|e| IoError::file(&name, e.into()))?;
+    read_bytes(&bytes, format, &name, opts)
+}
+
+/// Reads a mesh from the bytes of a file in `format`; `name` is the file name used in
+/// errors.
+pub fn read_bytes(
+    bytes: &[u8],
+    format: Format,
+    name: &str,
+    opts: &ReadOptions,
+) -> Result<Loaded, IoError> {
+    if bytes.is_empty() {
+        return Err(IoError::file(name, ErrorKind::Empty));
+    }
+    let (mesh, notes) = match format {
+        Format::Obj => obj::read(bytes, name, opts)?,
+        Format::Ply => ply::read(bytes, name, opts)?,
+        Format::Stl => stl::read(bytes, name, opts)?,
+        Format::Off => off::read(bytes, name, opts)?,
+    };
+    debug_assert!(mesh.validate_indices().is_ok());
+    Ok(Loaded {
+        mesh,
+        format,
+        notes,
+    })
+}
+
+/// Writes `mesh` to `path` in the format of its extension.
+///
+/// The bytes go to a temporary file in the same directory, which replaces `path` only once
+/// everything is written: a failure never leaves a half-written file nor clobbers an
+/// existing one.
+pub fn write_path(mesh: &Mesh, path: &Path, opts: &WriteOptions) -> Result<(), IoError> {
+    let name = path.display().to_string();
+    let format =
+        Format::from_path(path).ok_or_else(|| IoError::file(&name, ErrorKind::UnknownFormat))?;
+    check_writable(mesh, &name)?;
+    let os = |e: std::io::Error| IoError::file(&name, e.into());
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(os)?;
+    {
+        let mut w = BufWriter::new(tmp.as_file());
+        write_unchecked(mesh, format, &mut w, opts, &name)?;
+        w.flush().map_err(os)?;
+    }
+    set_output_permissions(tmp.as_file(), path).map_err(os)?;
+    tmp.persist(path).map_err(|e| os(e.error))?;
+    Ok(())
+}
+
+/// Writes `mesh` in `format` to `w`.
+pub fn write_to(
+    mesh: &Mesh,
+    format: Format,
+    w: &mut impl Write,
+    opts: &WriteOptions,
+) -> Result<(), IoError> {
+    let name = format!("<{format} output>");
+    check_writable(mesh, &name)?;
+    write_unchecked(mesh, format, w, opts, &name)
+}
+
+/// Refuses meshes whose indices or attribute columns are inconsistent.
+fn check_writable(mesh: &Mesh, name: &str) -> Result<(), IoError> {
+    mesh.validate_indices()
+        .map_err(|e| IoError::file(name, e.into()))
+}
+
+fn write_unchecked(
+    mesh: &Mesh,
+    format: Format,
+    w: &mut impl Write,
+    opts: &WriteOptions,
+    name: &str,
+) -> Result<(), IoError> {
+    let result = match format {
+        Format::Obj => obj::write(mesh, w, opts.attributes).map_err(ErrorKind::from),
+        Format::Ply => ply::write(mesh, w, opts.ply_encoding, opts.attributes),
+        Format::Stl => stl::write(mesh, w),
+        Format::Off => off::write(mesh, w).map_err(ErrorKind::from),
+    };
+    result.map_err(|kind| IoError::file(name, kind))
+}
+
+/// Gives the new file the permissions of the file it replaces, or the usual `rw-r--r--`
+/// (a temporary file starts private).
+fn set_output_permissions(file: &std::fs::File, target: &Path) -> std::io::Result<()> {
+    match std::fs::metadata(target) {
+        Ok(meta) => file.set_permissions(meta.permissions()),
+        #[cfg(unix)]
+        Err(_) => {
+            use std::os::unix::fs::PermissionsExt;
+            file.set_permissions(std::fs::Permissions::from_mode(0o644))
+        }
+        #[cfg(not(unix))]
+        Err(_) => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_mesh::{AttrValues, DVec2, DVec3};
+
+    fn tetrahedron() -> Mesh {
+        Mesh::new(
+            vec![
+                DVec3::new(0.1, 0.2, 0.3),
+                DVec3::new(1.0 / 3.0, 0.0, -0.0),
+                DVec3::new(0.0, 7e-12, 0.0),
+                DVec3::new(1e20, 0.5, 1.0),
+            ],
+            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
+        )
+    }
+
+    fn bits(m: &Mesh) -> Vec<[u64; 3]> {
+        m.positions
+            .iter()
+            .map(|p| p.to_array().map(f64::to_bits))
+            .collect()
+    }
+
+    #[test]
+    fn format_comes_from_the_extension_in_any_case() {
+        assert_eq!(Format::from_path(Path::new("a/b.OBJ")), Some(Format::Obj));
+        assert_eq!(Format::from_path(Path::new("x.Ply")), Some(Format::Ply));
+        assert_eq!(Format::from_path(Path::new("x.stl")), Some(Format::Stl));
+        assert_eq!(Format::from_path(Path::new("x.off")), Some(Format::Off));
+        assert_eq!(Format::from_path(Path::new("x.txt")), None);
+        assert_eq!(Format::from_path(Path::new("noext")), None);
+        assert_eq!(".ply".parse::<Format>(), Ok(Format::Ply));
+        assert!("gltf".parse::<Format>().is_err());
+    }
+
+    #[test]
+    fn empty_input_is_an_error_naming_the_file_in_every_format() {
+        for f in Format::ALL {
+            let e = read_bytes(b"", f, "empty.x", &ReadOptions::default()).unwrap_err();
+            assert_eq!(e.to_string(), "empty.x: the file is empty");
+        }
+    }
+
+    #[test]
+    fn every_format_round_trips_positions_and_faces() {
+        let m = tetrahedron();
+        for f in [Format::Obj, Format::Ply, Format::Off] {
+            let mut bytes = Vec::new();
+            write_to(&m, f, &mut bytes, &WriteOptions::default()).unwrap();
+            let back = read_bytes(&bytes, f, "t", &ReadOptions::default()).unwrap();
+            assert_eq!(bits(&back.mesh), bits(&m), "{f}");
+            assert_eq!(back.mesh.faces, m.faces, "{f}");
+            assert_eq!(back.format, f);
+        }
+        // STL stores f32 corners per triangle: the same triangles come back, positions
+        // rounded to f32 and vertices numbered by first appearance.
+        let mut bytes = Vec::new();
+        write_to(&m, Format::Stl, &mut bytes, &WriteOptions::default()).unwrap();
+        let back = read_bytes(&bytes, Format::Stl, "t.stl", &ReadOptions::default()).unwrap();
+        assert_eq!(back.mesh.n_vertices(), 4);
+        let corners = |m: &Mesh, f32: bool| {
+            (0..m.n_faces())
+                .map(|f| {
+                    m.corners(f)
+                        .map(|p| if f32 { p.as_vec3().as_dvec3() } else { p })
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(corners(&back.mesh, false), corners(&m, true));
+    }
+
+    #[test]
+    fn obj_to_binary_ply_to_obj_keeps_positions_bit_for_bit() {
+        let mut m = tetrahedron();
+        m.vertex_attrs.insert(
+            "uv",
+            AttrValues::Vec2(vec![DVec2::ZERO, DVec2::X, DVec2::Y, DVec2::ONE]),
+        );
+        let opts = WriteOptions::default();
+        let mut obj1 = Vec::new();
+        write_to(&m, Format::Obj, &mut obj1, &opts).unwrap();
+        let a = read_bytes(&obj1, Format::Obj, "a.obj", &ReadOptions::default()).unwrap();
+        let mut ply = Vec::new();
+        write_to(&a.mesh, Format::Ply, &mut ply, &opts).unwrap();
+        let b = read_bytes(&ply, Format::Ply, "b.ply", &ReadOptions::default()).unwrap();
+        let mut obj2 = Vec::new();
+        write_to(&b.mesh, Format::Obj, &mut obj2, &opts).unwrap();
+        let c = read_bytes(&obj2, Format::Obj, "c.obj", &ReadOptions::default()).unwrap();
+        assert_eq!(bits(&c.mesh), bits(&m));
+        assert_eq!(c.mesh, m);
+        assert_eq!(obj1, obj2);
+    }
+
+    #[test]
+    fn writing_an_invalid_mesh_is_refused() {
+        let mut m = tetrahedron();
+        m.faces[1] = [0, 1, 9];
+        let e = write_to(&m, Format::Ply, &mut Vec::new(), &WriteOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "<PLY output>: the mesh to write is invalid: face 1 names vertex 9, but the mesh has 4 vertices"
+        );
+    }
+
+    #[test]
+    fn write_path_replaces_the_target_only_on_success() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mesh.ply");
+        let m = tetrahedron();
+        write_path(&m, &path, &WriteOptions::default()).unwrap();
+        let first = std::fs::read(&path).unwrap();
+        assert_eq!(read_path(&path, &ReadOptions::default()).unwrap().mesh, m);
+
+        // A failing write (an attribute name PLY cannot hold) leaves the old file intact
+        // and no temporary file behind.
+        let mut bad = m.clone();
+        bad.vertex_attrs
+            .insert("two words", AttrValues::Scalar(vec![0.0; 4]));
+        let e = write_path(&bad, &path, &WriteOptions::default()).unwrap_err();
+        assert!(matches!(e.kind, ErrorKind::BadAttributeName(_)), "{e}");
+        assert_eq!(std::fs::read(&path).unwrap(), first);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+
+        // An invalid mesh is refused before anything is created.
+        let other = dir.path().join("other.obj");
+        let mut invalid = m.clone();
+        invalid.faces[0] = [0, 0, 99];
+        assert!(write_path(&invalid, &other, &WriteOptions::default()).is_err());
+        assert!(!other.exists());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn written_files_are_readable_by_others_like_ordinary_files() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.off");
+        write_path(&tetrahedron(), &path, &WriteOptions::default()).unwrap();
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o644);
+    }
+
+    #[test]
+    fn read_path_names_missing_files_and_unknown_extensions() {
+        let e = read_path(Path::new("/nonexistent/x.obj"), &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("/nonexistent/x.obj: "), "{e}");
+        let e = read_path(Path::new("x.gltf"), &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "x.gltf: cannot tell the mesh format from the file name (expected .obj, .ply, .stl or .off)"
+        );
+    }
+}

@@ -1,0 +1,752 @@
+//! Wavefront OBJ: our own line-numbered parser and a writer.
+//!
+//! Why not `tobj`: it reports no line numbers, and its `single_index` mode re-indexes
+//! vertices (one vertex per distinct position/uv/normal triple), so vertex `i` of the file
+//! would no longer be vertex `i` of the mesh. This reader keeps the file's vertex numbering
+//! exactly and names the line of every error.
+//!
+//! Read: `v x y z` (a trailing `w` or vertex colours are ignored, with a note), `vt u [v
+//! [w]]`, `vn x y z`, faces with corners `a`, `a/b`, `a//c`, `a/b/c` and negative
+//! (relative) indices. A polygon of `n ≥ 3` corners becomes the `n − 2` triangles of a
+//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. `l`, `p`, `g`, `o`, `s`,
+//! `usemtl`, `mtllib` and free-form statements are ignored and counted in a note. A line
+//! ending in `\` continues on the next. Absolute indices may point forward (they are
+//! checked against the final counts); relative ones count back from the line they are on.
+//!
+//! Texture coordinates and normals become the vertex attributes `uv` and `normal` only when
+//! they are per vertex: every face corner of vertex `v` refers to the same value. Otherwise
+//! (seams, creases, corners without one) they are not kept and a note says why. A vertex
+//! used by no face gets `(0, 0)` / `(0, 0, 0)`.
+//!
+//! Write: `v` with shortest round-trip decimals (positions read back bit for bit), `vt`
+//! from a `uv` column, `vn` from a `normal` column, and `f` with matching indices. Other
+//! attributes have no place in OBJ and are not written.
+
+use crate::ReadOptions;
+use crate::error::{ErrorKind, IoError, RefKind};
+use crate::text::{self, Lines, non_finite_name, parse_f64, parse_i64, show};
+use coarsen_mesh::{AttrValues, DVec2, DVec3, Mesh};
+use std::io::{self, Write};
+
+/// Marks "no texture coordinate / normal" at a corner.
+const NONE: u32 = u32::MAX;
+
+/// The largest absolute index seen for one kind of reference, and its line.
+#[derive(Default)]
+struct Farthest {
+    index: i64,
+    line: usize,
+}
+
+/// Per-corner references to `vt` or `vn`, stored only once some corner has one.
+#[derive(Default)]
+struct CornerRefs {
+    refs: Vec<u32>,
+    used: bool,
+    missing: usize,
+}
+
+impl CornerRefs {
+    /// Records the triangle corners `tri` (each an index or [`NONE`]); `n_before` is the
+    /// number of triangles before this one.
+    fn push(&mut self, tri: [u32; 3], n_before: usize) {
+        let any = tri.iter().any(|&r| r != NONE);
+        self.missing += tri.iter().filter(|&&r| r == NONE).count();
+        if any && !self.used {
+            self.refs.resize(3 * n_before, NONE);
+            self.used = true;
+        }
+        if self.used {
+            self.refs.extend_from_slice(&tri);
+        }
+    }
+}
+
+/// Parser state for one file.
+struct Reader<'o> {
+    name: String,
+    opts: &'o ReadOptions,
+    positions: Vec<DVec3>,
+    uvs: Vec<DVec2>,
+    normals: Vec<DVec3>,
+    faces: Vec<[u32; 3]>,
+    corner_vt: CornerRefs,
+    corner_vn: CornerRefs,
+    far: [Farthest; 3],
+    bad_vt: Option<(usize, &'static str)>,
+    bad_vn: Option<(usize, &'static str)>,
+    extra_vertex_values: usize,
+    ignored: Vec<(String, usize, usize)>,
+    poly: [Vec<u32>; 3],
+}
+
+/// Reads an OBJ file's bytes; `name` is used in errors.
+pub(crate) fn read(
+    bytes: &[u8],
+    name: &str,
+    opts: &ReadOptions,
+) -> Result<(Mesh, Vec<String>), IoError> {
+    let mut r = Reader {
+        name: name.to_string(),
+        opts,
+        positions: Vec::new(),
+        uvs: Vec::new(),
+        normals: Vec::new(),
+        faces: Vec::new(),
+        corner_vt: CornerRefs::default(),
+        corner_vn: CornerRefs::default(),
+        far: Default::default(),
+        bad_vt: None,
+        bad_vn: None,
+        extra_vertex_values: 0,
+        ignored: Vec::new(),
+        poly: Default::default(),
+    };
+    let mut lines = Lines::new(bytes);
+    while let Some((line, content)) = lines.next_line() {
+        r.statement(line, content)?;
+    }
+    r.finish()
+}
+
+impl Reader<'_> {
+    fn err(&self, line: usize, kind: ErrorKind) -> IoError {
+        IoError::line(&self.name, line, kind)
+    }
+
+    fn syntax(&self, line: usize, msg: String) -> IoError {
+        self.err(line, ErrorKind::Syntax(msg))
+    }
+
+    fn statement(&mut self, line: usize, content: &[u8]) -> Result<(), IoError> {
+        let mut toks = text::tokens(content);
+        let Some(keyword) = toks.next() else {
+            return Ok(());
+        };
+        match keyword {
+            b"v" => self.vertex(line, toks),
+            b"vt" => {
+                let [u, v] = self.numbers(line, "vt", toks, 1, [0.0; 2])?;
+                if let Some(bad) = [u, v].into_iter().find(|c| !c.is_finite())
+                    && self.bad_vt.is_none()
+                {
+                    self.bad_vt = Some((line, non_finite_name(bad)));
+                }
+                let p = DVec2::new(u, v);
+                self.uvs.push(p);
+                Ok(())
+            }
+            b"vn" => {
+                let [x, y, z] = self.numbers(line, "vn", toks, 3, [0.0; 3])?;
+                if let Some(bad) = [x, y, z].into_iter().find(|c| !c.is_finite())
+                    && self.bad_vn.is_none()
+                {
+                    self.bad_vn = Some((line, non_finite_name(bad)));
+                }
+                let n = DVec3::new(x, y, z);
+                self.normals.push(n);
+                Ok(())
+            }
+            b"f" => self.face(line, toks),
+            other => {
+                self.ignore(line, other);
+                Ok(())
+            }
+        }
+    }
+
+    /// Parses at least `min` and at most `N` leading numbers (the rest default to `fill`).
+    fn numbers<'t, const N: usize>(
+        &self,
+        line: usize,
+        what: &str,
+        toks: impl Iterator<Item = &'t [u8]>,
+        min: usize,
+        fill: [f64; N],
+    ) -> Result<[f64; N], IoError> {
+        let mut out = fill;
+        let mut n = 0;
+        for tok in toks.take(N) {
+            out[n] = parse_f64(tok).ok_or_else(|| {
+                self.syntax(line, format!("`{what}`: `{}` is not a number", show(tok)))
+            })?;
+            n += 1;
+        }
+        if n < min {
+            return Err(self.syntax(
+                line,
+                format!("`{what}` needs at least {min} numbers, found {n}"),
+            ));
+        }
+        Ok(out)
+    }
+
+    fn vertex<'t>(
+        &mut self,
+        line: usize,
+        mut toks: impl Iterator<Item = &'t [u8]>,
+    ) -> Result<(), IoError> {
+        let [x, y, z] = self.numbers(line, "v", toks.by_ref(), 3, [0.0; 3])?;
+        if toks.next().is_some() {
+            self.extra_vertex_values += 1;
+        }
+        let index = self.positions.len() as u64 + 1;
+        if let Some(bad) = [x, y, z].into_iter().find(|c| !c.is_finite()) {
+            return Err(IoError::line_element(
+                &self.name,
+                line,
+                "vertex",
+                index,
+                ErrorKind::NonFinite(non_finite_name(bad)),
+            ));
+        }
+        if let Some(limit) = self.opts.max_vertices
+            && self.positions.len() >= limit
+        {
+            return Err(self.err(line, ErrorKind::over_limit_vertices(limit)));
+        }
+        if self.positions.len() >= u32::MAX as usize {
+            return Err(self.err(
+                line,
+                ErrorKind::TooMany {
+                    count: index,
+                    what: "vertices",
+                },
+            ));
+        }
+        self.positions.push(DVec3::new(x, y, z));
+        Ok(())
+    }
+
+    /// Resolves one index as written (1-based, or negative = relative) into a 0-based one.
+    fn resolve(&mut self, line: usize, tok: &[u8], what: RefKind) -> Result<u32, IoError> {
+        let (slot, count) = match what {
+            RefKind::Vertex => (0, self.positions.len()),
+            RefKind::TexCoord => (1, self.uvs.len()),
+            RefKind::Normal => (2, self.normals.len()),
+        };
+        let index = parse_i64(tok)
+            .ok_or_else(|| self.syntax(line, format!("`{}` is not a {what} index", show(tok))))?;
+        let out_of_range = || {
+            self.err(
+                line,
+                ErrorKind::OutOfRange {
+                    what,
+                    index,
+                    count: count as u64,
+                },
+            )
+        };
+        match index {
+            0 => Err(self.syntax(
+                line,
+                format!("{what} index 0 is invalid (OBJ indices start at 1)"),
+            )),
+            i if i < 0 => {
+                let resolved = count as i64 + i;
+                if resolved < 0 {
+                    Err(out_of_range())
+                } else {
+                    Ok(resolved as u32)
+                }
+            }
+            i if i > u32::MAX as i64 => Err(out_of_range()),
+            i => {
+                let far = &mut self.far[slot];
+                if i > count as i64 && i > far.index {
+                    *far = Farthest { index: i, line };
+                }
+                Ok((i - 1) as u32)
+            }
+        }
+    }
+
+    fn face<'t>(
+        &mut self,
+        line: usize,
+        toks: impl Iterator<Item = &'t [u8]>,
+    ) -> Result<(), IoError> {
+        let mut poly = std::mem::take(&mut self.poly);
+        poly.iter_mut().for_each(Vec::clear);
+        for tok in toks {
+            let mut parts = tok.split(|&b| b == b'/');
+            let v = parts.next().unwrap_or_default();
+            let vt = parts.next().unwrap_or_default();
+            let vn = parts.next().unwrap_or_default();
+            if parts.next().is_some() || v.is_empty() {
+                return Err(self.syntax(
+                    line,
+                    format!(
+                        "`{}` is not a face corner (v, v/vt, v//vn or v/vt/vn)",
+                        show(tok)
+                    ),
+                ));
+            }
+            let v = self.resolve(line, v, RefKind::Vertex)?;
+            let vt = match vt {
+                [] => NONE,
+                t => self.resolve(line, t, RefKind::TexCoord)?,
+            };
+            let vn = match vn {
+                [] => NONE,
+                t => self.resolve(line, t, RefKind::Normal)?,
+            };
+            poly[0].push(v);
+            poly[1].push(vt);
+            poly[2].push(vn);
+        }
+        let n = poly[0].len();
+        if n < 3 {
+            return Err(self.syntax(
+                line,
+                format!("a face needs at least 3 corners, this one has {n}"),
+            ));
+        }
+        if let Some(limit) = self.opts.max_faces
+            && self.faces.len() + n - 2 > limit
+        {
+            return Err(self.err(line, ErrorKind::over_limit_faces(limit)));
+        }
+        if self.faces.len() + n - 2 > u32::MAX as usize {
+            return Err(self.err(
+                line,
+                ErrorKind::TooMany {
+                    count: (self.faces.len() + n - 2) as u64,
+                    what: "faces",
+                },
+            ));
+        }
+        for i in 1..n - 1 {
+            let fan = |c: &[u32]| [c[0], c[i], c[i + 1]];
+            let before = self.faces.len();
+            self.corner_vt.push(fan(&poly[1]), before);
+            self.corner_vn.push(fan(&poly[2]), before);
+            self.faces.push(fan(&poly[0]));
+        }
+        self.poly = poly;
+        Ok(())
+    }
+
+    fn ignore(&mut self, line: usize, keyword: &[u8]) {
+        const KNOWN: [&str; 8] = ["l", "p", "g", "o", "s", "usemtl", "mtllib", "vp"];
+        let key = match std::str::from_utf8(keyword) {
+            Ok(k) if KNOWN.contains(&k) => format!("`{k}`"),
+            _ => "unrecognised".to_string(),
+        };
+        match self.ignored.iter_mut().find(|(k, _, _)| *k == key) {
+            Some((_, n, _)) => *n += 1,
+            None => self.ignored.push((key, 1, line)),
+        }
+    }
+
+    fn finish(self) -> Result<(Mesh, Vec<String>), IoError> {
+        let counts = [self.positions.len(), self.uvs.len(), self.normals.len()];
+        let kinds = [RefKind::Vertex, RefKind::TexCoord, RefKind::Normal];
+        for ((far, count), what) in self.far.iter().zip(counts).zip(kinds) {
+            if far.index > count as i64 {
+                return Err(self.err(
+                    far.line,
+                    ErrorKind::OutOfRange {
+                        what,
+                        index: far.index,
+                        count: count as u64,
+                    },
+                ));
+            }
+        }
+        let mut notes = Vec::new();
+        if self.extra_vertex_values > 0 {
+            notes.push(format!(
+                "{} vertices have values after x y z (w or colours); ignored",
+                self.extra_vertex_values
+            ));
+        }
+        for (key, n, first) in &self.ignored {
+            let s = if *n == 1 { "" } else { "s" };
+            notes.push(format!(
+                "{n} {key} statement{s} ignored (first at line {first})"
+            ));
+        }
+        let mut mesh = Mesh::new(self.positions, self.faces);
+        let n = mesh.n_vertices();
+        let uv = per_vertex(&mesh.faces, &self.corner_vt, &self.uvs, n, self.bad_vt, UV);
+        match uv {
+            Ok(Some(v)) => mesh.vertex_attrs.insert("uv", AttrValues::Vec2(v)),
+            Ok(None) => {}
+            Err(note) => notes.push(note),
+        }
+        let normal = per_vertex(
+            &mesh.faces,
+            &self.corner_vn,
+            &self.normals,
+            n,
+            self.bad_vn,
+            NORMAL,
+        );
+        match normal {
+            Ok(Some(v)) => mesh.vertex_attrs.insert("normal", AttrValues::Vec3(v)),
+            Ok(None) => {}
+            Err(note) => notes.push(note),
+        }
+        Ok((mesh, notes))
+    }
+}
+
+/// Words for the notes about one kind of corner data.
+struct Words {
+    attr: &'static str,
+    one: &'static str,
+    many: &'static str,
+    why: &'static str,
+}
+
+const UV: Words = Words {
+    attr: "uv",
+    one: "texture coordinate",
+    many: "texture coordinates",
+    why: "seams",
+};
+
+const NORMAL: Words = Words {
+    attr: "normal",
+    one: "normal",
+    many: "normals",
+    why: "creases",
+};
+
+/// One value per vertex when every corner of each vertex names the same value;
+/// `Ok(None)` when no face refers to any; `Err(note)` saying why it cannot be kept.
+fn per_vertex<T: Copy + Default + PartialEq>(
+    faces: &[[u32; 3]],
+    corners: &CornerRefs,
+    values: &[T],
+    n_vertices: usize,
+    bad: Option<(usize, &'static str)>,
+    w: Words,
+) -> Result<Option<Vec<T>>, String> {
+    if !corners.used {
+        if values.is_empty() {
+            return Ok(None);
+        }
+        return Err(format!(
+            "{} not kept: no face refers to the {} {}",
+            w.attr,
+            values.len(),
+            w.many
+        ));
+    }
+    if corners.missing > 0 {
+        return Err(format!(
+            "{} not kept: {} face corners have no {} while others have one",
+            w.attr, corners.missing, w.one
+        ));
+    }
+    if let Some((line, what)) = bad {
+        return Err(format!(
+            "{} not kept: the {} at line {line} is {what}",
+            w.attr, w.one
+        ));
+    }
+    let mut chosen = vec![NONE; n_vertices];
+    let mut conflict = vec![false; n_vertices];
+    for (f, c) in faces.iter().zip(corners.refs.chunks_exact(3)) {
+        for (&v, &r) in f.iter().zip(c) {
+            let slot = &mut chosen[v as usize];
+            if *slot == NONE {
+                *slot = r;
+            } else if *slot != r && values[*slot as usize] != values[r as usize] {
+                conflict[v as usize] = true;
+            }
+        }
+    }
+    let n_conflicts = conflict.iter().filter(|&&c| c).count();
+    if n_conflicts > 0 {
+        return Err(format!(
+            "{} not kept: {n_conflicts} vertices have several {} ({})",
+            w.attr, w.many, w.why
+        ));
+    }
+    Ok(Some(
+        chosen
+            .iter()
+            .map(|&r| {
+                if r == NONE {
+                    T::default()
+                } else {
+                    values[r as usize]
+                }
+            })
+            .collect(),
+    ))
+}
+
+/// Writes `mesh` as OBJ (positions, `uv` and `normal` columns, faces).
+pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Result<()> {
+    let uv = attributes.then(|| mesh.vertex_attrs.vec2("uv")).flatten();
+    let normal = attributes
+        .then(|| mesh.vertex_attrs.vec3("normal"))
+        .flatten();
+    writeln!(
+        w,
+        "# {} vertices, {} faces",
+        mesh.n_vertices(),
+        mesh.n_faces()
+    )?;
+    for p in &mesh.positions {
+        vector(w, "v", &[p.x, p.y, p.z])?;
+    }
+    for t in uv.unwrap_or_default() {
+        vector(w, "vt", &[t.x, t.y])?;
+    }
+    for n in normal.unwrap_or_default() {
+        vector(w, "vn", &[n.x, n.y, n.z])?;
+    }
+    for f in &mesh.faces {
+        w.write_all(b"f")?;
+        for &v in f {
+            let i = u64::from(v) + 1;
+            match (uv.is_some(), normal.is_some()) {
+                (false, false) => write!(w, " {i}")?,
+                (true, false) => write!(w, " {i}/{i}")?,
+                (false, true) => write!(w, " {i}//{i}")?,
+                (true, true) => write!(w, " {i}/{i}/{i}")?,
+            }
+        }
+        w.write_all(b"\n")?;
+    }
+    Ok(())
+}
+
+/// Writes `keyword x y …` with round-trip decimals.
+fn vector(w: &mut impl Write, keyword: &str, xs: &[f64]) -> io::Result<()> {
+    w.write_all(keyword.as_bytes())?;
+    for &x in xs {
+        w.write_all(b" ")?;
+        text::write_f64(w, x)?;
+    }
+    w.write_all(b"\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(src: &str) -> Result<(Mesh, Vec<String>), IoError> {
+        read(src.as_bytes(), "t.obj", &ReadOptions::default())
+    }
+
+    fn err(src: &str) -> String {
+        load(src).unwrap_err().to_string()
+    }
+
+    const SQUARE: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+
+    #[test]
+    fn every_corner_form_reads_the_same_vertices() {
+        let src = format!(
+            "{SQUARE}vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\nf 1 2 3\nf 1/1 2/2 3/3\nf 1//1 2//1 3//1\nf 1/1/1 2/2/1 3/3/1\n"
+        );
+        let (m, _) = load(&src).unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2]; 4]);
+    }
+
+    #[test]
+    fn negative_indices_count_back_from_the_current_line() {
+        let (m, _) = load("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 5 5 5\nf -4 -1 -2\n").unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2], [0, 3, 2]]);
+    }
+
+    #[test]
+    fn quads_become_two_triangles_and_pentagons_three_as_a_fan() {
+        let src = format!("{SQUARE}v 0.5 2 0\nf 1 2 3 4\nf 1 2 3 5 4\n");
+        let (m, _) = load(&src).unwrap();
+        assert_eq!(
+            m.faces,
+            vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 4], [0, 4, 3]]
+        );
+    }
+
+    #[test]
+    fn ignored_statements_are_counted_in_notes_and_continuations_join() {
+        let src = format!(
+            "mtllib a.mtl\no thing\ng a\ng b\ns 1\nusemtl red\n{SQUARE}l 1 2\nf 1 2 \\\n 3\ncurv 0 1 2\n"
+        );
+        let (m, notes) = load(&src).unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2]]);
+        assert!(notes.contains(&"2 `g` statements ignored (first at line 3)".to_string()));
+        assert!(notes.contains(&"1 `l` statement ignored (first at line 11)".to_string()));
+        assert!(
+            notes
+                .iter()
+                .any(|n| n.starts_with("1 unrecognised statement"))
+        );
+    }
+
+    #[test]
+    fn w_and_vertex_colours_are_ignored_with_a_note() {
+        let (m, notes) = load("v 0 0 0 1\nv 1 0 0 0.5 0.5 0.5\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(m.positions[1], DVec3::X);
+        assert_eq!(
+            notes[0],
+            "2 vertices have values after x y z (w or colours); ignored"
+        );
+    }
+
+    #[test]
+    fn unreferenced_vertices_and_degenerate_faces_are_kept() {
+        let (m, _) = load("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 9 9 9\nf 1 1 2\n").unwrap();
+        assert_eq!(m.n_vertices(), 4);
+        assert_eq!(m.faces, vec![[0, 0, 1]]);
+    }
+
+    #[test]
+    fn per_vertex_uv_and_normals_are_kept() {
+        let src = format!(
+            "{SQUARE}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n"
+        );
+        let (m, notes) = load(&src).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
+        assert_eq!(
+            m.vertex_attrs.vec2("uv").unwrap(),
+            &[DVec2::ZERO, DVec2::X, DVec2::ONE, DVec2::Y]
+        );
+        assert_eq!(m.vertex_attrs.vec3("normal").unwrap(), &[DVec3::Z; 4]);
+    }
+
+    #[test]
+    fn uv_with_seams_is_not_kept_and_the_note_counts_vertices() {
+        // Vertex 1 takes uv 1 in one face and uv 5 (a different value) in the other;
+        // vertex 3 takes uv 3 and uv 6, which hold the same value: not a seam.
+        let src = format!(
+            "{SQUARE}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0\nvt 1 1\nf 1/1 2/2 3/3\nf 1/5 3/6 4/4\n"
+        );
+        let (m, notes) = load(&src).unwrap();
+        assert!(m.vertex_attrs.get("uv").is_none());
+        assert_eq!(
+            notes,
+            ["uv not kept: 1 vertices have several texture coordinates (seams)"]
+        );
+    }
+
+    #[test]
+    fn normals_missing_at_some_corners_are_not_kept() {
+        let src = format!("{SQUARE}vn 0 0 1\nf 1 2 3\nf 1//1 3//1 4//1\n");
+        let (m, notes) = load(&src).unwrap();
+        assert!(m.vertex_attrs.get("normal").is_none());
+        assert_eq!(
+            notes,
+            ["normal not kept: 3 face corners have no normal while others have one"]
+        );
+    }
+
+    #[test]
+    fn out_of_range_index_names_line_index_and_count() {
+        assert_eq!(
+            err("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 40000\n"),
+            "t.obj:5: face refers to vertex 40000 but only 3 vertices are defined"
+        );
+        assert_eq!(
+            err("v 0 0 0\nf 1 -2 1\n"),
+            "t.obj:2: face refers to vertex -2 but only 1 vertices are defined"
+        );
+        assert_eq!(
+            err("v 0 0 0\nv 0 0 0\nv 0 0 0\nvt 0 0\nf 1/1 2/2 3/1\n"),
+            "t.obj:5: face refers to texture coordinate 2 but only 1 texture coordinates are defined"
+        );
+    }
+
+    #[test]
+    fn forward_references_are_allowed_when_the_vertex_comes_later() {
+        let (m, _) = load("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+        assert_eq!(m.faces, vec![[0, 1, 2]]);
+        assert_eq!(
+            err("f 1 2 3\nv 0 0 0\nv 1 0 0\nf 1 2 7\nv 0 1 0\n"),
+            "t.obj:4: face refers to vertex 7 but only 3 vertices are defined"
+        );
+    }
+
+    #[test]
+    fn nan_coordinate_names_the_vertex_and_line() {
+        assert_eq!(
+            err("v 0 0 0\n# c\nv 1 nan 0\n"),
+            "t.obj:3: vertex 2: coordinate is NaN"
+        );
+        assert_eq!(
+            err("v inf 0 0\n"),
+            "t.obj:1: vertex 1: coordinate is infinite"
+        );
+    }
+
+    #[test]
+    fn malformed_statements_are_errors_naming_the_line() {
+        assert_eq!(
+            err("v 0 0\n"),
+            "t.obj:1: `v` needs at least 3 numbers, found 2"
+        );
+        assert_eq!(err("v 0 x 0\n"), "t.obj:1: `v`: `x` is not a number");
+        assert_eq!(
+            err("v 0 0 0\nv 1 0 0\nf 1 2\n"),
+            "t.obj:3: a face needs at least 3 corners, this one has 2"
+        );
+        assert_eq!(
+            err("v 0 0 0\nf 0 1 1\n"),
+            "t.obj:2: vertex index 0 is invalid (OBJ indices start at 1)"
+        );
+        assert_eq!(
+            err("v 0 0 0\nf 1/1/1/1 1 1\n"),
+            "t.obj:2: `1/1/1/1` is not a face corner (v, v/vt, v//vn or v/vt/vn)"
+        );
+        assert_eq!(
+            err("v 0 0 0\nf 1 1 99999999999999999999\n"),
+            "t.obj:2: `99999999999999999999` is not a vertex index"
+        );
+    }
+
+    #[test]
+    fn max_faces_limit_is_enforced() {
+        let opts = ReadOptions {
+            max_faces: Some(1),
+            ..Default::default()
+        };
+        let src = format!("{SQUARE}f 1 2 3 4\n");
+        let e = read(src.as_bytes(), "t.obj", &opts)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "t.obj:5: more than 1 faces (the limit set by ReadOptions::max_faces)"
+        );
+    }
+
+    #[test]
+    fn written_obj_reads_back_bit_for_bit_with_attributes() {
+        let mut m = Mesh::new(
+            vec![
+                DVec3::new(0.1, -1e-300, 1.0 / 3.0),
+                DVec3::new(1e17, 2.0, -0.0),
+                DVec3::new(0.3, 0.7, 5e-324),
+            ],
+            vec![[0, 1, 2], [2, 1, 0]],
+        );
+        m.vertex_attrs.insert(
+            "uv",
+            AttrValues::Vec2(vec![DVec2::new(0.1, 0.2), DVec2::X, DVec2::Y]),
+        );
+        m.vertex_attrs.insert(
+            "normal",
+            AttrValues::Vec3(vec![DVec3::Z, DVec3::X, DVec3::Y]),
+        );
+        let mut bytes = Vec::new();
+        write(&m, &mut bytes, true).unwrap();
+        let (back, notes) = read(&bytes, "t.obj", &ReadOptions::default()).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
+        let bits = |m: &Mesh| {
+            m.positions
+                .iter()
+                .map(|p| p.to_array().map(f64::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&back), bits(&m));
+        assert_eq!(back, m);
+    }
+}
