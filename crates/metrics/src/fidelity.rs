@@ -1,0 +1,395 @@
+//! Fidelity of one surface to another: sampled two-sided distances (metrics spec,
+//! "Fidelity to the input").
+//!
+//! # Sampling rule
+//!
+//! With `F = max(input faces, output faces)` and `k = `[`FidelityOptions::samples_per_face`]
+//! (default 10), `T = k·F` face samples are drawn in all: `⌈T/2⌉` on the input (measured
+//! against the output: the forward direction) and `⌊T/2⌋` on the output (measured against
+//! the input: the backward direction). On top of these, every vertex used by a face is a
+//! sample of its own mesh's direction, measured with the first face that uses it. So [`Fidelity::n_samples`] is
+//! `T + used input vertices + used output vertices`, at least the spec's `10 × F`.
+//!
+//! Face samples are spread over one mesh's faces in proportion to area: with `Cᵢ` the
+//! area of faces `0..i` and `A` the total, face `i` gets `⌊S·Cᵢ₊₁/A⌋ − ⌊S·Cᵢ/A⌋` of that
+//! mesh's `S` samples (so exactly `S` in all; zero-area faces get none). Within a face,
+//! sample `j` sits at barycentric `(u, v)` of the additive recurrence
+//! `u = frac(1/3 + j/g)`, `v = frac(1/3 + j/g²)` (`g` the plastic number), folded into the
+//! triangle: the first is the centroid and the next ones fill the face evenly. The samples
+//! are thus a pure function of the mesh: no random state, the same every run.
+//!
+//! Each sample's distance is to the nearest point of the other surface (point to
+//! triangle, through a [`Bvh`]). Distances that are rounding noise — at most
+//! [`ROUNDING_FLOOR`] times the larger of the input's diagonal and its largest coordinate
+//! magnitude — count as exactly 0, so a mesh measured against itself scores 0.
+//! The faces are split into fixed chunks, measured in parallel and summed in chunk order:
+//! the figures are bit-for-bit the same on any number of threads.
+
+use crate::error::{MetricsError, Role};
+use crate::prepare::{Prepared, map_chunks};
+use crate::validity::{encloses_volume, topology};
+use coarsen_mesh::{DVec3, Mesh};
+use coarsen_spatial::Bvh;
+use serde::{Deserialize, Serialize};
+
+/// Distances up to this fraction of the input's scale (see the module docs) count as 0.
+pub const ROUNDING_FLOOR: f64 = 1e-12;
+
+/// Faces per parallel chunk.
+const CHUNK: usize = 1024;
+
+/// The plastic number `g`, root of `g³ = g + 1`; `1/g` and `1/g²` drive the in-face
+/// sample sequence.
+const PLASTIC: f64 = 1.324_717_957_244_746;
+
+/// How fidelity is sampled.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FidelityOptions {
+    /// Face samples in all (both directions together) per face of the larger mesh; the
+    /// vertices come on top (see the module docs). Default 10, the spec's minimum.
+    pub samples_per_face: u32,
+}
+
+impl Default for FidelityOptions {
+    fn default() -> Self {
+        FidelityOptions {
+            samples_per_face: 10,
+        }
+    }
+}
+
+/// How far the output surface is from the input surface, as percents of the input's
+/// bounding-box diagonal.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Fidelity {
+    /// Symmetric Hausdorff distance: the larger of `forward_max_pct` and `backward_max_pct`.
+    pub hausdorff_pct: f64,
+    /// Mean of all sampled distances, both directions pooled.
+    pub mean_dist_pct: f64,
+    /// Root mean square of all sampled distances, both directions pooled.
+    pub rms_dist_pct: f64,
+    /// Largest distance from a sample of the input to the output surface.
+    pub forward_max_pct: f64,
+    /// Largest distance from a sample of the output to the input surface.
+    pub backward_max_pct: f64,
+    /// Number of samples, both directions (see the module docs for the rule).
+    pub n_samples: u64,
+    /// The input's bounding-box diagonal (of the vertices used by faces), in model units.
+    pub bbox_diagonal: f64,
+    /// `|V_out − V_in| / |V_in| · 100` with signed volumes, when both meshes are closed and
+    /// consistently oriented and the input encloses a non-zero volume; else `None`.
+    pub volume_change_pct: Option<f64>,
+}
+
+/// Measures how far `output` lies from `input` (see the module docs for the sampling).
+///
+/// Errors when either mesh has a bad index or a bad used vertex (not finite, or beyond
+/// ±[`MAX_COORDINATE`](crate::MAX_COORDINATE)), when either has no faces, or when the
+/// input's diagonal is zero.
+pub fn fidelity(
+    input: &Mesh,
+    output: &Mesh,
+    opts: &FidelityOptions,
+) -> Result<Fidelity, MetricsError> {
+    let input = Prepared::new(input, Role::Input)?;
+    let output = Prepared::new(output, Role::Output)?;
+    let (in_bvh, out_bvh) = rayon::join(
+        || Bvh::build(&input.mesh.positions, &input.mesh.faces),
+        || Bvh::build(&output.mesh.positions, &output.mesh.faces),
+    );
+    let closed = |p: &Prepared, role| topology(p, role).is_ok_and(|t| encloses_volume(&t));
+    let both_closed = closed(&input, Role::Input) && closed(&output, Role::Output);
+    fidelity_of(&input, &in_bvh, &output, &out_bvh, both_closed, opts)
+}
+
+/// [`fidelity`] of checked meshes with their trees built.
+pub(crate) fn fidelity_of(
+    input: &Prepared,
+    in_bvh: &Bvh,
+    output: &Prepared,
+    out_bvh: &Bvh,
+    both_closed: bool,
+    opts: &FidelityOptions,
+) -> Result<Fidelity, MetricsError> {
+    for (p, role) in [(input, Role::Input), (output, Role::Output)] {
+        if p.mesh.faces.is_empty() {
+            return Err(MetricsError::NoFaces { mesh: role });
+        }
+    }
+    let diagonal = input.bbox.diagonal();
+    if !(diagonal.is_finite() && diagonal > 0.0) {
+        return Err(MetricsError::BadExtent { diagonal });
+    }
+    let scale = diagonal.max(input.bbox.min.abs().max(input.bbox.max.abs()).max_element());
+    let floor = ROUNDING_FLOOR * scale;
+
+    let total =
+        u64::from(opts.samples_per_face) * input.mesh.n_faces().max(output.mesh.n_faces()) as u64;
+    let forward = one_side(input, out_bvh, total.div_ceil(2), floor);
+    let backward = one_side(output, in_bvh, total / 2, floor);
+
+    let mut pooled = forward;
+    pooled.merge(&backward);
+    let n = pooled.count.max(1) as f64;
+    let pct = |d: f64| 100.0 * d / diagonal;
+    let volume_change_pct = both_closed
+        .then(|| volume_change(input.mesh, output.mesh))
+        .flatten();
+    Ok(Fidelity {
+        hausdorff_pct: pct(forward.max.max(backward.max)),
+        mean_dist_pct: pct(pooled.sum / n),
+        rms_dist_pct: pct((pooled.sum_sq / n).sqrt()),
+        forward_max_pct: pct(forward.max),
+        backward_max_pct: pct(backward.max),
+        n_samples: pooled.count,
+        bbox_diagonal: diagonal,
+        volume_change_pct,
+    })
+}
+
+/// Relative change of signed volume, in percent; `None` when the input's is zero.
+fn volume_change(input: &Mesh, output: &Mesh) -> Option<f64> {
+    let (v_in, v_out) = (input.signed_volume(), output.signed_volume());
+    let change = 100.0 * (v_out - v_in).abs() / v_in.abs();
+    change.is_finite().then_some(change)
+}
+
+/// Running figures of a set of sampled distances.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Stats {
+    count: u64,
+    max: f64,
+    sum: f64,
+    sum_sq: f64,
+}
+
+impl Stats {
+    #[inline]
+    fn add(&mut self, d: f64) {
+        self.count += 1;
+        self.max = self.max.max(d);
+        self.sum += d;
+        self.sum_sq += d * d;
+    }
+
+    fn merge(&mut self, o: &Stats) {
+        self.count += o.count;
+        self.max = self.max.max(o.max);
+        self.sum += o.sum;
+        self.sum_sq += o.sum_sq;
+    }
+}
+
+/// Distances from `samples` face samples plus every used vertex of `from` to the surface
+/// in `to`, gathered face by face: a face's samples are the vertices it is the first face
+/// to use, then its share of `samples`.
+fn one_side(from: &Prepared, to: &Bvh, samples: u64, floor: f64) -> Stats {
+    let mesh = from.mesh;
+    let n_faces = mesh.n_faces();
+
+    // Each used vertex is sampled once, with the first face that uses it.
+    let mut owner = vec![u32::MAX; mesh.n_vertices()];
+    for (f, face) in mesh.faces.iter().enumerate().rev() {
+        for &v in face {
+            owner[v as usize] = f as u32;
+        }
+    }
+
+    // Cumulative areas give each face its share of the samples.
+    let mut cumulative = Vec::with_capacity(n_faces + 1);
+    let mut area = 0.0;
+    cumulative.push(0.0);
+    for f in 0..n_faces {
+        area += mesh.face_area(f);
+        cumulative.push(area);
+    }
+    let spread = area > 0.0 && area.is_finite();
+    let before = |f: usize| -> u64 {
+        if !spread {
+            0
+        } else if f == n_faces {
+            samples
+        } else {
+            ((samples as f64 * cumulative[f] / area).floor() as u64).min(samples)
+        }
+    };
+
+    let parts = map_chunks(n_faces, CHUNK, |range| {
+        let mut stats = Stats::default();
+        let mut measure = |p: DVec3| {
+            // `to` holds every face of a checked, non-empty mesh: a nearest point exists.
+            let d = to.closest_point(p).map_or(0.0, |h| h.distance());
+            stats.add(if d <= floor { 0.0 } else { d });
+        };
+        for f in range {
+            let face = mesh.faces[f];
+            let corners = mesh.corners(f);
+            for k in 0..3 {
+                if owner[face[k] as usize] == f as u32 && !face[..k].contains(&face[k]) {
+                    measure(corners[k]);
+                }
+            }
+            let [a, b, c] = corners;
+            for j in 0..before(f + 1) - before(f) {
+                let (u, v) = face_sample(j);
+                measure(a + (b - a) * u + (c - a) * v);
+            }
+        }
+        stats
+    });
+
+    let mut total = Stats::default();
+    for part in &parts {
+        total.merge(part);
+    }
+    total
+}
+
+/// Barycentric `(u, v)` of the `j`-th sample in a face (weights of corners b and c).
+#[inline]
+fn face_sample(j: u64) -> (f64, f64) {
+    let j = j as f64;
+    let u = (1.0 / 3.0 + j / PLASTIC).fract();
+    let v = (1.0 / 3.0 + j / (PLASTIC * PLASTIC)).fract();
+    if u + v > 1.0 {
+        (1.0 - u, 1.0 - v)
+    } else {
+        (u, v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_meshes::icosphere;
+
+    fn scaled(m: &Mesh, s: f64) -> Mesh {
+        Mesh::new(
+            m.positions.iter().map(|p| *p * s).collect(),
+            m.faces.clone(),
+        )
+    }
+
+    #[test]
+    fn identical_meshes_are_exactly_zero_apart() {
+        let m = icosphere(3);
+        let f = fidelity(&m, &m, &FidelityOptions::default()).unwrap();
+        assert_eq!(f.hausdorff_pct, 0.0);
+        assert_eq!(f.mean_dist_pct, 0.0);
+        assert_eq!(f.rms_dist_pct, 0.0);
+        assert_eq!(f.volume_change_pct, Some(0.0));
+    }
+
+    /// Inner polyhedron P (vertices on the unit sphere) against (1+d)·P. Every point x of
+    /// P is d·|x| ≤ d from (1+d)·x, and every vertex of (1+d)·P is at least d from P
+    /// (P lies in the unit ball): the Hausdorff distance is exactly d. The forward
+    /// direction is smaller: a vertex of P is d·h from (1+d)·P, h the distance of its
+    /// faces' planes from the centre.
+    #[test]
+    fn sphere_against_its_scaled_copy_is_d_apart() {
+        let m = icosphere(3);
+        let d = 0.01;
+        let f = fidelity(&m, &scaled(&m, 1.0 + d), &FidelityOptions::default()).unwrap();
+        let diag = m.bbox().diagonal();
+        let expect = 100.0 * d / diag;
+        assert!(
+            (f.hausdorff_pct - expect).abs() < 1e-9 * expect,
+            "{} vs {expect}",
+            f.hausdorff_pct
+        );
+        assert_eq!(f.backward_max_pct, f.hausdorff_pct);
+        let h_min = (0..m.n_faces())
+            .map(|i| m.face_normal(i).dot(m.corners(i)[0]))
+            .fold(f64::INFINITY, f64::min);
+        assert!(f.forward_max_pct >= expect * h_min * (1.0 - 1e-9));
+        assert!(f.forward_max_pct <= expect);
+        assert!(f.mean_dist_pct > expect * h_min * 0.9 && f.mean_dist_pct <= expect);
+        // Volume scales by (1+d)³.
+        let dv = 100.0 * ((1.0 + d).powi(3) - 1.0);
+        assert!((f.volume_change_pct.unwrap() - dv).abs() < 1e-9);
+    }
+
+    #[test]
+    fn sample_count_follows_the_stated_rule() {
+        let fine = icosphere(3);
+        let coarse = icosphere(1);
+        let opts = FidelityOptions {
+            samples_per_face: 7,
+        };
+        let f = fidelity(&fine, &coarse, &opts).unwrap();
+        let t = 7 * fine.n_faces() as u64;
+        assert_eq!(
+            f.n_samples,
+            t + fine.n_vertices() as u64 + coarse.n_vertices() as u64
+        );
+        assert!(f.n_samples >= 7 * fine.n_faces() as u64);
+    }
+
+    #[test]
+    fn face_samples_start_at_the_centroid_and_stay_inside() {
+        assert_eq!(face_sample(0), (1.0 / 3.0, 1.0 / 3.0));
+        for j in 0..1000 {
+            let (u, v) = face_sample(j);
+            assert!(u >= 0.0 && v >= 0.0 && u + v <= 1.0, "{j}: {u} {v}");
+        }
+    }
+
+    #[test]
+    fn same_figures_twice_and_on_one_thread() {
+        let a = icosphere(4);
+        let b = scaled(&icosphere(2), 1.02);
+        let opts = FidelityOptions::default();
+        let first = fidelity(&a, &b, &opts).unwrap();
+        assert_eq!(first, fidelity(&a, &b, &opts).unwrap());
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let single = pool.install(|| fidelity(&a, &b, &opts).unwrap());
+        assert_eq!(first, single);
+        assert_eq!(
+            first.hausdorff_pct.to_bits(),
+            single.hausdorff_pct.to_bits()
+        );
+    }
+
+    #[test]
+    fn open_meshes_have_no_volume_change() {
+        let a = icosphere(2);
+        let mut b = a.clone();
+        b.faces.pop();
+        let f = fidelity(&a, &b, &FidelityOptions::default()).unwrap();
+        assert_eq!(f.volume_change_pct, None);
+    }
+
+    #[test]
+    fn empty_and_pointlike_meshes_are_named_errors() {
+        let a = icosphere(1);
+        let empty = Mesh::new(a.positions.clone(), Vec::new());
+        let opts = FidelityOptions::default();
+        assert_eq!(
+            fidelity(&a, &empty, &opts),
+            Err(MetricsError::NoFaces { mesh: Role::Output })
+        );
+        let point = Mesh::new(vec![DVec3::ONE; 3], vec![[0, 1, 2]]);
+        assert_eq!(
+            fidelity(&point, &a, &opts),
+            Err(MetricsError::BadExtent { diagonal: 0.0 })
+        );
+    }
+
+    #[test]
+    fn degenerate_faces_and_loose_vertices_do_not_break_the_figures() {
+        let mut a = icosphere(2);
+        let n = a.positions.len() as u32;
+        a.positions.push(DVec3::splat(50.0)); // unused: neither sampled nor in the box
+        a.faces.push([0, 0, 1]); // zero area
+        a.faces.push([0, 1, n - 1]);
+        let f = fidelity(&a, &icosphere(2), &FidelityOptions::default()).unwrap();
+        for x in [f.hausdorff_pct, f.mean_dist_pct, f.rms_dist_pct] {
+            assert!(x.is_finite());
+        }
+        assert!((f.bbox_diagonal - icosphere(2).bbox().diagonal()).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,266 @@
+//! Validity of the output mesh: counts, topology, degenerate and flipped faces (metrics
+//! spec, "Validity of the output").
+
+use crate::error::{MetricsError, Role};
+use crate::prepare::{Prepared, map_chunks};
+use coarsen_geom::triangle;
+use coarsen_mesh::topology::TopologySummary;
+use coarsen_mesh::{DVec3, Mesh, Topology};
+use coarsen_spatial::Bvh;
+use serde::{Deserialize, Serialize};
+
+/// Output faces per parallel chunk of the flip test.
+const CHUNK: usize = 2048;
+
+/// Counts and topology of the output, and its faces that are degenerate or turned over.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Validity {
+    /// Vertices of the mesh (all of them, used by a face or not).
+    pub n_vertices: usize,
+    /// Faces of the mesh.
+    pub n_faces: usize,
+    /// Every edge has one or two faces and every vertex's faces form one fan.
+    pub manifold: bool,
+    /// Connected components of faces (joined across edges).
+    pub n_components: usize,
+    /// Boundary loops.
+    pub n_boundary_loops: usize,
+    /// Total genus from Euler's formula per component (`g = (2 − χ − b)/2`), `None` when a
+    /// component is not an orientable manifold.
+    pub genus: Option<i64>,
+    /// Faces with a repeated vertex or an area below `1e-12 × (bbox diagonal)²`.
+    pub n_degenerate: usize,
+    /// Faces whose normal is more than 90° from the input surface's normal at the input
+    /// point nearest the face's centroid; `None` when there is no input to compare with.
+    /// The input normal at a point inside a face is that face's normal; on an edge, the
+    /// area-weighted mean of the edge's faces; at a vertex, the area-weighted vertex
+    /// normal (where such a mean vanishes, the nearest face's own normal). Degenerate
+    /// output faces have no normal and are never counted.
+    pub n_flipped: Option<usize>,
+}
+
+/// Checks `output` and, when an `input` is given, counts output faces turned against it.
+///
+/// Errors when a mesh has a bad index or a bad used vertex (not finite, or beyond
+/// ±[`MAX_COORDINATE`](crate::MAX_COORDINATE)), or is too large for the topology tables.
+pub fn validity(input: Option<&Mesh>, output: &Mesh) -> Result<Validity, MetricsError> {
+    let output = Prepared::new(output, Role::Output)?;
+    let out_topology = topology(&output, Role::Output)?;
+    let flip = match input {
+        Some(input) => {
+            let input = Prepared::new(input, Role::Input)?;
+            let in_topology = topology(&input, Role::Input)?;
+            let bvh = Bvh::build(&input.mesh.positions, &input.mesh.faces);
+            Some(count_flipped(&output, &input, &bvh, &in_topology))
+        }
+        None => None,
+    };
+    Ok(validity_of(
+        &output,
+        &out_topology.summary(output.mesh),
+        flip,
+    ))
+}
+
+/// Builds the topology of a checked mesh.
+pub(crate) fn topology(p: &Prepared, role: Role) -> Result<Topology, MetricsError> {
+    Topology::try_build(p.mesh).map_err(|source| MetricsError::Topology { mesh: role, source })
+}
+
+/// True when the mesh is closed (no boundary edge), manifold and consistently oriented,
+/// so that its signed volume is the volume it encloses.
+pub(crate) fn encloses_volume(t: &Topology) -> bool {
+    t.n_edges() > 0
+        && t.is_manifold()
+        && t.is_consistently_oriented()
+        && (0..t.n_edges() as u32).all(|e| !t.is_boundary_edge(e))
+}
+
+/// [`validity`] of a checked mesh, from its topology summary and its flipped-face count.
+pub(crate) fn validity_of(
+    output: &Prepared,
+    summary: &TopologySummary,
+    n_flipped: Option<usize>,
+) -> Validity {
+    Validity {
+        n_vertices: output.mesh.n_vertices(),
+        n_faces: output.mesh.n_faces(),
+        manifold: summary.manifold,
+        n_components: summary.n_components,
+        n_boundary_loops: summary.n_boundary_loops,
+        genus: summary.genus_total,
+        n_degenerate: summary.n_degenerate_faces,
+        n_flipped,
+    }
+}
+
+/// Output faces whose normal points away (> 90°) from the input normal nearest their
+/// centroid (see [`Validity::n_flipped`]).
+pub(crate) fn count_flipped(
+    output: &Prepared,
+    input: &Prepared,
+    in_bvh: &Bvh,
+    in_topology: &Topology,
+) -> usize {
+    let (out_mesh, in_mesh) = (output.mesh, input.mesh);
+    let vertex_normals = in_mesh.vertex_normals();
+    let face_cross = |f: u32| {
+        let [a, b, c] = in_mesh.corners(f as usize);
+        triangle::cross(a, b, c)
+    };
+    // The input's normal at the nearest point: of the face, the edge or the vertex it
+    // lies on (a barycentric weight of exactly 0 puts it on the opposite edge).
+    let input_normal = |face: u32, bary: [f64; 3]| -> DVec3 {
+        let [p, q, r] = in_mesh.faces[face as usize];
+        let edge_normal = |a: u32, b: u32| {
+            in_topology.find_edge(a, b).map_or(DVec3::ZERO, |e| {
+                in_topology
+                    .edge_faces(e)
+                    .iter()
+                    .map(|&f| face_cross(f))
+                    .sum()
+            })
+        };
+        let n = match bary.map(|w| w != 0.0) {
+            [true, false, false] => vertex_normals[p as usize],
+            [false, true, false] => vertex_normals[q as usize],
+            [false, false, true] => vertex_normals[r as usize],
+            [true, true, false] => edge_normal(p, q),
+            [false, true, true] => edge_normal(q, r),
+            [true, false, true] => edge_normal(r, p),
+            _ => DVec3::ZERO,
+        };
+        if n.length_squared() > 0.0 {
+            n
+        } else {
+            face_cross(face)
+        }
+    };
+    map_chunks(out_mesh.n_faces(), CHUNK, |range| {
+        range
+            .filter(|&f| {
+                let [a, b, c] = out_mesh.corners(f);
+                let n_out = triangle::cross(a, b, c);
+                if n_out == DVec3::ZERO {
+                    return false;
+                }
+                in_bvh
+                    .closest_point(triangle::centroid(a, b, c))
+                    .is_some_and(|hit| n_out.dot(input_normal(hit.face, hit.bary)) < 0.0)
+            })
+            .count()
+    })
+    .into_iter()
+    .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_meshes::icosphere;
+
+    #[test]
+    fn closed_sphere_is_a_valid_genus_zero_manifold() {
+        let m = icosphere(2);
+        let v = validity(Some(&m), &m).unwrap();
+        assert_eq!(
+            v,
+            Validity {
+                n_vertices: 162,
+                n_faces: 320,
+                manifold: true,
+                n_components: 1,
+                n_boundary_loops: 0,
+                genus: Some(0),
+                n_degenerate: 0,
+                n_flipped: Some(0),
+            }
+        );
+        assert_eq!(validity(None, &m).unwrap().n_flipped, None);
+    }
+
+    #[test]
+    fn turned_over_faces_are_counted_as_flipped() {
+        let input = icosphere(3);
+        let mut output = icosphere(2);
+        for f in [0, 5, 17] {
+            output.faces[f].swap(1, 2);
+        }
+        let v = validity(Some(&input), &output).unwrap();
+        assert_eq!(v.n_flipped, Some(3));
+        // A face turned over inside a closed surface makes its edges run the same way
+        // as the neighbours': still closed, but not oriented.
+        assert!(v.manifold);
+    }
+
+    /// A steep ridge (two faces meeting at 2·atan(0.1) ≈ 11°) and an output face hanging
+    /// above it, tilted towards the left slope: its centroid's nearest input point is on
+    /// the ridge edge, where the input normal is the mean of both slopes (straight up).
+    /// Judged against the right slope alone it would look turned over; it is not. The
+    /// same face turned over is.
+    ///
+    /// ```text
+    ///        out (normal ∝ (−3, 0, 1))
+    ///
+    ///         /\   ridge along y at x = 0, z = 0
+    ///        /  \
+    ///   (−1,0,−10) (1,0,−10)
+    /// ```
+    #[test]
+    fn faces_above_a_sharp_ridge_are_judged_against_both_slopes() {
+        let input = Mesh::new(
+            vec![
+                DVec3::new(0.0, -1.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(1.0, 0.0, -10.0),
+                DVec3::new(-1.0, 0.0, -10.0),
+            ],
+            vec![[0, 2, 1], [0, 1, 3]],
+        );
+        let n = DVec3::new(-3.0, 0.0, 1.0).normalize();
+        let (u, v) = (DVec3::Y, n.cross(DVec3::Y));
+        let centre = DVec3::new(0.0, 0.0, 1.0);
+        let s = 3f64.sqrt() / 2.0;
+        let corners = vec![
+            centre + u * 0.1,
+            centre + (u * -0.5 + v * s) * 0.1,
+            centre + (u * -0.5 - v * s) * 0.1,
+        ];
+        let mut output = Mesh::new(corners, vec![[0, 1, 2]]);
+        assert!(output.face_normal(0).dot(n) > 0.999);
+        assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
+        output.faces[0].swap(1, 2);
+        assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(1));
+    }
+
+    #[test]
+    fn an_open_disc_with_a_sliver_has_a_boundary_and_a_degenerate_face() {
+        let mut m = icosphere(2);
+        // Drop the faces around vertex 0: one hole.
+        m.faces.retain(|f| !f.contains(&0));
+        // A zero-area face joined to nothing else: a second component with its own loop.
+        let n = m.positions.len() as u32;
+        m.positions
+            .extend([DVec3::splat(3.0), DVec3::splat(4.0), DVec3::splat(5.0)]);
+        m.faces.push([n, n + 1, n + 2]);
+        let v = validity(None, &m).unwrap();
+        assert_eq!(v.n_components, 2);
+        assert_eq!(v.n_boundary_loops, 2);
+        assert_eq!(v.n_degenerate, 1);
+        assert_eq!(v.genus, Some(0));
+    }
+
+    #[test]
+    fn encloses_volume_needs_closed_and_oriented() {
+        let m = icosphere(1);
+        let t = |m: &Mesh| Topology::try_build(m).unwrap();
+        assert!(encloses_volume(&t(&m)));
+        let mut open = m.clone();
+        open.faces.pop();
+        assert!(!encloses_volume(&t(&open)));
+        let mut turned = m.clone();
+        turned.faces[3].swap(0, 1);
+        assert!(!encloses_volume(&t(&turned)));
+        assert!(!encloses_volume(&t(&Mesh::default())));
+    }
+}
