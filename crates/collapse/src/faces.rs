@@ -1,0 +1,155 @@
+//! Vertex → faces lists that change as vertices merge: one arena of `u32`, a block per
+//! vertex.
+//!
+//! Built by counting sort (counts, prefix sum, fill), so every block starts exactly full.
+//! A list that outgrows its block moves to the end of the arena; when the abandoned
+//! blocks outweigh the used ones the arena is compacted in one pass. Nothing is allocated
+//! per vertex.
+
+use crate::Index;
+
+#[derive(Clone, Debug, Default)]
+pub(crate) struct FaceLists {
+    start: Vec<u32>,
+    len: Vec<u32>,
+    cap: Vec<u32>,
+    data: Vec<Index>,
+    /// Sum of `cap` over all blocks in use.
+    used: usize,
+}
+
+impl FaceLists {
+    /// Lists of the faces around each of `n_vertices` vertices; faces with `use_face[f]`
+    /// false are left out.
+    pub(crate) fn build(n_vertices: usize, faces: &[[Index; 3]], use_face: &[bool]) -> Self {
+        let mut len = vec![0u32; n_vertices];
+        for (f, &ok) in faces.iter().zip(use_face) {
+            if ok {
+                for &v in f {
+                    len[v as usize] += 1;
+                }
+            }
+        }
+        let mut start = Vec::with_capacity(n_vertices);
+        let mut total = 0u32;
+        for &l in &len {
+            start.push(total);
+            total += l;
+        }
+        let mut data = vec![0; total as usize];
+        // Room for the blocks that move while collapsing, so that the arena rarely grows.
+        data.reserve(total as usize / 2);
+        let mut cursor = start.clone();
+        for (f, (face, &ok)) in faces.iter().zip(use_face).enumerate() {
+            if ok {
+                for &v in face {
+                    let c = &mut cursor[v as usize];
+                    data[*c as usize] = f as Index;
+                    *c += 1;
+                }
+            }
+        }
+        FaceLists {
+            start,
+            cap: len.clone(),
+            len,
+            data,
+            used: total as usize,
+        }
+    }
+
+    /// The faces around `v`.
+    #[inline]
+    pub(crate) fn get(&self, v: Index) -> &[Index] {
+        let s = self.start[v as usize] as usize;
+        &self.data[s..s + self.len[v as usize] as usize]
+    }
+
+    /// Removes face `f` from `v`'s list, keeping the order of the others.
+    pub(crate) fn remove(&mut self, v: Index, f: Index) {
+        let s = self.start[v as usize] as usize;
+        let l = self.len[v as usize] as usize;
+        if let Some(i) = self.data[s..s + l].iter().position(|&x| x == f) {
+            self.data.copy_within(s + i + 1..s + l, s + i);
+            self.len[v as usize] -= 1;
+        }
+    }
+
+    /// Replaces `v`'s list by `items`.
+    pub(crate) fn set(&mut self, v: Index, items: &[Index]) {
+        let vi = v as usize;
+        let n = items.len() as u32;
+        if n > self.cap[vi] {
+            self.used -= self.cap[vi] as usize;
+            self.cap[vi] = n + n / 2 + 2;
+            self.used += self.cap[vi] as usize;
+            self.start[vi] = self.data.len() as u32;
+            self.data
+                .resize(self.data.len() + self.cap[vi] as usize, Index::MAX);
+        }
+        let s = self.start[vi] as usize;
+        self.data[s..s + items.len()].copy_from_slice(items);
+        self.len[vi] = n;
+        if self.data.len() > 2 * self.used + 1024 {
+            self.compact();
+        }
+    }
+
+    /// Empties `v`'s list and releases its block.
+    pub(crate) fn clear(&mut self, v: Index) {
+        let vi = v as usize;
+        self.used -= self.cap[vi] as usize;
+        self.cap[vi] = 0;
+        self.len[vi] = 0;
+    }
+
+    /// Moves every list to a fresh arena, blocks in vertex order, without slack.
+    fn compact(&mut self) {
+        let mut data = Vec::with_capacity(self.used + self.used / 2);
+        for v in 0..self.start.len() {
+            let s = self.start[v] as usize;
+            let l = self.len[v] as usize;
+            self.start[v] = data.len() as u32;
+            data.extend_from_slice(&self.data[s..s + l]);
+            self.cap[v] = l as u32;
+        }
+        self.used = data.len();
+        self.data = data;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lists_follow_face_order_and_skip_unused_faces() {
+        let faces = [[0, 1, 2], [0, 2, 3], [1, 1, 2]];
+        let l = FaceLists::build(4, &faces, &[true, true, false]);
+        assert_eq!(l.get(0), &[0, 1]);
+        assert_eq!(l.get(1), &[0]);
+        assert_eq!(l.get(2), &[0, 1]);
+        assert_eq!(l.get(3), &[1]);
+    }
+
+    #[test]
+    fn growing_a_list_moves_it_and_compaction_keeps_every_list() {
+        let faces = [[0, 1, 2], [0, 2, 3]];
+        let mut l = FaceLists::build(4, &faces, &[true, true]);
+        l.set(1, &[7, 8, 9]);
+        assert_eq!(l.get(1), &[7, 8, 9]);
+        assert_eq!(l.get(0), &[0, 1]);
+        l.remove(1, 8);
+        assert_eq!(l.get(1), &[7, 9]);
+        l.clear(3);
+        assert!(l.get(3).is_empty());
+        // Many moves force compactions; every list survives them.
+        for i in 0..2000u32 {
+            l.set(2, &(0..(i % 50)).collect::<Vec<_>>());
+        }
+        assert_eq!(l.get(2).len(), 1999 % 50);
+        assert_eq!(l.get(1), &[7, 9]);
+        assert_eq!(l.get(0), &[0, 1]);
+        assert!(l.data.len() <= 2 * l.used + 1024 + 100);
+    }
+}

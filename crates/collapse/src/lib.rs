@@ -1,0 +1,323 @@
+//! The collapse engine of coarsen: greedy mesh simplification by merging vertices.
+//!
+//! Both simplifiers of the project are built on it:
+//!
+//! * `simplify.qem` (Garland & Heckbert 1997) collapses **edges**: 2 vertices → 1;
+//! * `simplify.svec` (Zhou, Zhang & Cheng, paper 2) collapses **triangles**: 3 vertices → 1,
+//!   and the triangle's three edge-neighbours disappear with it.
+//!
+//! Both are "merge a connected set of vertices into one new vertex at a chosen position".
+//! The engine owns everything that does not depend on the error metric: incremental
+//! adjacency, the priority queue, the validity checks, the boundary rules, the targets, the
+//! collapse log and the output mesh. A [`CostModel`] says what a merge costs and where the
+//! new vertex goes ([`QuadricModel`] is the QEM one).
+//!
+//! ```
+//! use coarsen_collapse::{Goal, LiveMesh, Options, QemOptions, QuadricModel};
+//! use coarsen_mesh::{DVec3, Mesh};
+//! // An octahedron: 6 vertices, 8 faces.
+//! let p = [DVec3::X, DVec3::Y, -DVec3::X, -DVec3::Y, DVec3::Z, -DVec3::Z];
+//! let faces = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4],
+//!                  [1, 0, 5], [2, 1, 5], [3, 2, 5], [0, 3, 5]];
+//! let mesh = Mesh::new(p.to_vec(), faces);
+//! let mut live = LiveMesh::new(&mesh)?;
+//! let mut model = QuadricModel::new(&live, &QemOptions::default());
+//! let outcome = live.collapse(&mut model, &Options::new(Goal::Vertices(5)), &mut |_| {});
+//! let (out, _carry) = live.to_mesh(&mesh)?;
+//! assert_eq!((out.n_vertices(), out.n_faces()), (5, 6));
+//! assert_eq!(outcome.collapses, 1);
+//! # Ok::<(), coarsen_collapse::CollapseError>(())
+//! ```
+//!
+//! # How a run goes
+//!
+//! 1. **Classify vertices** ([`LiveMesh::new`]): each vertex's faces, walked around it, must
+//!    form one closed fan (*interior*) or one open fan (*boundary*). Anything else — a
+//!    bow-tie, an edge with three faces, two faces using an edge in the same direction, a
+//!    face that repeats a vertex — makes the vertex *locked*: it never moves and no
+//!    collapse touches it. Non-manifold input is therefore accepted, and left alone where
+//!    it is non-manifold, instead of refused. Vertices that no face uses are dropped from
+//!    the output (and counted by [`LiveMesh::summary`]).
+//! 2. **Rank candidates**: every edge (or triangle) whose vertex kinds allow a collapse
+//!    (see the table below) is costed by the model and pushed on a binary heap keyed by
+//!    `(cost, insertion sequence)`, so equal costs — zero costs on flat regions in
+//!    particular — are taken first-in first-out, as paper 2 prescribes.
+//! 3. **Collapse** the cheapest candidate unless a check refuses it; entries go stale
+//!    lazily (each holds the sum of its vertices' version stamps) rather than being
+//!    removed from the heap. After a collapse the candidates around the new vertex are
+//!    re-costed and pushed again, and refused candidates whose neighbourhood changed are
+//!    re-queued. The loop stops at the goal, at the error limit, or when no candidate is
+//!    left.
+//! 4. **Compact** ([`LiveMesh::to_mesh`]): surviving vertices and faces keep their input
+//!    order; every attribute is carried by `Mesh::rebuilt` (a merged vertex is the equal
+//!    blend of all input vertices merged into it; a face keeps its input face as parent).
+//!
+//! # Rules
+//!
+//! Which merges the vertex kinds allow (`B` = boundary vertices among the merged ones):
+//!
+//! | kinds merged | allowed | position |
+//! | --- | --- | --- |
+//! | any locked vertex | never | — |
+//! | no boundary vertex | yes | the model's choice |
+//! | one boundary vertex | yes | that boundary vertex (it does not move) |
+//! | two boundary vertices | only if the edge joining them is a boundary edge | the model's choice (QEM keeps it on the boundary with constraint planes) |
+//! | three boundary vertices | never | — |
+//!
+//! So a boundary vertex moves only along its boundary, an interior vertex may collapse onto
+//! the boundary, and an interior edge joining two boundary vertices is never collapsed.
+//!
+//! Checks made before every collapse, with the reason counted in [`Refusals`]:
+//!
+//! * **link** — the faces kept around the new vertex must form exactly one fan: a closed
+//!   fan of at least 3 faces when no merged vertex was on the boundary, one open fan
+//!   otherwise. This is the link condition of Dey et al. in a form that holds for edge and
+//!   triangle merges alike: a common neighbour that is not an opposite vertex (paper 2's
+//!   "hidden cycle") shows up as a vertex twice in the fan; a tetrahedron's collapse leaves
+//!   a fan of two faces (a duplicated face); closing a boundary loop turns an open fan into
+//!   a closed one; a collapse that would remove every face of a vertex leaves no fan.
+//! * **degenerate** — a kept face whose area would fall below `1e-12 · diagonal²` (the
+//!   metrics' definition of a degenerate face), unless it already was degenerate;
+//! * **flip** — a kept face whose normal would turn by 90° or more;
+//! * **quality** (only with [`Options::min_quality`] > 0) — a kept face whose quality
+//!   (Frey–Borouchaki Q) would end below the minimum *and* below its current quality;
+//! * **boundary** and **locked** — counted when a candidate is ranked, per the table above.
+//!
+//! # Targets
+//!
+//! [`Goal::Vertices`] is met exactly whenever the checks allow it: each edge collapse
+//! removes exactly one vertex (a triangle collapse removes two, so it may end one below).
+//! [`Goal::Faces`] is met to within one face: an interior edge collapse removes two faces,
+//! a boundary one removes one. When the goal cannot be reached, [`Outcome::stop`] says why.
+//!
+//! # Determinism
+//!
+//! No hash map, no threads, no randomness: the same input gives the same output bytes.
+
+mod faces;
+mod live;
+mod qem;
+mod queue;
+mod ring;
+
+#[cfg(test)]
+mod fixtures;
+
+pub use live::{LiveMesh, MAX_FACES, Summary};
+pub use qem::{QemOptions, QuadricModel};
+
+use coarsen_geom::DVec3;
+
+/// A vertex or face index.
+pub type Index = u32;
+
+/// The "no such vertex" value in fixed-size vertex lists.
+pub const NONE: Index = Index::MAX;
+
+/// What one collapse merges.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unit {
+    /// The two ends of an edge (Garland–Heckbert edge collapse).
+    Edge,
+    /// The three corners of a triangle (paper 2's triangle constriction).
+    Triangle,
+}
+
+/// Which candidates must be re-costed after a collapse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reach {
+    /// Only those containing the new vertex (the cost depends on per-vertex data only,
+    /// as with quadrics accumulated per vertex).
+    Kept,
+    /// Those containing the new vertex or one of its neighbours (the cost depends on the
+    /// faces around the candidate, as with paper 2's per-face quadrics).
+    Ring,
+}
+
+/// The kind of a vertex, fixed when the [`LiveMesh`] is built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VertexKind {
+    /// Its faces form one closed fan.
+    Interior,
+    /// Its faces form one open fan.
+    Boundary,
+    /// Non-manifold, or used by a face that repeats a vertex: never moved nor merged.
+    Locked,
+    /// Used by no face: dropped from the output.
+    Isolated,
+}
+
+/// A merge the engine asks a [`CostModel`] about.
+#[derive(Clone, Copy, Debug)]
+pub struct Merge<'a> {
+    /// The vertices to merge (2 for an edge, 3 for a triangle), in ascending order for edges.
+    pub vertices: &'a [Index],
+    /// When set, the new vertex must sit at this (boundary) vertex's position.
+    pub pinned: Option<Index>,
+}
+
+/// A cost model's answer: where the merged vertex goes and what that costs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plan {
+    /// Position of the merged vertex.
+    pub position: DVec3,
+    /// Cost (finite, ≥ 0); lower collapses first.
+    pub cost: f64,
+}
+
+/// An error metric: costs merges, places merged vertices, and keeps its per-vertex data
+/// up to date as the engine collapses.
+pub trait CostModel {
+    /// What a candidate is: an edge or a triangle.
+    fn unit(&self) -> Unit;
+    /// Which candidates a collapse makes stale.
+    fn reach(&self) -> Reach;
+    /// The position and cost of `merge`, or `None` to refuse it. Must be deterministic:
+    /// the engine calls it again when the candidate comes off the queue.
+    fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan>;
+    /// Called after `merged` (which includes `kept`) became vertex `kept`, already at its
+    /// new position and with its new faces.
+    fn merged(&mut self, mesh: &LiveMesh, kept: Index, merged: &[Index]);
+}
+
+/// The size a run stops at.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Goal {
+    /// At most this many vertices used by faces (exactly this many when reachable).
+    Vertices(usize),
+    /// At most this many faces (one fewer at worst: see the crate docs).
+    Faces(usize),
+}
+
+/// Settings of one run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    /// Where to stop.
+    pub goal: Goal,
+    /// Stop before the first collapse costing more than this (model units). Default `None`.
+    pub max_error: Option<f64>,
+    /// Refuse collapses leaving a face below this quality (and below its current quality);
+    /// `0` turns the check off. Default `0`.
+    pub min_quality: f64,
+}
+
+impl Options {
+    /// Stop at `goal`, no error limit, no quality guard.
+    pub fn new(goal: Goal) -> Self {
+        Options {
+            goal,
+            max_error: None,
+            min_quality: 0.0,
+        }
+    }
+}
+
+/// Why a run stopped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StopReason {
+    /// The goal was met.
+    Reached,
+    /// The cheapest remaining collapse costs more than the error limit.
+    MaxError {
+        /// Its cost.
+        cost: f64,
+    },
+    /// Every remaining candidate is refused by a check or a rule.
+    Exhausted,
+}
+
+/// How many candidates each check or rule refused (a candidate refused again after its
+/// neighbourhood changed counts again).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Refusals {
+    /// The result would not be a manifold, or would close a hole or lose a vertex.
+    pub link: u64,
+    /// A kept face would turn by 90° or more.
+    pub flip: u64,
+    /// A kept face would become degenerate.
+    pub degenerate: u64,
+    /// A kept face would fall below the minimum quality.
+    pub quality: u64,
+    /// The boundary rules forbid the merge.
+    pub boundary: u64,
+    /// A locked vertex is involved.
+    pub locked: u64,
+    /// The cost model refused (or returned a non-finite plan).
+    pub model: u64,
+}
+
+/// One collapse performed, in input vertex indices: enough to replay the sequence (and,
+/// later, to build a progressive mesh).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CollapseRecord {
+    /// The vertex that survived (it now sits at `position`).
+    pub kept: Index,
+    /// The vertices merged into it ([`NONE`] when unused: edges merge one).
+    pub removed: [Index; 2],
+    /// The new position.
+    pub position: DVec3,
+    /// The model's cost.
+    pub cost: f64,
+    /// Paper 2's squared-volume error of this collapse: v̄ᵀ(Σ (1/9) Sᵢ² p pᵀ)v̄ over the
+    /// faces around the merged vertices, before the collapse.
+    pub sve: f64,
+}
+
+/// What a run did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// Why it stopped.
+    pub stop: StopReason,
+    /// Collapses performed.
+    pub collapses: usize,
+    /// Candidates refused, by reason.
+    pub refused: Refusals,
+    /// Sum of the collapses' squared-volume errors (metrics.md `sve`).
+    pub sve: f64,
+    /// The largest cost of a collapse performed (0 when none).
+    pub max_cost: f64,
+    /// Every collapse, in order.
+    pub log: Vec<CollapseRecord>,
+}
+
+/// Why a mesh cannot be collapsed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CollapseError {
+    /// Indices out of range, too many elements, or attribute columns of the wrong length.
+    #[error(transparent)]
+    Index(#[from] coarsen_mesh::IndexError),
+    /// More faces than the engine's 32-bit tables hold ([`MAX_FACES`]).
+    #[error("{faces} faces exceed the {max} that the collapse engine supports")]
+    TooLarge {
+        /// Faces of the mesh.
+        faces: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite position ({x}, {y}, {z})")]
+    NonFinite {
+        /// The vertex.
+        vertex: usize,
+        /// Its x coordinate.
+        x: f64,
+        /// Its y coordinate.
+        y: f64,
+        /// Its z coordinate.
+        z: f64,
+    },
+    /// [`LiveMesh::to_mesh`] was given a mesh other than the one the live mesh was built from.
+    #[error(
+        "the mesh given has {vertices} vertices and {faces} faces, but the collapsed mesh was built from {expected_vertices} and {expected_faces}"
+    )]
+    MeshMismatch {
+        /// Vertices of the mesh given.
+        vertices: usize,
+        /// Faces of the mesh given.
+        faces: usize,
+        /// Vertices of the mesh built from.
+        expected_vertices: usize,
+        /// Faces of the mesh built from.
+        expected_faces: usize,
+    },
+}

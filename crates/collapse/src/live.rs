@@ -1,0 +1,1512 @@
+//! The mesh being collapsed: flat arrays plus incremental vertex → faces lists.
+
+use crate::faces::FaceLists;
+use crate::queue::{Entry, Queue};
+use crate::ring::{RingShape, ring_shape};
+use crate::{
+    CollapseError, CollapseRecord, CostModel, Goal, Index, Merge, NONE, Options, Outcome, Plan,
+    Reach, Refusals, StopReason, Unit, VertexKind,
+};
+use coarsen_geom::{Aabb, DVec3, is_finite, triangle};
+use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};
+
+/// Face states.
+const LIVE: u8 = 0;
+const DEAD: u8 = 1;
+/// A face that repeats a vertex: kept as it is, outside the adjacency (its vertices are locked).
+const PASSIVE: u8 = 2;
+
+/// A face is degenerate below this area, relative to the squared bounding-box diagonal
+/// (metrics.md's `n_degenerate`).
+const DEGENERATE_AREA: f64 = 1e-12;
+
+/// The most faces a [`LiveMesh`] takes: its vertex → faces arena (three corners per
+/// face, with room to grow) then fits `u32` offsets.
+pub const MAX_FACES: usize = (u32::MAX / 8) as usize;
+
+/// How often (in collapses) the progress callback is told.
+const PROGRESS_EVERY: usize = 4096;
+
+/// Why a candidate was not collapsed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Refusal {
+    Link,
+    Flip,
+    Degenerate,
+    Quality,
+    Boundary,
+    Locked,
+    Model,
+}
+
+impl Refusals {
+    fn count(&mut self, r: Refusal) {
+        *match r {
+            Refusal::Link => &mut self.link,
+            Refusal::Flip => &mut self.flip,
+            Refusal::Degenerate => &mut self.degenerate,
+            Refusal::Quality => &mut self.quality,
+            Refusal::Boundary => &mut self.boundary,
+            Refusal::Locked => &mut self.locked,
+            Refusal::Model => &mut self.model,
+        } += 1;
+    }
+}
+
+/// Figures of a live mesh's current state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Summary {
+    /// Vertices used by faces.
+    pub vertices: usize,
+    /// Faces (passive ones, which repeat a vertex, included).
+    pub faces: usize,
+    /// Vertices used by no face (dropped from the output).
+    pub isolated_vertices: usize,
+    /// Vertices whose faces form one open fan.
+    pub boundary_vertices: usize,
+    /// Non-manifold vertices, and vertices of faces that repeat a vertex.
+    pub locked_vertices: usize,
+    /// Edges with exactly one face.
+    pub boundary_edges: usize,
+    /// Closed chains of boundary edges (exact when no vertex is locked).
+    pub boundary_loops: usize,
+    /// Euler characteristic V − E + F (exact when no vertex is locked).
+    pub euler: i64,
+}
+
+/// A mesh under collapse: positions, faces, vertex kinds and vertex → faces lists, all
+/// updated in place by each collapse.
+#[derive(Clone, Debug)]
+pub struct LiveMesh {
+    pos: Vec<DVec3>,
+    faces: Vec<[Index; 3]>,
+    face_state: Vec<u8>,
+    lists: FaceLists,
+    kind: Vec<VertexKind>,
+    alive: Vec<bool>,
+    stamp: Vec<u32>,
+    /// The input vertices merged into each vertex, as linked lists (`cluster_next`), with
+    /// the last one of each list in `cluster_tail`.
+    cluster_next: Vec<Index>,
+    cluster_tail: Vec<Index>,
+    n_vertices: usize,
+    n_faces: usize,
+    diagonal: f64,
+    /// Twice the degenerate area: a face whose cross product is this short is degenerate.
+    min_cross: f64,
+}
+
+/// Work buffers of one run, reused by every collapse.
+struct Scratch {
+    ring: Vec<(Index, Index)>,
+    targets: Vec<Index>,
+    kept_faces: Vec<(Index, usize)>,
+    list: Vec<Index>,
+    around: Vec<Index>,
+    touched: Vec<Index>,
+    in_touched: Marks,
+    seen: Marks,
+}
+
+/// A set of indices cleared in O(1) by bumping a generation.
+struct Marks {
+    gen_of: Vec<u32>,
+    generation: u32,
+}
+
+impl Marks {
+    fn new(n: usize) -> Self {
+        Marks {
+            gen_of: vec![0; n],
+            generation: 0,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.gen_of.iter_mut().for_each(|g| *g = 0);
+            self.generation = 1;
+        }
+    }
+
+    /// Adds `i`; true when it was not in the set.
+    #[inline]
+    fn insert(&mut self, i: Index) -> bool {
+        let g = &mut self.gen_of[i as usize];
+        let fresh = *g != self.generation;
+        *g = self.generation;
+        fresh
+    }
+
+    #[inline]
+    fn contains(&self, i: Index) -> bool {
+        self.gen_of[i as usize] == self.generation
+    }
+}
+
+/// The ring edge `x → y` of face `face` around its corner `c`.
+#[inline]
+fn ring_edge(face: [Index; 3], c: usize) -> (Index, Index) {
+    (face[(c + 1) % 3], face[(c + 2) % 3])
+}
+
+#[inline]
+fn corner_of(face: [Index; 3], v: Index) -> usize {
+    if face[0] == v {
+        0
+    } else if face[1] == v {
+        1
+    } else {
+        2
+    }
+}
+
+impl LiveMesh {
+    /// Takes `mesh` apart for collapsing and classifies its vertices (see the crate docs).
+    ///
+    /// Fails on indices out of range and on non-finite positions; any other input,
+    /// manifold or not, is accepted.
+    pub fn new(mesh: &Mesh) -> Result<LiveMesh, CollapseError> {
+        mesh.validate_indices()?;
+        if mesh.n_faces() > MAX_FACES {
+            return Err(CollapseError::TooLarge {
+                faces: mesh.n_faces(),
+                max: MAX_FACES,
+            });
+        }
+        if let Some((vertex, p)) = mesh
+            .positions
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !is_finite(**p))
+        {
+            return Err(CollapseError::NonFinite {
+                vertex,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            });
+        }
+        let n = mesh.n_vertices();
+        let face_state: Vec<u8> = mesh
+            .faces
+            .iter()
+            .map(|&[a, b, c]| {
+                if a == b || b == c || a == c {
+                    PASSIVE
+                } else {
+                    LIVE
+                }
+            })
+            .collect();
+        let use_face: Vec<bool> = face_state.iter().map(|&s| s == LIVE).collect();
+        let lists = FaceLists::build(n, &mesh.faces, &use_face);
+
+        let mut kind = vec![VertexKind::Isolated; n];
+        let mut ring = Vec::new();
+        let mut targets = Vec::new();
+        for (v, k) in kind.iter_mut().enumerate() {
+            let around = lists.get(v as Index);
+            if around.is_empty() {
+                continue;
+            }
+            ring.clear();
+            ring.extend(around.iter().map(|&f| {
+                let face = mesh.faces[f as usize];
+                ring_edge(face, corner_of(face, v as Index))
+            }));
+            *k = match ring_shape(&mut ring, &mut targets) {
+                RingShape::Cycle => VertexKind::Interior,
+                RingShape::Path => VertexKind::Boundary,
+                RingShape::Invalid => VertexKind::Locked,
+            };
+        }
+        for (face, _) in mesh
+            .faces
+            .iter()
+            .zip(&face_state)
+            .filter(|(_, s)| **s == PASSIVE)
+        {
+            for &v in face {
+                kind[v as usize] = VertexKind::Locked;
+            }
+        }
+
+        let bbox = Aabb::from_points(
+            mesh.positions
+                .iter()
+                .zip(&kind)
+                .filter(|(_, k)| **k != VertexKind::Isolated)
+                .map(|(p, _)| p),
+        );
+        let diagonal = bbox.diagonal();
+        Ok(LiveMesh {
+            pos: mesh.positions.clone(),
+            faces: mesh.faces.clone(),
+            face_state,
+            lists,
+            n_vertices: kind.iter().filter(|k| **k != VertexKind::Isolated).count(),
+            n_faces: mesh.n_faces(),
+            kind,
+            alive: vec![true; n],
+            stamp: vec![0; n],
+            cluster_next: vec![NONE; n],
+            cluster_tail: (0..n as Index).collect(),
+            diagonal,
+            min_cross: 2.0 * DEGENERATE_AREA * diagonal * diagonal,
+        })
+    }
+
+    /// Number of vertex indices (the input's vertex count, merged vertices included):
+    /// the length for per-vertex arrays of a cost model.
+    pub fn vertex_slots(&self) -> usize {
+        self.pos.len()
+    }
+
+    /// Vertices used by faces (locked ones included).
+    pub fn n_vertices(&self) -> usize {
+        self.n_vertices
+    }
+
+    /// Faces (passive ones, which repeat a vertex, included).
+    pub fn n_faces(&self) -> usize {
+        self.n_faces
+    }
+
+    /// Length of the input's bounding-box diagonal (over vertices used by faces).
+    pub fn diagonal(&self) -> f64 {
+        self.diagonal
+    }
+
+    /// Current position of vertex `v`.
+    #[inline]
+    pub fn position(&self, v: Index) -> DVec3 {
+        self.pos[v as usize]
+    }
+
+    /// The vertices of face `f` (current, i.e. after renaming by collapses).
+    #[inline]
+    pub fn face(&self, f: Index) -> [Index; 3] {
+        self.faces[f as usize]
+    }
+
+    /// The faces around vertex `v` that take part in collapsing (not passive, not dead).
+    #[inline]
+    pub fn faces_around(&self, v: Index) -> &[Index] {
+        self.lists.get(v)
+    }
+
+    /// The kind of vertex `v`.
+    #[inline]
+    pub fn kind(&self, v: Index) -> VertexKind {
+        self.kind[v as usize]
+    }
+
+    /// True until vertex `v` is merged into another.
+    #[inline]
+    pub fn is_alive(&self, v: Index) -> bool {
+        self.alive[v as usize]
+    }
+
+    /// The faces taking part in collapsing that are still alive, in input order.
+    pub fn live_faces(&self) -> impl Iterator<Item = Index> + '_ {
+        (0..self.faces.len() as Index).filter(|&f| self.face_state[f as usize] == LIVE)
+    }
+
+    /// True when exactly one face has both `a` and `b`.
+    pub fn is_boundary_edge(&self, a: Index, b: Index) -> bool {
+        // Every edge at an interior vertex has two faces (its ring is one cycle).
+        if self.kind[a as usize] == VertexKind::Interior
+            || self.kind[b as usize] == VertexKind::Interior
+        {
+            return false;
+        }
+        self.lists
+            .get(a)
+            .iter()
+            .filter(|&&f| self.faces[f as usize].contains(&b))
+            .count()
+            == 1
+    }
+
+    /// Figures of the current state.
+    pub fn summary(&self) -> Summary {
+        let mut s = Summary {
+            vertices: self.n_vertices,
+            faces: self.n_faces,
+            ..Default::default()
+        };
+        for (k, _) in self.kind.iter().zip(&self.alive).filter(|(_, a)| **a) {
+            match k {
+                VertexKind::Isolated => s.isolated_vertices += 1,
+                VertexKind::Boundary => s.boundary_vertices += 1,
+                VertexKind::Locked => s.locked_vertices += 1,
+                VertexKind::Interior => {}
+            }
+        }
+        let mut boundary: Vec<(Index, Index)> = Vec::new();
+        let mut n_edges = 0i64;
+        let mut n_live = 0i64;
+        for f in self.live_faces() {
+            n_live += 1;
+            let face = self.faces[f as usize];
+            for c in 0..3 {
+                let (a, b) = (face[c], face[(c + 1) % 3]);
+                let is_boundary = self.is_boundary_edge(a, b);
+                if is_boundary {
+                    boundary.push((a, b));
+                }
+                if a < b || is_boundary {
+                    n_edges += 1;
+                }
+            }
+        }
+        s.boundary_edges = boundary.len();
+        s.boundary_loops = count_loops(&mut boundary);
+        let used = self
+            .kind
+            .iter()
+            .zip(&self.alive)
+            .filter(|(k, a)| **a && **k != VertexKind::Isolated && **k != VertexKind::Locked)
+            .count() as i64;
+        // Locked vertices count when a live face uses them.
+        let locked_used = (0..self.pos.len() as Index)
+            .filter(|&v| {
+                self.alive[v as usize]
+                    && self.kind[v as usize] == VertexKind::Locked
+                    && !self.lists.get(v).is_empty()
+            })
+            .count() as i64;
+        s.euler = used + locked_used - n_edges + n_live;
+        s
+    }
+
+    /// Checks every invariant of the adjacency (lists match faces, kinds match rings,
+    /// counts match); for tests and debugging. Says what is broken.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        let mut ring = Vec::new();
+        let mut targets = Vec::new();
+        for v in 0..self.pos.len() as Index {
+            let around = self.lists.get(v);
+            if !self.alive[v as usize] {
+                if !around.is_empty() {
+                    return Err(format!("dead vertex {v} still has faces {around:?}"));
+                }
+                continue;
+            }
+            if !is_finite(self.pos[v as usize]) {
+                return Err(format!("vertex {v} is at {}", self.pos[v as usize]));
+            }
+            for (i, &f) in around.iter().enumerate() {
+                if self.face_state[f as usize] != LIVE {
+                    return Err(format!("vertex {v} lists face {f}, which is not live"));
+                }
+                if !self.faces[f as usize].contains(&v) {
+                    return Err(format!("vertex {v} lists face {f}, which does not use it"));
+                }
+                if around[..i].contains(&f) {
+                    return Err(format!("vertex {v} lists face {f} twice"));
+                }
+            }
+            let expect = match self.kind[v as usize] {
+                VertexKind::Interior => RingShape::Cycle,
+                VertexKind::Boundary => RingShape::Path,
+                VertexKind::Locked => continue,
+                VertexKind::Isolated if around.is_empty() => continue,
+                VertexKind::Isolated => return Err(format!("isolated vertex {v} has faces")),
+            };
+            ring.clear();
+            ring.extend(around.iter().map(|&f| {
+                let face = self.faces[f as usize];
+                ring_edge(face, corner_of(face, v))
+            }));
+            let got = ring_shape(&mut ring, &mut targets);
+            if got != expect {
+                return Err(format!(
+                    "vertex {v} is {:?} but its faces {around:?} form {got:?}",
+                    self.kind[v as usize]
+                ));
+            }
+        }
+        let mut n_faces = 0;
+        for (f, face) in self.faces.iter().enumerate() {
+            match self.face_state[f] {
+                DEAD => continue,
+                PASSIVE => {
+                    if face.iter().any(|&v| !self.alive[v as usize]) {
+                        return Err(format!("passive face {f} {face:?} uses a dead vertex"));
+                    }
+                }
+                _ => {
+                    let [a, b, c] = *face;
+                    if a == b || b == c || a == c {
+                        return Err(format!("live face {f} repeats a vertex: {face:?}"));
+                    }
+                    for &v in face {
+                        if !self.alive[v as usize] || !self.lists.get(v).contains(&(f as Index)) {
+                            return Err(format!("face {f} {face:?} is not listed by vertex {v}"));
+                        }
+                    }
+                }
+            }
+            n_faces += 1;
+        }
+        let n_vertices = (0..self.pos.len())
+            .filter(|&v| self.alive[v] && self.kind[v] != VertexKind::Isolated)
+            .count();
+        if (n_vertices, n_faces) != (self.n_vertices, self.n_faces) {
+            return Err(format!(
+                "counts say {} vertices and {} faces, arrays hold {n_vertices} and {n_faces}",
+                self.n_vertices, self.n_faces
+            ));
+        }
+        Ok(())
+    }
+
+    /// The collapsed mesh, compacted, with every attribute of `original` carried.
+    ///
+    /// `original` must be the mesh this live mesh was built from. Surviving vertices and
+    /// faces keep their input order; vertices used by no face are dropped.
+    pub fn to_mesh(&self, original: &Mesh) -> Result<(Mesh, CarryReport), CollapseError> {
+        if original.n_vertices() != self.pos.len() || original.n_faces() != self.faces.len() {
+            return Err(CollapseError::MeshMismatch {
+                vertices: original.n_vertices(),
+                faces: original.n_faces(),
+                expected_vertices: self.pos.len(),
+                expected_faces: self.faces.len(),
+            });
+        }
+        original.validate_indices()?;
+        let mut new_index = vec![NONE; self.pos.len()];
+        let mut positions = Vec::with_capacity(self.n_vertices);
+        let mut vo = VertexOrigins::with_capacity(self.n_vertices);
+        let mut members = Vec::new();
+        for (v, slot) in new_index.iter_mut().enumerate() {
+            if !self.alive[v] || self.kind[v] == VertexKind::Isolated {
+                continue;
+            }
+            *slot = positions.len() as Index;
+            positions.push(self.pos[v]);
+            members.clear();
+            let mut m = v as Index;
+            while m != NONE {
+                members.push(m);
+                m = self.cluster_next[m as usize];
+            }
+            if members.len() == 1 {
+                vo.push_copy(v as Index);
+            } else {
+                vo.push_blend(members.iter().map(|&m| (m, 1.0)));
+            }
+        }
+        let mut faces = Vec::with_capacity(self.n_faces);
+        let mut fo = FaceOrigins::with_capacity(self.n_faces);
+        for (f, face) in self.faces.iter().enumerate() {
+            if self.face_state[f] != DEAD {
+                faces.push(face.map(|v| new_index[v as usize]));
+                fo.push_parent(f as Index);
+            }
+        }
+        Ok(original.rebuilt(positions, faces, &vo, &fo))
+    }
+
+    /// Collapses until `opts.goal` is met, the next collapse would cost more than
+    /// `opts.max_error`, or no candidate is left; `progress` hears the number of collapses
+    /// done every few thousand.
+    pub fn collapse<M: CostModel>(
+        &mut self,
+        model: &mut M,
+        opts: &Options,
+        progress: &mut dyn FnMut(usize),
+    ) -> Outcome {
+        let unit = model.unit();
+        let reach = model.reach();
+        let mut out = Outcome {
+            stop: StopReason::Reached,
+            collapses: 0,
+            refused: Refusals::default(),
+            sve: 0.0,
+            max_cost: 0.0,
+            log: Vec::new(),
+        };
+        if self.reached(opts.goal) {
+            return out;
+        }
+        let mut s = Scratch {
+            ring: Vec::new(),
+            targets: Vec::new(),
+            kept_faces: Vec::new(),
+            list: Vec::new(),
+            around: Vec::new(),
+            touched: Vec::new(),
+            in_touched: Marks::new(self.pos.len().max(self.faces.len())),
+            seen: Marks::new(self.pos.len().max(self.faces.len())),
+        };
+        let per_face = if unit == Unit::Edge { 3 } else { 2 };
+        let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + 16);
+        self.rank_all(model, unit, &mut q, &mut out.refused);
+        out.log.reserve(self.remaining(opts.goal));
+
+        out.stop = loop {
+            if self.reached(opts.goal) {
+                break StopReason::Reached;
+            }
+            let Some(e) = q.pop() else {
+                break StopReason::Exhausted;
+            };
+            // Stale: a vertex changed or went since the entry was queued; a fresh entry
+            // for the same candidate was queued then, if it is still a candidate.
+            if !self.is_current(&e) {
+                continue;
+            }
+            let verts = e.vertices;
+            let verts = &verts[..e.vertices().len()];
+            let pinned = match self.rule(verts) {
+                Ok(p) => p,
+                Err(r) => {
+                    out.refused.count(r);
+                    continue;
+                }
+            };
+            // Recomputed rather than stored: the same inputs give the same plan, and a
+            // queue entry stays small.
+            let Some(plan) = self.plan(model, verts, pinned) else {
+                out.refused.count(Refusal::Model);
+                q.park(e);
+                continue;
+            };
+            // The heap is ordered by cost: nothing cheaper is left.
+            if let Some(max) = opts.max_error
+                && plan.cost > max
+            {
+                break StopReason::MaxError { cost: plan.cost };
+            }
+            // Refused candidates wait until a collapse touches one of their vertices.
+            if let Err(r) = self.check(verts, plan.position, opts.min_quality, &mut s) {
+                out.refused.count(r);
+                q.park(e);
+                continue;
+            }
+            let sve = self.sve(verts, plan.position);
+            // A boundary vertex survives when there is one, so that kinds stay true.
+            let kept = pinned
+                .or_else(|| {
+                    verts
+                        .iter()
+                        .copied()
+                        .find(|&v| self.kind[v as usize] == VertexKind::Boundary)
+                })
+                .unwrap_or(verts[0]);
+            self.merge(verts, kept, plan.position, &mut s);
+            model.merged(self, kept, verts);
+            let mut removed = [NONE; 2];
+            for (slot, &v) in removed.iter_mut().zip(verts.iter().filter(|&&v| v != kept)) {
+                *slot = v;
+            }
+            out.log.push(CollapseRecord {
+                kept,
+                removed,
+                position: plan.position,
+                cost: plan.cost,
+                sve,
+            });
+            out.collapses += 1;
+            out.sve += sve;
+            out.max_cost = out.max_cost.max(plan.cost);
+            self.requeue(model, unit, reach, kept, &mut q, &mut s, &mut out.refused);
+            let live_estimate = self.n_faces * per_face / 2;
+            q.sweep_if_stale(live_estimate, |e| self.is_current(e));
+            if out.collapses.is_multiple_of(PROGRESS_EVERY) {
+                progress(out.collapses);
+            }
+        };
+        out
+    }
+
+    fn reached(&self, goal: Goal) -> bool {
+        match goal {
+            Goal::Vertices(n) => self.n_vertices <= n,
+            Goal::Faces(n) => self.n_faces <= n,
+        }
+    }
+
+    /// About how many collapses are left before the goal.
+    fn remaining(&self, goal: Goal) -> usize {
+        match goal {
+            Goal::Vertices(n) => self.n_vertices.saturating_sub(n),
+            Goal::Faces(n) => self.n_faces.saturating_sub(n) / 2,
+        }
+    }
+
+    #[inline]
+    fn stamp_sum(&self, verts: &[Index]) -> u32 {
+        verts
+            .iter()
+            .fold(0u32, |s, &v| s.wrapping_add(self.stamp[v as usize]))
+    }
+
+    /// True while every vertex of `e` is alive and unchanged since `e` was queued (a
+    /// vertex's stamp also grows when it is merged away, so the stamps alone tell).
+    #[inline]
+    fn is_current(&self, e: &Entry) -> bool {
+        self.stamp_sum(e.vertices()) == e.stamp
+    }
+
+    /// The rules of the vertex kinds (crate docs' table): the vertex the result is pinned
+    /// to, if any, or why the merge is not allowed.
+    fn rule(&self, verts: &[Index]) -> Result<Option<Index>, Refusal> {
+        let mut boundary = [NONE; 3];
+        let mut nb = 0;
+        for &v in verts {
+            match self.kind[v as usize] {
+                VertexKind::Interior => {}
+                VertexKind::Boundary => {
+                    boundary[nb] = v;
+                    nb += 1;
+                }
+                VertexKind::Locked | VertexKind::Isolated => return Err(Refusal::Locked),
+            }
+        }
+        match nb {
+            0 => Ok(None),
+            1 => Ok(Some(boundary[0])),
+            2 if self.is_boundary_edge(boundary[0], boundary[1]) => Ok(None),
+            _ => Err(Refusal::Boundary),
+        }
+    }
+
+    /// The model's plan, with non-finite answers refused and costs of zero or less made +0.
+    fn plan<M: CostModel>(
+        &self,
+        model: &M,
+        verts: &[Index],
+        pinned: Option<Index>,
+    ) -> Option<Plan> {
+        let mut plan = model.plan(
+            self,
+            &Merge {
+                vertices: verts,
+                pinned,
+            },
+        )?;
+        if !is_finite(plan.position) || !plan.cost.is_finite() {
+            return None;
+        }
+        if plan.cost <= 0.0 {
+            plan.cost = 0.0;
+        }
+        Some(plan)
+    }
+
+    /// Costs one candidate and queues it, or counts why it cannot be.
+    fn propose<M: CostModel>(
+        &self,
+        model: &M,
+        verts: &[Index],
+        q: &mut Queue,
+        refused: &mut Refusals,
+    ) {
+        let pinned = match self.rule(verts) {
+            Ok(p) => p,
+            Err(r) => return refused.count(r),
+        };
+        match self.plan(model, verts, pinned) {
+            Some(plan) => {
+                let mut v = [NONE; 3];
+                v[..verts.len()].copy_from_slice(verts);
+                q.push(plan.cost, v, self.stamp_sum(verts));
+            }
+            None => refused.count(Refusal::Model),
+        }
+    }
+
+    /// Queues every candidate: each edge once (from the face using it as `a → b` with
+    /// `a < b`, or from its only face), or each face.
+    fn rank_all<M: CostModel>(&self, model: &M, unit: Unit, q: &mut Queue, refused: &mut Refusals) {
+        for f in self.live_faces() {
+            let face = self.faces[f as usize];
+            match unit {
+                Unit::Edge => {
+                    for c in 0..3 {
+                        let (a, b) = (face[c], face[(c + 1) % 3]);
+                        if a < b || self.is_boundary_edge(a, b) {
+                            self.propose(model, &[a.min(b), a.max(b)], q, refused);
+                        }
+                    }
+                }
+                Unit::Triangle => self.propose(model, &face, q, refused),
+            }
+        }
+    }
+
+    /// Validity checks of merging `verts` at `p` (crate docs, "Checks").
+    fn check(
+        &self,
+        verts: &[Index],
+        p: DVec3,
+        min_quality: f64,
+        s: &mut Scratch,
+    ) -> Result<(), Refusal> {
+        s.ring.clear();
+        s.kept_faces.clear();
+        for &v in verts {
+            for &f in self.lists.get(v) {
+                let face = self.faces[f as usize];
+                if face.iter().filter(|u| verts.contains(u)).count() >= 2 {
+                    continue;
+                }
+                let c = corner_of(face, v);
+                s.ring.push(ring_edge(face, c));
+                s.kept_faces.push((f, c));
+            }
+        }
+        let on_boundary = verts
+            .iter()
+            .any(|&v| self.kind[v as usize] == VertexKind::Boundary);
+        match (ring_shape(&mut s.ring, &mut s.targets), on_boundary) {
+            (RingShape::Cycle, false) | (RingShape::Path, true) => {}
+            _ => return Err(Refusal::Link),
+        }
+        for &(f, c) in &s.kept_faces {
+            let old = self.faces[f as usize].map(|v| self.pos[v as usize]);
+            let mut new = old;
+            new[c] = p;
+            let n_old = triangle::cross(old[0], old[1], old[2]);
+            let n_new = triangle::cross(new[0], new[1], new[2]);
+            let was_degenerate = n_old.length() <= self.min_cross;
+            if !was_degenerate {
+                if n_new.length() <= self.min_cross {
+                    return Err(Refusal::Degenerate);
+                }
+                // The normal turns by 90° or more.
+                if n_old.dot(n_new) <= 0.0 {
+                    return Err(Refusal::Flip);
+                }
+            }
+            if min_quality > 0.0 {
+                let q_new = triangle::quality(new[0], new[1], new[2]);
+                if q_new < min_quality && q_new < triangle::quality(old[0], old[1], old[2]) {
+                    return Err(Refusal::Quality);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Paper 2's squared-volume error of moving the faces around `verts` to `p`:
+    /// Σ (Sᵢ/3 · (nᵢ·p + dᵢ))² over those faces, each counted once.
+    fn sve(&self, verts: &[Index], p: DVec3) -> f64 {
+        let mut sum = 0.0;
+        for (i, &v) in verts.iter().enumerate() {
+            for &f in self.lists.get(v) {
+                let face = self.faces[f as usize];
+                if verts[..i].iter().any(|u| face.contains(u)) {
+                    continue;
+                }
+                let [a, b, c] = face.map(|u| self.pos[u as usize]);
+                let cross = triangle::cross(a, b, c);
+                // (S/3)·(n·(p − a)) with n = cross/|cross| and S = |cross|/2.
+                let volume = cross.dot(p - a) / 6.0;
+                sum += volume * volume;
+            }
+        }
+        sum
+    }
+
+    /// Merges `verts` into `kept` at `p`: faces with two or more of them die, the others
+    /// are renamed; lists, counts, stamps and clusters follow.
+    fn merge(&mut self, verts: &[Index], kept: Index, p: DVec3, s: &mut Scratch) {
+        s.list.clear();
+        for &v in verts {
+            s.around.clear();
+            s.around.extend_from_slice(self.lists.get(v));
+            for &f in &s.around {
+                let fi = f as usize;
+                if self.face_state[fi] != LIVE {
+                    continue;
+                }
+                let face = self.faces[fi];
+                if face.iter().filter(|u| verts.contains(u)).count() >= 2 {
+                    self.face_state[fi] = DEAD;
+                    self.n_faces -= 1;
+                    for &u in face.iter().filter(|u| !verts.contains(u)) {
+                        self.lists.remove(u, f);
+                    }
+                    continue;
+                }
+                self.faces[fi][corner_of(face, v)] = kept;
+                s.list.push(f);
+            }
+        }
+        for &v in verts.iter().filter(|&&v| v != kept) {
+            self.lists.clear(v);
+            self.alive[v as usize] = false;
+            self.stamp[v as usize] = self.stamp[v as usize].wrapping_add(1);
+            self.n_vertices -= 1;
+            let tail = self.cluster_tail[kept as usize] as usize;
+            self.cluster_next[tail] = v;
+            self.cluster_tail[kept as usize] = self.cluster_tail[v as usize];
+        }
+        debug_assert!(
+            self.kind[kept as usize] == VertexKind::Boundary
+                || verts
+                    .iter()
+                    .all(|&v| self.kind[v as usize] == VertexKind::Interior)
+        );
+        self.lists.set(kept, &s.list);
+        self.pos[kept as usize] = p;
+        self.stamp[kept as usize] = self.stamp[kept as usize].wrapping_add(1);
+    }
+
+    /// After a collapse into `kept`: re-costs the candidates it made stale and re-queues
+    /// the refused candidates around it.
+    #[allow(clippy::too_many_arguments)]
+    fn requeue<M: CostModel>(
+        &mut self,
+        model: &M,
+        unit: Unit,
+        reach: Reach,
+        kept: Index,
+        q: &mut Queue,
+        s: &mut Scratch,
+        refused: &mut Refusals,
+    ) {
+        // `kept` and its neighbours: every vertex whose faces changed.
+        s.touched.clear();
+        s.in_touched.clear();
+        s.in_touched.insert(kept);
+        s.touched.push(kept);
+        for &f in self.lists.get(kept) {
+            for &u in &self.faces[f as usize] {
+                if s.in_touched.insert(u) {
+                    s.touched.push(u);
+                }
+            }
+        }
+        if reach == Reach::Ring {
+            for &u in &s.touched[1..] {
+                self.stamp[u as usize] = self.stamp[u as usize].wrapping_add(1);
+            }
+        }
+        let centres = match reach {
+            Reach::Kept => 1,
+            Reach::Ring => s.touched.len(),
+        };
+        s.seen.clear();
+        for i in 0..centres {
+            let v = s.touched[i];
+            match unit {
+                Unit::Edge => {
+                    // Each neighbour of each centre once; an edge joining two centres
+                    // from its smaller end only.
+                    s.seen.clear();
+                    for &f in self.lists.get(v) {
+                        for &u in &self.faces[f as usize] {
+                            if u == v || !s.seen.insert(u) {
+                                continue;
+                            }
+                            if reach == Reach::Ring && s.in_touched.contains(u) && u < v {
+                                continue;
+                            }
+                            self.propose(model, &[v.min(u), v.max(u)], q, refused);
+                        }
+                    }
+                }
+                Unit::Triangle => {
+                    for &f in self.lists.get(v) {
+                        if s.seen.insert(f) {
+                            self.propose(model, &self.faces[f as usize], q, refused);
+                        }
+                    }
+                }
+            }
+        }
+        for &v in &s.touched {
+            q.release(v, |e| self.is_current(e));
+        }
+    }
+}
+
+/// Counts the closed chains of the boundary half-edges `edges` (sorted in place).
+fn count_loops(edges: &mut [(Index, Index)]) -> usize {
+    edges.sort_unstable();
+    let mut used = vec![false; edges.len()];
+    let mut loops = 0;
+    for i in 0..edges.len() {
+        if used[i] {
+            continue;
+        }
+        loops += 1;
+        let mut at = i;
+        loop {
+            used[at] = true;
+            let next = edges[at].1;
+            let from = edges.partition_point(|e| e.0 < next);
+            match (from..edges.len())
+                .take_while(|&j| edges[j].0 == next)
+                .find(|&j| !used[j])
+            {
+                Some(j) => at = j,
+                None => break,
+            }
+        }
+    }
+    loops
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::*;
+    use crate::{QemOptions, QuadricModel};
+    use coarsen_mesh::{AttrValues, Mesh};
+
+    fn run<M: CostModel>(mesh: &Mesh, model: &mut M, goal: Goal) -> (Mesh, Outcome, LiveMesh) {
+        let mut live = LiveMesh::new(mesh).unwrap();
+        let outcome = live.collapse(model, &Options::new(goal), &mut |_| {});
+        live.check_invariants().unwrap();
+        let (out, carry) = live.to_mesh(mesh).unwrap();
+        assert!(carry.dropped.is_empty());
+        (out, outcome, live)
+    }
+
+    fn qem(mesh: &Mesh, goal: Goal) -> (Mesh, Outcome) {
+        let live = LiveMesh::new(mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let (out, outcome, _) = run(mesh, &mut model, goal);
+        (out, outcome)
+    }
+
+    fn bump(x: f64, y: f64) -> f64 {
+        0.2 * (std::f64::consts::PI * x).sin() * (std::f64::consts::PI * y).sin()
+    }
+
+    #[test]
+    fn link_condition_refuses_to_pinch_a_tetrahedron() {
+        // Any edge collapse of a tetrahedron leaves two faces on the same three vertices.
+        let mesh = tetrahedron();
+        let (out, outcome, _) = run(&mesh, &mut shortest_edge(), Goal::Vertices(3));
+        assert_eq!(outcome.stop, StopReason::Exhausted);
+        assert_eq!(outcome.collapses, 0);
+        assert_eq!(outcome.refused.link, 6);
+        assert_eq!(out, mesh);
+    }
+
+    #[test]
+    fn link_condition_refuses_a_hidden_cycle() {
+        //        3 (north)
+        //      / | \
+        //     0--1--2--0    equator: a cycle of edges that bounds no face
+        //      \ | /
+        //        4 (south)
+        // Collapsing an equator edge (0,1) would merge the two edges to 2 into one edge
+        // with four faces; collapsing 3 onto the equator leaves a tetrahedron.
+        let h = 3f64.sqrt() / 2.0;
+        let mesh = Mesh::new(
+            vec![
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(-0.5, h, 0.0),
+                DVec3::new(-0.5, -h, 0.0),
+                DVec3::Z,
+                -DVec3::Z,
+            ],
+            vec![
+                [0, 1, 3],
+                [1, 2, 3],
+                [2, 0, 3],
+                [1, 0, 4],
+                [2, 1, 4],
+                [0, 2, 4],
+            ],
+        );
+        let equator_first = Scripted {
+            unit: Unit::Edge,
+            reach: Reach::Kept,
+            cost: |_: &LiveMesh, v: &[Index]| if v[1] < 3 { 0.0 } else { 1.0 },
+        };
+        let mut model = equator_first;
+        let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(4));
+        assert_eq!(outcome.collapses, 1);
+        assert!(outcome.refused.link >= 3, "{:?}", outcome.refused);
+        let r = outcome.log[0];
+        assert_eq!(
+            (r.kept, r.removed),
+            (1, [3, NONE]),
+            "first apex edge in queue order"
+        );
+        assert_eq!((out.n_vertices(), out.n_faces()), (4, 4));
+        assert_eq!(assert_closed_manifold(&out).euler, 2);
+    }
+
+    #[test]
+    fn flip_check_refuses_moving_a_vertex_across_its_ring() {
+        //            3
+        //          / | \
+        //        /   |  2      0 is interior, 1..5 are on the boundary.
+        //      4 --- 0 ---- 1  Moving 0 onto 3 would turn face (0,1,2) over:
+        //        \   |   /     its new corner 3 lies beyond the line 1–2.
+        //            5
+        let mesh = Mesh::new(
+            vec![
+                DVec3::ZERO,
+                DVec3::new(2.0, 0.0, 0.0),
+                DVec3::new(0.2, 0.2, 0.0),
+                DVec3::new(0.0, 2.0, 0.0),
+                DVec3::new(-1.0, 0.0, 0.0),
+                DVec3::new(0.0, -1.0, 0.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 1]],
+        );
+        let mut model = Scripted {
+            unit: Unit::Edge,
+            reach: Reach::Kept,
+            cost: |_: &LiveMesh, v: &[Index]| if v == [0, 3] { 0.0 } else { 1.0 },
+        };
+        let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(5));
+        // Edge 0–3 comes first and is refused; then, all costs being equal, edge 0–1 (first
+        // in queue order), refused too: moving 0 onto 1 turns (0,2,3) over. Then 1–2 goes.
+        assert_eq!(outcome.refused.flip, 2);
+        assert_eq!(outcome.collapses, 1);
+        assert_eq!((outcome.log[0].kept, outcome.log[0].removed[0]), (1, 2));
+        for f in 0..out.n_faces() {
+            assert!(out.face_normal(f).z > 0.0, "face {f} flipped");
+        }
+    }
+
+    #[test]
+    fn no_face_flips_on_a_folded_strip() {
+        //  z                      A strip 4 cells wide, folded at x = ½ through 179°: the
+        //  |  _________           second half lies back over the first, 1° apart, so
+        //  |  ________/           crossing the fold costs QEM almost nothing. Every
+        //  +--------------- x     output face must face the way its input parent faced.
+        let mut mesh = grid(32, 4, |_, _| 0.0);
+        let fold = 179f64.to_radians();
+        for p in &mut mesh.positions {
+            if p.x > 0.5 {
+                let d = p.x - 0.5;
+                *p = DVec3::new(0.5 + d * fold.cos(), p.y, d * fold.sin());
+            }
+        }
+        let normals = (0..mesh.n_faces()).map(|f| mesh.face_normal(f)).collect();
+        mesh.face_attrs.insert("n", AttrValues::Vec3(normals));
+        for goal in [60, 30, 16] {
+            let (out, _) = qem(&mesh, Goal::Vertices(goal));
+            let parent_normals = out.face_attrs.vec3("n").unwrap();
+            for (f, n) in parent_normals.iter().enumerate() {
+                let dot = out.face_normal(f).dot(*n);
+                assert!(dot > 0.0, "goal {goal}: face {f} turned over ({dot})");
+            }
+        }
+    }
+
+    #[test]
+    fn interior_edge_between_boundary_vertices_is_never_collapsed() {
+        // 3---2
+        // | / |   the diagonal 0–2 is interior, its ends are on the boundary:
+        // 0---1   collapsing it would pinch the square into two triangles at a vertex.
+        let mesh = Mesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let mut model = Scripted {
+            unit: Unit::Edge,
+            reach: Reach::Kept,
+            cost: |_: &LiveMesh, v: &[Index]| if v == [0, 2] { 0.0 } else { 1.0 },
+        };
+        let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(2));
+        assert_eq!(outcome.refused.boundary, 1);
+        // One boundary edge collapses (3 vertices, 1 face); the last triangle stays.
+        assert_eq!(outcome.collapses, 1);
+        assert_eq!(outcome.stop, StopReason::Exhausted);
+        assert_eq!((out.n_vertices(), out.n_faces()), (3, 1));
+        assert!(outcome.refused.link >= 3);
+    }
+
+    #[test]
+    fn grid_boundary_stays_on_its_original_lines() {
+        // A bump on the unit square whose border lies on the four lines z = 0,
+        // x or y ∈ {0, 1}. Boundary vertices may only slide along them.
+        let mesh = grid(16, 16, bump);
+        let (out, outcome) = qem(&mesh, Goal::Vertices(30));
+        assert_eq!(outcome.stop, StopReason::Reached);
+        assert_eq!(out.n_vertices(), 30);
+        let live = LiveMesh::new(&out).unwrap();
+        let s = live.summary();
+        assert_eq!((s.locked_vertices, s.boundary_loops), (0, 1));
+        let mut corners = 0;
+        for v in 0..out.n_vertices() as Index {
+            let p = live.position(v);
+            if live.kind(v) != VertexKind::Boundary {
+                assert!(p.x > 0.0 && p.x < 1.0 && p.y > 0.0 && p.y < 1.0, "{p}");
+                continue;
+            }
+            let on_x = p.x.abs() < 1e-9 || (p.x - 1.0).abs() < 1e-9;
+            let on_y = p.y.abs() < 1e-9 || (p.y - 1.0).abs() < 1e-9;
+            assert!(
+                (on_x || on_y) && p.z.abs() < 1e-9,
+                "boundary vertex {v} left the border: {p}"
+            );
+            corners += (on_x && on_y) as usize;
+        }
+        assert_eq!(corners, 4, "the four corners are kept");
+    }
+
+    #[test]
+    fn sphere_reaches_the_exact_vertex_count_and_stays_closed() {
+        let mesh = icosphere(3);
+        assert_eq!(mesh.n_vertices(), 642);
+        let (out, outcome) = qem(&mesh, Goal::Vertices(100));
+        assert_eq!(outcome.stop, StopReason::Reached);
+        assert_eq!(outcome.collapses, 542);
+        assert_eq!((out.n_vertices(), out.n_faces()), (100, 196));
+        assert_eq!(assert_closed_manifold(&out).euler, 2);
+        // QEM keeps the sphere round: every vertex stays near the unit sphere.
+        for p in &out.positions {
+            assert!((p.length() - 1.0).abs() < 0.05, "{p}");
+        }
+    }
+
+    #[test]
+    fn torus_keeps_its_genus() {
+        let mesh = torus(3.0, 1.0, 24, 12);
+        let (out, outcome) = qem(&mesh, Goal::Vertices(40));
+        assert_eq!(outcome.stop, StopReason::Reached);
+        assert_eq!(out.n_vertices(), 40);
+        // χ = 2 − 2g = 0.
+        assert_eq!(assert_closed_manifold(&out).euler, 0);
+    }
+
+    #[test]
+    fn face_goal_is_met_within_one_face() {
+        let mesh = icosphere(3);
+        let (out, outcome) = qem(&mesh, Goal::Faces(301));
+        assert_eq!(outcome.stop, StopReason::Reached);
+        assert_eq!(out.n_faces(), 300);
+    }
+
+    #[test]
+    fn zero_costs_on_a_flat_grid_collapse_in_queue_order() {
+        // 8---9---10--11
+        // | / | / | / |    every QEM cost is exactly 0 on a flat, axis-aligned grid,
+        // 4---5---6---7    so the heap must fall back on the queue order: the first
+        // | / | / | / |    candidate queued is edge 0–1 of face (0,1,5).
+        // 0---1---2---3
+        let mesh = grid(3, 2, |_, _| 0.0);
+        let (out, outcome) = qem(&mesh, Goal::Vertices(6));
+        assert!(outcome.log.iter().all(|r| r.cost == 0.0));
+        let first = outcome.log[0];
+        assert_eq!(
+            (first.kept, first.removed, first.position),
+            (0, [1, NONE], DVec3::ZERO)
+        );
+        let (again, outcome2) = qem(&mesh, Goal::Vertices(6));
+        assert_eq!(out, again);
+        assert_eq!(outcome, outcome2);
+    }
+
+    #[test]
+    fn same_input_gives_the_same_output() {
+        let mesh = grid(20, 20, bump);
+        let (a, oa) = qem(&mesh, Goal::Vertices(50));
+        let (b, ob) = qem(&mesh, Goal::Vertices(50));
+        assert_eq!(a, b);
+        assert_eq!(oa, ob);
+    }
+
+    #[test]
+    fn triangle_collapses_keep_a_closed_manifold() {
+        let mesh = icosphere(2);
+        let mut model = Scripted {
+            unit: Unit::Triangle,
+            reach: Reach::Ring,
+            cost: |m: &LiveMesh, v: &[Index]| {
+                triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
+            },
+        };
+        let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(40));
+        assert_eq!(outcome.stop, StopReason::Reached);
+        assert!(
+            (39..=40).contains(&out.n_vertices()),
+            "{}",
+            out.n_vertices()
+        );
+        assert!(
+            outcome.log.iter().all(|r| r.removed[1] != NONE),
+            "3 → 1 each time"
+        );
+        assert_eq!(assert_closed_manifold(&out).euler, 2);
+    }
+
+    #[test]
+    fn triangle_collapses_on_a_grid_keep_its_one_boundary_loop() {
+        let mesh = grid(10, 10, bump);
+        let mut model = Scripted {
+            unit: Unit::Triangle,
+            reach: Reach::Ring,
+            cost: |m: &LiveMesh, v: &[Index]| {
+                triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
+            },
+        };
+        let (out, _, _) = run(&mesh, &mut model, Goal::Vertices(30));
+        let s = LiveMesh::new(&out).unwrap().summary();
+        assert_eq!((s.locked_vertices, s.boundary_loops, s.euler), (0, 1, 1));
+    }
+
+    #[test]
+    fn non_manifold_vertex_is_locked_in_place() {
+        // Two octahedra touching at vertex 0 (a bow-tie vertex).
+        let mut positions = vec![
+            DVec3::X,
+            DVec3::Y,
+            -DVec3::X,
+            -DVec3::Y,
+            DVec3::Z,
+            -DVec3::Z,
+        ];
+        let offset = DVec3::new(2.0, 0.0, 0.0);
+        positions.extend([DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z].map(|p| p + offset));
+        let octa = |x: Index, y: Index, mx: Index, my: Index, z: Index, mz: Index| {
+            vec![
+                [x, y, z],
+                [y, mx, z],
+                [mx, my, z],
+                [my, x, z],
+                [y, x, mz],
+                [mx, y, mz],
+                [my, mx, mz],
+                [x, my, mz],
+            ]
+        };
+        let mut faces = octa(0, 1, 2, 3, 4, 5);
+        faces.extend(octa(6, 7, 0, 8, 9, 10));
+        let mesh = Mesh::new(positions, faces);
+        let live = LiveMesh::new(&mesh).unwrap();
+        assert_eq!(live.kind(0), VertexKind::Locked);
+        assert_eq!(live.summary().locked_vertices, 1);
+        let (out, outcome, _) = run(&mesh, &mut shortest_edge(), Goal::Vertices(8));
+        assert_eq!(outcome.stop, StopReason::Reached);
+        assert_eq!(out.n_vertices(), 8);
+        assert_eq!(
+            out.positions[0],
+            DVec3::X,
+            "the locked vertex neither moves nor goes"
+        );
+        assert!(outcome.refused.locked > 0);
+    }
+
+    #[test]
+    fn faces_repeating_a_vertex_pass_through_and_lock_their_vertices() {
+        let mut mesh = tetrahedron();
+        mesh.faces.push([0, 0, 1]);
+        let live = LiveMesh::new(&mesh).unwrap();
+        assert_eq!(live.summary().locked_vertices, 2);
+        let (out, outcome, _) = run(&mesh, &mut shortest_edge(), Goal::Vertices(2));
+        assert_eq!(outcome.collapses, 0);
+        assert_eq!(out, mesh);
+    }
+
+    #[test]
+    fn damaged_meshes_never_panic_and_keep_the_invariants() {
+        // Grids and spheres with points snapped to a coarse lattice (coincident points,
+        // zero-area faces), faces deleted (holes, bow-ties), flipped, duplicated and added
+        // at random (non-manifold edges, repeated indices). Whatever the engine accepts it
+        // must leave consistent.
+        let mut state = 99u64;
+        let mut next = move |n: u32| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 33) % n as u64) as u32
+        };
+        let (mut collapses, mut locked) = (0, 0);
+        for round in 0..200 {
+            let mut mesh = if round % 2 == 0 {
+                grid(5, 4, bump)
+            } else {
+                icosphere(1)
+            };
+            let nv = mesh.n_vertices() as u32;
+            let lattice = [0.0, 0.5, 4.0, 16.0][next(4) as usize];
+            if lattice > 0.0 {
+                for p in &mut mesh.positions {
+                    *p = (*p * lattice).round() / lattice;
+                }
+            }
+            for _ in 0..next(4) {
+                let f = next(mesh.n_faces() as u32) as usize;
+                match next(4) {
+                    0 => {
+                        mesh.faces.remove(f);
+                    }
+                    1 => mesh.faces[f].swap(0, 1),
+                    2 => mesh.faces.push(mesh.faces[f]),
+                    _ => mesh.faces.push([next(nv), next(nv), next(nv)]),
+                }
+            }
+            for goal in [Goal::Vertices(next(nv) as usize), Goal::Faces(0)] {
+                let mut live = LiveMesh::new(&mesh).unwrap();
+                let mut model = QuadricModel::new(&live, &QemOptions::default());
+                let outcome = live.collapse(&mut model, &Options::new(goal), &mut |_| {});
+                live.check_invariants()
+                    .unwrap_or_else(|e| panic!("round {round}: {e}\n{mesh:?}"));
+                let (out, _) = live.to_mesh(&mesh).unwrap();
+                assert!(out.validate_indices().is_ok());
+                assert_eq!(
+                    (out.n_faces(), out.n_vertices()),
+                    (live.n_faces(), live.n_vertices())
+                );
+                assert!(
+                    outcome
+                        .log
+                        .iter()
+                        .all(|r| r.cost.is_finite() && r.sve.is_finite())
+                );
+                collapses += outcome.collapses;
+                locked += live.summary().locked_vertices;
+            }
+        }
+        assert!(
+            collapses > 1000 && locked > 100,
+            "{collapses} collapses, {locked} locked"
+        );
+    }
+
+    #[test]
+    fn bad_input_is_a_typed_error_naming_the_element() {
+        let mut mesh = tetrahedron();
+        mesh.positions[2].y = f64::NAN;
+        let e = LiveMesh::new(&mesh).unwrap_err();
+        assert!(
+            matches!(e, CollapseError::NonFinite { vertex: 2, .. }),
+            "{e}"
+        );
+        let mut mesh = tetrahedron();
+        mesh.faces[1] = [0, 9, 3];
+        let e = LiveMesh::new(&mesh).unwrap_err();
+        assert!(e.to_string().contains("face 1 names vertex 9"), "{e}");
+        let live = LiveMesh::new(&tetrahedron()).unwrap();
+        assert!(matches!(
+            live.to_mesh(&icosphere(0)),
+            Err(CollapseError::MeshMismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn unused_vertices_are_dropped_and_empty_input_is_fine() {
+        let mut mesh = tetrahedron();
+        mesh.positions.push(DVec3::splat(5.0));
+        let live = LiveMesh::new(&mesh).unwrap();
+        assert_eq!(live.summary().isolated_vertices, 1);
+        let (out, _) = live.to_mesh(&mesh).unwrap();
+        assert_eq!(out.n_vertices(), 4);
+        let empty = Mesh::default();
+        let (out, outcome, _) = run(&empty, &mut shortest_edge(), Goal::Vertices(0));
+        assert_eq!((out.n_vertices(), outcome.collapses), (0, 0));
+        assert_eq!(outcome.stop, StopReason::Reached);
+    }
+
+    #[test]
+    fn attributes_are_blended_onto_merged_vertices_and_kept_by_faces() {
+        let mut mesh = grid(8, 8, bump);
+        let xs = mesh.positions.iter().map(|p| p.x).collect();
+        mesh.vertex_attrs.insert("x", AttrValues::Scalar(xs));
+        let labels = (0..mesh.n_faces() as u32).collect();
+        mesh.face_attrs.insert("cell", AttrValues::Label(labels));
+        let (out, outcome) = qem(&mesh, Goal::Vertices(20));
+        assert!(outcome.collapses > 0);
+        let x = out.vertex_attrs.scalar("x").unwrap();
+        assert_eq!(x.len(), 20);
+        assert!(x.iter().all(|v| (0.0..=1.0).contains(v)));
+        let cells = out.face_attrs.label("cell").unwrap();
+        assert_eq!(cells.len(), out.n_faces());
+        assert!(
+            cells.windows(2).all(|w| w[0] < w[1]),
+            "faces keep input order"
+        );
+    }
+
+    #[test]
+    fn max_error_stops_before_the_first_costlier_collapse() {
+        let mesh = grid(12, 12, bump);
+        let (_, full) = qem(&mesh, Goal::Vertices(10));
+        let limit = full.log[full.log.len() / 2].cost;
+        assert!(limit > 0.0);
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let opts = Options {
+            max_error: Some(limit),
+            ..Options::new(Goal::Vertices(10))
+        };
+        let outcome = live.collapse(&mut model, &opts, &mut |_| {});
+        assert!(matches!(outcome.stop, StopReason::MaxError { cost } if cost > limit));
+        assert!(outcome.log.iter().all(|r| r.cost <= limit));
+        assert!(outcome.collapses < full.collapses);
+    }
+
+    #[test]
+    fn quality_guard_refuses_slivers() {
+        let mesh = grid(12, 12, bump);
+        let (_, plain) = qem(&mesh, Goal::Vertices(20));
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let opts = Options {
+            min_quality: 0.3,
+            ..Options::new(Goal::Vertices(20))
+        };
+        let outcome = live.collapse(&mut model, &opts, &mut |_| {});
+        assert!(outcome.refused.quality > 0);
+        assert_eq!(plain.refused.quality, 0);
+        live.check_invariants().unwrap();
+    }
+
+    #[test]
+    fn sve_is_the_squared_volume_swept_by_the_faces_around_the_merge() {
+        // Oracle: Σ (1/9)·Sᵢ²·(nᵢ·p + dᵢ)² over the input faces around both merged vertices.
+        let mesh = icosphere(1);
+        let (_, outcome) = qem(&mesh, Goal::Vertices(mesh.n_vertices() - 1));
+        let r = outcome.log[0];
+        let expect: f64 = (0..mesh.n_faces())
+            .filter(|&f| {
+                mesh.faces[f]
+                    .iter()
+                    .any(|&v| v == r.kept || v == r.removed[0])
+            })
+            .map(|f| {
+                let s = mesh.face_area(f);
+                let q = coarsen_geom::Quadric::from_plane(
+                    mesh.face_normal(f),
+                    mesh.corners(f)[0],
+                    s * s / 9.0,
+                );
+                q.eval(r.position)
+            })
+            .sum();
+        assert!(expect > 0.0);
+        assert!(
+            (r.sve - expect).abs() <= 1e-12 * expect,
+            "{} vs {expect}",
+            r.sve
+        );
+        assert_eq!(outcome.sve, r.sve);
+    }
+
+    #[test]
+    fn progress_hears_every_few_thousand_collapses() {
+        let mesh = icosphere(5);
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let mut heard = Vec::new();
+        let outcome = live.collapse(&mut model, &Options::new(Goal::Vertices(500)), &mut |n| {
+            heard.push(n)
+        });
+        assert_eq!(outcome.collapses, mesh.n_vertices() - 500);
+        assert_eq!(
+            heard,
+            (1..=outcome.collapses / PROGRESS_EVERY)
+                .map(|i| i * PROGRESS_EVERY)
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(live.n_vertices(), 500);
+    }
+}

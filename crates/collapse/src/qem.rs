@@ -1,0 +1,195 @@
+//! The quadric error metric of Garland & Heckbert (1997), *Surface simplification using
+//! quadric error metrics*, as a [`CostModel`] for edge collapses.
+//!
+//! * **Vertex quadrics.** Each vertex starts with the sum of the plane quadrics `p pᵀ` of
+//!   its faces. With `area_weighted` (the default) each plane is weighted by its face's
+//!   area, so a quadric measures area × squared distance — the integrated error — and a
+//!   dense region does not weigh more than a coarse one of the same size; without it every
+//!   face counts 1, as in the paper's first version.
+//! * **Boundaries.** Each boundary edge adds, to both its ends, the plane through the edge
+//!   perpendicular to its face, weighted by `boundary_weight` (× the squared edge length
+//!   when area-weighted, so that it scales like the face terms). Moving a boundary vertex
+//!   off its boundary line then costs far more than moving it along.
+//! * **Placement.** The merged vertex goes to the minimiser of the summed quadric when
+//!   that 3×3 system is well conditioned (relative determinant above `1e-10`) and the
+//!   minimiser lies within twice the edge length of the edge's midpoint; otherwise to the
+//!   cheapest of the endpoints and the midpoint (the first of equals, in that order). A
+//!   merge pinned by the boundary rules (interior onto boundary) goes to its boundary
+//!   vertex. A boundary edge collapses onto whichever of its two ends costs less (the
+//!   first on a tie), so boundary vertices always sit on input boundary vertices and a
+//!   boundary never leaves its own line; the constraint planes make the end that would
+//!   cut a corner of the boundary the expensive one, so corners stay.
+//! * **Cost.** `v̄ᵀ Q v̄` of the summed quadric, divided by `diagonal⁴` (area-weighted) or
+//!   `diagonal²` (not), so that costs — and the `max_error` limit — do not depend on the
+//!   model's size: they are those of the same mesh scaled to a unit diagonal.
+//! * **Update.** The merged vertex keeps the sum of the merged quadrics.
+
+use crate::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind};
+use coarsen_geom::{DVec3, Quadric, triangle};
+
+/// Relative determinant below which the quadric's minimiser is not trusted.
+const SOLVE_TOLERANCE: f64 = 1e-10;
+
+/// How far from the merged vertices' centroid the minimiser may lie, in units of their
+/// largest distance to it (for an edge: half its length).
+const MAX_REACH: f64 = 4.0;
+
+/// Settings of [`QuadricModel`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QemOptions {
+    /// Weight each face plane by the face's area. Default `true`.
+    pub area_weighted: bool,
+    /// Weight of boundary constraint planes relative to face planes. Default `1000`.
+    pub boundary_weight: f64,
+}
+
+impl Default for QemOptions {
+    fn default() -> Self {
+        QemOptions {
+            area_weighted: true,
+            boundary_weight: 1000.0,
+        }
+    }
+}
+
+/// Garland–Heckbert quadrics, one per vertex.
+#[derive(Clone, Debug)]
+pub struct QuadricModel {
+    quadrics: Vec<Quadric>,
+    /// Costs are divided by this (diagonal⁴ or diagonal²).
+    cost_unit: f64,
+}
+
+impl QuadricModel {
+    /// The initial quadrics of `mesh`'s vertices.
+    pub fn new(mesh: &LiveMesh, opts: &QemOptions) -> Self {
+        let mut quadrics = vec![Quadric::ZERO; mesh.vertex_slots()];
+        for f in mesh.live_faces() {
+            let face = mesh.face(f);
+            let [a, b, c] = face.map(|v| mesh.position(v));
+            let cross = triangle::cross(a, b, c);
+            let twice_area = cross.length();
+            if twice_area == 0.0 || !twice_area.is_finite() {
+                continue;
+            }
+            let n = cross / twice_area;
+            let w = if opts.area_weighted {
+                0.5 * twice_area
+            } else {
+                1.0
+            };
+            let q = Quadric::from_plane(n, a, w);
+            for &v in &face {
+                quadrics[v as usize] += q;
+            }
+            if opts.boundary_weight <= 0.0 {
+                continue;
+            }
+            for i in 0..3 {
+                let (u, v) = (face[i], face[(i + 1) % 3]);
+                if !mesh.is_boundary_edge(u, v) {
+                    continue;
+                }
+                let (pu, pv) = (mesh.position(u), mesh.position(v));
+                let e = pv - pu;
+                let m = e.cross(n).normalize_or_zero();
+                if m == DVec3::ZERO {
+                    continue;
+                }
+                let w = opts.boundary_weight
+                    * if opts.area_weighted {
+                        e.length_squared()
+                    } else {
+                        1.0
+                    };
+                let q = Quadric::from_plane(m, pu, w);
+                quadrics[u as usize] += q;
+                quadrics[v as usize] += q;
+            }
+        }
+        let d = mesh.diagonal();
+        let cost_unit = match (d > 0.0, opts.area_weighted) {
+            (false, _) => 1.0,
+            (true, true) => d.powi(4),
+            (true, false) => d * d,
+        };
+        QuadricModel {
+            quadrics,
+            cost_unit,
+        }
+    }
+
+    /// The current quadric of vertex `v`.
+    pub fn quadric(&self, v: Index) -> &Quadric {
+        &self.quadrics[v as usize]
+    }
+
+    fn sum(&self, verts: &[Index]) -> Quadric {
+        verts
+            .iter()
+            .fold(Quadric::ZERO, |q, &v| q + self.quadrics[v as usize])
+    }
+}
+
+impl CostModel for QuadricModel {
+    fn unit(&self) -> Unit {
+        Unit::Edge
+    }
+
+    fn reach(&self) -> Reach {
+        Reach::Kept
+    }
+
+    fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan> {
+        let q = self.sum(merge.vertices);
+        let mut boundary = merge
+            .vertices
+            .iter()
+            .copied()
+            .filter(|&v| mesh.kind(v) == VertexKind::Boundary);
+        let position = match (merge.pinned, boundary.next(), boundary.next()) {
+            (Some(v), _, _) => mesh.position(v),
+            (None, Some(a), Some(b)) => {
+                let (pa, pb) = (mesh.position(a), mesh.position(b));
+                if q.eval(pa) <= q.eval(pb) { pa } else { pb }
+            }
+            _ => {
+                let n = merge.vertices.len() as f64;
+                let centroid = merge
+                    .vertices
+                    .iter()
+                    .map(|&v| mesh.position(v))
+                    .sum::<DVec3>()
+                    / n;
+                let radius = merge
+                    .vertices
+                    .iter()
+                    .map(|&v| (mesh.position(v) - centroid).length())
+                    .fold(0.0, f64::max);
+                match q.minimizer(SOLVE_TOLERANCE) {
+                    Some(x) if (x - centroid).length() <= MAX_REACH * radius => x,
+                    _ => {
+                        let mut best = centroid;
+                        let mut best_cost = q.eval(centroid);
+                        for &v in merge.vertices.iter().rev() {
+                            let p = mesh.position(v);
+                            let c = q.eval(p);
+                            if c <= best_cost {
+                                (best, best_cost) = (p, c);
+                            }
+                        }
+                        best
+                    }
+                }
+            }
+        };
+        Some(Plan {
+            position,
+            cost: q.eval(position) / self.cost_unit,
+        })
+    }
+
+    fn merged(&mut self, _mesh: &LiveMesh, kept: Index, merged: &[Index]) {
+        self.quadrics[kept as usize] = self.sum(merged);
+    }
+}

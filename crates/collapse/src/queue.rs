@@ -1,0 +1,320 @@
+//! The collapse queue: a binary heap of candidates keyed by `(cost, sequence)`, with lazy
+//! invalidation and a parking area for refused candidates.
+//!
+//! * **Order.** The cheapest candidate comes first; among equal costs the one queued first
+//!   (lowest sequence number), so zero-cost candidates on flat regions are taken in queue
+//!   order (paper 2, §3.5) and the run does not depend on the heap's internal layout.
+//! * **Layout.** A 4-ary heap in one `Vec`: half the levels of a binary heap, and the four
+//!   children of a node share two cache lines, which matters because most pops are of
+//!   stale entries and every pop walks down to a leaf.
+//! * **Lazy invalidation.** Every vertex has a version stamp that grows by one whenever its
+//!   data changes or it is merged away. An entry stores the (wrapping `u32`) sum of its
+//!   vertices' stamps when it was queued; since stamps only grow, the entry is current
+//!   exactly when that sum is unchanged (until 2³² changes pile up on the same vertices,
+//!   which a mesh with 32-bit indices cannot reach). Stale entries are skipped when popped,
+//!   and swept out in one pass when they make up a third of the heap.
+//! * **Parking.** A candidate refused by a validity check stays refused until something
+//!   around it changes. It is parked on each of its vertices; when a collapse touches one
+//!   of them, the parked candidate goes back on the heap (behind everything queued so far).
+
+use crate::Index;
+use std::cmp::Ordering;
+
+/// One queued candidate: up to three vertices (unused slots hold [`crate::NONE`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Entry {
+    pub cost: f64,
+    pub seq: u64,
+    pub vertices: [Index; 3],
+    pub stamp: u32,
+}
+
+impl Entry {
+    /// The vertices in use.
+    #[inline]
+    pub fn vertices(&self) -> &[Index] {
+        let n = if self.vertices[2] == crate::NONE {
+            2
+        } else {
+            3
+        };
+        &self.vertices[..n]
+    }
+
+    /// True when `self` pops before `other`: lower cost, then lower sequence number.
+    #[inline]
+    fn before(&self, other: &Entry) -> bool {
+        match self.cost.total_cmp(&other.cost) {
+            Ordering::Less => true,
+            Ordering::Greater => false,
+            Ordering::Equal => self.seq < other.seq,
+        }
+    }
+}
+
+/// A 4-ary min-heap of entries under [`Entry::before`].
+#[derive(Debug, Default)]
+struct Heap {
+    items: Vec<Entry>,
+}
+
+impl Heap {
+    const ARITY: usize = 4;
+
+    fn with_capacity(n: usize) -> Self {
+        Heap {
+            items: Vec::with_capacity(n),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    fn push(&mut self, e: Entry) {
+        let mut i = self.items.len();
+        self.items.push(e);
+        while i > 0 {
+            let parent = (i - 1) / Self::ARITY;
+            if !e.before(&self.items[parent]) {
+                break;
+            }
+            self.items[i] = self.items[parent];
+            i = parent;
+        }
+        self.items[i] = e;
+    }
+
+    fn pop(&mut self) -> Option<Entry> {
+        let last = self.items.pop()?;
+        if self.items.is_empty() {
+            return Some(last);
+        }
+        let top = self.items[0];
+        self.sift_down(0, last);
+        Some(top)
+    }
+
+    /// Places `e` at hole `i` or below, moving smaller children up.
+    fn sift_down(&mut self, mut i: usize, e: Entry) {
+        let n = self.items.len();
+        loop {
+            let first = i * Self::ARITY + 1;
+            if first >= n {
+                break;
+            }
+            let mut best = first;
+            for c in first + 1..(first + Self::ARITY).min(n) {
+                if self.items[c].before(&self.items[best]) {
+                    best = c;
+                }
+            }
+            if !self.items[best].before(&e) {
+                break;
+            }
+            self.items[i] = self.items[best];
+            i = best;
+        }
+        self.items[i] = e;
+    }
+
+    /// Keeps the entries `keep` accepts and restores the heap order bottom-up.
+    fn retain(&mut self, keep: impl Fn(&Entry) -> bool) {
+        self.items.retain(keep);
+        let n = self.items.len();
+        if n > 1 {
+            for i in (0..=(n - 2) / Self::ARITY).rev() {
+                let e = self.items[i];
+                self.sift_down(i, e);
+            }
+        }
+    }
+}
+
+const NIL: u32 = u32::MAX;
+
+#[derive(Debug, Default)]
+pub(crate) struct Queue {
+    heap: Heap,
+    next_seq: u64,
+    /// Parked entries and whether each has gone back on the heap (or been dropped).
+    parked: Vec<(Entry, bool)>,
+    n_released: usize,
+    /// Per vertex: first node of its parked list in `nodes`.
+    park_head: Vec<u32>,
+    /// `(parked entry, next node)`.
+    nodes: Vec<(u32, u32)>,
+}
+
+impl Queue {
+    pub(crate) fn new(n_vertices: usize, capacity: usize) -> Self {
+        Queue {
+            heap: Heap::with_capacity(capacity),
+            park_head: vec![NIL; n_vertices],
+            ..Default::default()
+        }
+    }
+
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
+        self.heap.len()
+    }
+
+    /// Queues a candidate behind every candidate of the same cost queued before.
+    pub(crate) fn push(&mut self, cost: f64, vertices: [Index; 3], stamp: u32) {
+        let seq = self.next_seq;
+        self.next_seq += 1;
+        self.heap.push(Entry {
+            cost,
+            seq,
+            vertices,
+            stamp,
+        });
+    }
+
+    pub(crate) fn pop(&mut self) -> Option<Entry> {
+        self.heap.pop()
+    }
+
+    /// Parks a refused entry until one of its vertices is touched.
+    pub(crate) fn park(&mut self, e: Entry) {
+        let id = self.parked.len() as u32;
+        self.parked.push((e, false));
+        for &v in e.vertices() {
+            let head = &mut self.park_head[v as usize];
+            self.nodes.push((id, *head));
+            *head = self.nodes.len() as u32 - 1;
+        }
+    }
+
+    /// Re-queues the entries parked on `v` that `current` still accepts.
+    pub(crate) fn release(&mut self, v: Index, current: impl Fn(&Entry) -> bool) {
+        let mut node = std::mem::replace(&mut self.park_head[v as usize], NIL);
+        while node != NIL {
+            let (id, next) = self.nodes[node as usize];
+            let (e, released) = &mut self.parked[id as usize];
+            if !*released {
+                *released = true;
+                self.n_released += 1;
+                let e = *e;
+                if current(&e) {
+                    self.push(e.cost, e.vertices, e.stamp);
+                }
+            }
+            node = next;
+        }
+        if self.n_released > 1024 && self.n_released > 2 * (self.parked.len() - self.n_released) {
+            self.compact_parked();
+        }
+    }
+
+    /// Drops the heap entries that `current` rejects once the heap holds half again as
+    /// many entries as there are live candidates: a sweep costs a sequential pass per
+    /// entry, far less than popping stale entries one by one.
+    pub(crate) fn sweep_if_stale(
+        &mut self,
+        n_live_estimate: usize,
+        current: impl Fn(&Entry) -> bool,
+    ) {
+        if self.heap.len() > n_live_estimate + n_live_estimate / 2 + 4096 {
+            self.heap.retain(current);
+        }
+    }
+
+    /// Rebuilds the parking area from the entries still parked.
+    fn compact_parked(&mut self) {
+        let old = std::mem::take(&mut self.parked);
+        self.nodes.clear();
+        // Only vertices of parked entries can have a list: reset those, not all heads.
+        for (e, _) in &old {
+            for &v in e.vertices() {
+                self.park_head[v as usize] = NIL;
+            }
+        }
+        self.n_released = 0;
+        for (e, released) in old {
+            if !released {
+                self.park(e);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::NONE;
+
+    #[test]
+    fn equal_costs_pop_in_queue_order() {
+        let mut q = Queue::new(10, 8);
+        for v in [5, 1, 7, 3] {
+            q.push(0.0, [v, v + 1, NONE], 0);
+        }
+        q.push(-0.0, [9, 0, NONE], 0);
+        q.push(0.5, [0, 1, NONE], 0);
+        let order: Vec<_> = std::iter::from_fn(|| q.pop())
+            .map(|e| e.vertices[0])
+            .collect();
+        // -0.0 sorts before 0.0 under total order; then FIFO among the zeros.
+        assert_eq!(order, [9, 5, 1, 7, 3, 0]);
+    }
+
+    #[test]
+    fn heap_pops_in_cost_then_sequence_order_through_pushes_and_sweeps() {
+        // Oracle: a sorted list. Costs drawn from a few values so that ties are common.
+        let mut q = Queue::new(4, 8);
+        let mut oracle: Vec<(f64, u64, u32)> = Vec::new();
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32
+        };
+        let mut popped = Vec::new();
+        let mut expected = Vec::new();
+        for round in 0..2000u32 {
+            let cost = (next() % 7) as f64 * 0.5;
+            q.push(cost, [round, 0, NONE], 0);
+            oracle.push((cost, round as u64, round));
+            if next() % 3 == 0 {
+                oracle.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                expected.push(oracle.remove(0).2);
+                popped.push(q.pop().unwrap().vertices[0]);
+            }
+            if round % 500 == 499 {
+                // Sweep out the odd ids, from the heap and from the oracle.
+                q.heap.retain(|e| e.vertices[0] % 2 == 0);
+                oracle.retain(|e| e.2 % 2 == 0);
+            }
+        }
+        oracle.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        expected.extend(oracle.iter().map(|e| e.2));
+        popped.extend(std::iter::from_fn(|| q.pop()).map(|e| e.vertices[0]));
+        assert_eq!(popped, expected);
+    }
+
+    #[test]
+    fn parked_entries_return_once_when_a_vertex_is_touched() {
+        let mut q = Queue::new(10, 8);
+        q.push(1.0, [2, 3, NONE], 0);
+        let e = q.pop().unwrap();
+        q.park(e);
+        assert_eq!(q.len(), 0);
+        q.release(4, |_| true);
+        assert_eq!(q.len(), 0);
+        q.release(3, |_| true);
+        assert_eq!(q.len(), 1);
+        // Already released through vertex 3: touching vertex 2 does not queue it twice.
+        q.release(2, |_| true);
+        assert_eq!(q.len(), 1);
+        let back = q.pop().unwrap();
+        assert_eq!(back.vertices, [2, 3, NONE]);
+        assert!(back.seq > e.seq, "a re-queued entry goes behind");
+        // A stale parked entry is dropped rather than re-queued.
+        q.park(back);
+        q.release(2, |_| false);
+        assert_eq!(q.len(), 0);
+    }
+}

@@ -1,0 +1,169 @@
+//! Timing of `simplify.qem` beside meshoptimizer's simplifier on the same inputs.
+//!
+//! `cargo bench -p coarsen-stage-qem` measures each case several times, the two
+//! simplifiers in turns, and shows the median CPU time per call of this thread (wall time
+//! where Linux's `schedstat` is unavailable):
+//!
+//! * the Stanford bunny (when `../shared/data` has it) with 70 % and 95 % of faces removed;
+//! * a 1.3M-face icosphere down to 60 000 faces.
+//!
+//! coarsen's time covers the whole stage (adjacency, quadrics, collapses, compaction with
+//! attribute carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
+//! positions (the copy itself not timed), with no error limit. meshoptimizer collapses onto
+//! existing vertices without the f64 optimal placement, so the ratio is a speed reference,
+//! not a like-for-like comparison.
+
+use coarsen_mesh::Mesh;
+use coarsen_stage::{Context, Stage, StageReport, Target};
+use coarsen_stage_qem::{QemParams, SimplifyQem};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Time this thread has spent on a CPU (Linux: `/proc/thread-self/schedstat`), so that
+/// other processes on a busy machine do not inflate the figures; `None` elsewhere.
+fn cpu_time() -> Option<Duration> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: u64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(Duration::from_nanos(ns))
+}
+
+/// Median time per call of `a` and of `b` over `runs` measurements taken in turns, so
+/// that both see the same machine load; each measurement repeats its function for at
+/// least `min` (the CPU clock ticks in milliseconds). Returns the last results.
+fn time_both<A, B>(
+    runs: usize,
+    min: Duration,
+    mut a: impl FnMut() -> A,
+    mut b: impl FnMut() -> B,
+) -> ((Duration, A), (Duration, B)) {
+    fn clock() -> (Instant, Option<Duration>) {
+        (Instant::now(), cpu_time())
+    }
+    fn since((wall, cpu): (Instant, Option<Duration>)) -> Duration {
+        match (cpu, cpu_time()) {
+            (Some(a), Some(b)) => b - a,
+            _ => wall.elapsed(),
+        }
+    }
+    /// Calls `f` `reps` times; the time per call and the last result.
+    fn measure<T>(f: &mut impl FnMut() -> T, reps: u32) -> (Duration, T) {
+        let start = clock();
+        let mut out = std::hint::black_box(f());
+        for _ in 1..reps {
+            out = std::hint::black_box(f());
+        }
+        (since(start) / reps, out)
+    }
+    let reps = |once: Duration| {
+        (min.as_secs_f64() / once.as_secs_f64().max(1e-6))
+            .ceil()
+            .clamp(1.0, 1000.0) as u32
+    };
+    let (ta, mut last_a) = measure(&mut a, 1);
+    let (tb, mut last_b) = measure(&mut b, 1);
+    let (ra, rb) = (reps(ta), reps(tb));
+    let (mut times_a, mut times_b) = (Vec::new(), Vec::new());
+    for _ in 0..runs {
+        let (t, out) = measure(&mut a, ra);
+        times_a.push(t);
+        last_a = out;
+        let (t, out) = measure(&mut b, rb);
+        times_b.push(t);
+        last_b = out;
+    }
+    times_a.sort();
+    times_b.sort();
+    ((times_a[runs / 2], last_a), (times_b[runs / 2], last_b))
+}
+
+fn coarsen(mesh: &Mesh, target: Target) -> Mesh {
+    let mut report = StageReport::default();
+    let mut cx = Context::new(mesh, &mut report);
+    cx.target = Some(target);
+    SimplifyQem::new(QemParams::default())
+        .run(mesh.clone(), &mut cx)
+        .expect("simplify.qem runs")
+}
+
+/// meshoptimizer on the same triangles; returns the output face count.
+fn meshopt_simplify(indices: &[u32], positions: &[[f32; 3]], faces: usize) -> usize {
+    let bytes: Vec<u8> = positions
+        .iter()
+        .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let adapter = meshopt::VertexDataAdapter::new(&bytes, 12, 0).expect("valid vertex buffer");
+    meshopt::simplify(
+        indices,
+        &adapter,
+        faces * 3,
+        1.0,
+        meshopt::SimplifyOptions::None,
+        None,
+    )
+    .len()
+        / 3
+}
+
+fn case(name: &str, mesh: &Mesh, target: Target, runs: usize, min: Duration) {
+    let goal = target.faces_for(mesh) as usize;
+    // Build the meshopt input once, outside the timing.
+    let indices: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
+    let positions: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| p.as_vec3().to_array())
+        .collect();
+    let ((ours, out), (theirs, their_faces)) = time_both(
+        runs,
+        min,
+        || coarsen(mesh, target),
+        || meshopt_simplify(&indices, &positions, goal),
+    );
+    println!(
+        "{name:<28} {:>9} → {:>7} faces  coarsen {:>9.1} ms  meshopt {:>8.1} ms ({:>7} faces)  ratio {:>5.2}",
+        mesh.n_faces(),
+        out.n_faces(),
+        ours.as_secs_f64() * 1e3,
+        theirs.as_secs_f64() * 1e3,
+        their_faces,
+        ours.as_secs_f64() / theirs.as_secs_f64()
+    );
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; `cargo test --benches` does not: then run one quick case.
+    let quick = !std::env::args().any(|a| a == "--bench");
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    let bunny = data.join("stanford-bunny.obj");
+    if bunny.exists() {
+        let mesh = coarsen_io::read_path(&bunny, &Default::default())
+            .expect("the bunny loads")
+            .mesh;
+        if quick {
+            case(
+                "bunny, 70 % removed",
+                &mesh,
+                Target::Ratio(0.7),
+                1,
+                Duration::ZERO,
+            );
+            return;
+        }
+        let min = Duration::from_millis(250);
+        case("bunny, 70 % removed", &mesh, Target::Ratio(0.7), 5, min);
+        case("bunny, 95 % removed", &mesh, Target::Ratio(0.95), 5, min);
+    } else {
+        println!("bunny skipped: {} is absent", bunny.display());
+    }
+    if !quick {
+        let sphere = coarsen_shapes::icosphere(1.0, 8).expect("icosphere");
+        let min = Duration::from_millis(250);
+        case(
+            "icosphere (8 splits) → 60K",
+            &sphere,
+            Target::Faces(60_000),
+            3,
+            min,
+        );
+    }
+}

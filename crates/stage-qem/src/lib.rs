@@ -1,0 +1,369 @@
+//! The `simplify.qem` stage: Garland & Heckbert (1997) quadric edge collapse down to the
+//! run target — the baseline both papers compare to.
+//!
+//! The work is done by the shared collapse engine (`coarsen-collapse`), with its
+//! [`QuadricModel`]: per-vertex quadrics from the face planes (area-weighted by default),
+//! boundary constraint planes, optimal placement with guarded fall-backs, and the engine's
+//! validity checks (link condition, flips, degenerate faces, optional quality guard) and
+//! boundary rules. Non-manifold vertices are locked in place rather than refused, so the
+//! stage does not need a manifold input.
+//!
+//! | parameter | default | meaning |
+//! | --- | --- | --- |
+//! | `max_error` | `0` (none) | stop before the first collapse costing more (cost of the mesh scaled to a unit diagonal) |
+//! | `boundary_weight` | `1000` | weight of the boundary constraint planes relative to the face planes |
+//! | `min_quality` | `0` (off) | refuse collapses leaving a triangle below this quality and below its previous quality |
+//! | `area_weighted` | `true` | weight each face plane by its area |
+//!
+//! The target comes from the run (`--vertices`, `--faces`, `--ratio` or the pipeline's):
+//! a vertex count is met exactly, a face count or ratio to within one face (an interior
+//! edge collapse removes two faces). The report gives `collapses`, `refused` (by reason),
+//! `sve` (paper 2's squared-volume error, summed over the collapses), `max_cost`, the
+//! final `vertices` and `faces`, why the run `stop`ped, the `locked_vertices` and the
+//! `boundary_loops` before and after, and a warning whenever the target was not reached.
+//!
+//! ```
+//! use coarsen_stage::{Context, Stage, StageReport, Target};
+//! use coarsen_stage_qem::{QemParams, SimplifyQem};
+//! # use coarsen_mesh::{DVec3, Mesh};
+//! # let p = [DVec3::X, DVec3::Y, -DVec3::X, -DVec3::Y, DVec3::Z, -DVec3::Z];
+//! # let faces = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4],
+//! #                  [1, 0, 5], [2, 1, 5], [3, 2, 5], [0, 3, 5]];
+//! let octahedron = Mesh::new(p.to_vec(), faces);
+//! let mut report = StageReport::default();
+//! let mut cx = Context::new(&octahedron, &mut report);
+//! cx.target = Some(Target::Vertices(5));
+//! let out = SimplifyQem::new(QemParams::default()).run(octahedron.clone(), &mut cx)?;
+//! assert_eq!(out.n_vertices(), 5);
+//! assert_eq!(report.get("collapses"), Some(&1.into()));
+//! # Ok::<(), coarsen_stage::StageError>(())
+//! ```
+
+use coarsen_collapse::{
+    Goal, LiveMesh, Options, Outcome, QemOptions, QuadricModel, StopReason, Summary,
+};
+use coarsen_stage::params::check_range;
+use coarsen_stage::{
+    Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
+    params,
+};
+use std::collections::BTreeMap;
+
+params! {
+    /// Parameters of `simplify.qem`.
+    pub struct QemParams {
+        /// Largest collapse cost allowed, as the quadric error of the mesh scaled to a unit
+        /// bounding-box diagonal (area × squared distance when `area_weighted`); the run stops
+        /// before the first collapse costing more. 0 means no limit.
+        pub max_error: f64 = 0.0,
+        /// Weight of the boundary constraint planes (through each boundary edge,
+        /// perpendicular to its face) relative to the face planes; 0 drops them.
+        pub boundary_weight: f64 = 1000.0,
+        /// Refuse collapses that leave a triangle below this Frey–Borouchaki quality (and
+        /// below its quality before); 0 turns the guard off.
+        pub min_quality: f64 = 0.0,
+        /// Weight each face plane by the face's area (else every face counts 1).
+        pub area_weighted: bool = true,
+    }
+}
+
+impl Params for QemParams {
+    fn validate(&self) -> Vec<ParamIssue> {
+        let mut issues = Vec::new();
+        check_range(&mut issues, "max_error", self.max_error, 0.0, f64::MAX);
+        check_range(
+            &mut issues,
+            "boundary_weight",
+            self.boundary_weight,
+            0.0,
+            f64::MAX,
+        );
+        check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
+        issues
+    }
+}
+
+/// Garland–Heckbert quadric edge collapse to the run target.
+pub struct SimplifyQem(QemParams);
+
+impl Stage for SimplifyQem {
+    type Params = QemParams;
+    const KIND: &'static str = "simplify.qem";
+    const SUMMARY: &'static str =
+        "Garland–Heckbert quadric edge collapse down to the run target (the QEM baseline).";
+
+    fn new(params: QemParams) -> Self {
+        SimplifyQem(params)
+    }
+
+    fn contract(&self) -> Contract {
+        Contract {
+            needs: Needs {
+                target: true,
+                ..Needs::default()
+            },
+            ..Contract::default()
+        }
+    }
+
+    fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let p = &self.0;
+        let target = cx.require_target(Self::KIND)?;
+        target
+            .check()
+            .map_err(|m| StageError::Input(format!("`{}`: {m}", Self::KIND)))?;
+        let goal = match target {
+            Target::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
+            Target::Faces(_) | Target::Ratio(_) => {
+                Goal::Faces(usize::try_from(target.faces_for(&mesh)).unwrap_or(usize::MAX))
+            }
+        };
+        let mut live = LiveMesh::new(&mesh)
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let before = live.summary();
+        let mut model = QuadricModel::new(
+            &live,
+            &QemOptions {
+                area_weighted: p.area_weighted,
+                boundary_weight: p.boundary_weight,
+            },
+        );
+        let opts = Options {
+            goal,
+            max_error: (p.max_error > 0.0).then_some(p.max_error),
+            min_quality: p.min_quality,
+        };
+        let progress = cx.progress;
+        let to_remove = match goal {
+            Goal::Vertices(n) => before.vertices.saturating_sub(n),
+            Goal::Faces(n) => before.faces.saturating_sub(n) / 2,
+        };
+        progress.begin(Self::KIND, to_remove as u64);
+        let outcome = live.collapse(&mut model, &opts, &mut |n| {
+            progress.advance(n as u64, "collapses")
+        });
+        progress.end();
+        let after = live.summary();
+        let (out, carry) = live
+            .to_mesh(&mesh)
+            .map_err(|e| StageError::Internal(e.to_string()))?;
+        report(cx.report, &target, p, &outcome, &before, &after);
+        for w in carry.warnings() {
+            cx.report.warn(w);
+        }
+        Ok(out)
+    }
+}
+
+/// Fills the stage report: figures, then warnings.
+fn report(
+    r: &mut StageReport,
+    target: &Target,
+    p: &QemParams,
+    o: &Outcome,
+    before: &Summary,
+    after: &Summary,
+) {
+    let refused = &o.refused;
+    let by_reason = BTreeMap::from([
+        ("link", refused.link),
+        ("flip", refused.flip),
+        ("degenerate", refused.degenerate),
+        ("quality", refused.quality),
+        ("boundary", refused.boundary),
+        ("locked", refused.locked),
+    ]);
+    r.figure("collapses", o.collapses);
+    r.figure("refused", by_reason);
+    r.figure("sve", o.sve);
+    r.figure("max_cost", o.max_cost);
+    r.figure("vertices", after.vertices);
+    r.figure("faces", after.faces);
+    r.figure(
+        "stop",
+        match o.stop {
+            StopReason::Reached => "reached",
+            StopReason::MaxError { .. } => "max_error",
+            StopReason::Exhausted => "exhausted",
+        },
+    );
+    r.figure("locked_vertices", before.locked_vertices);
+    r.figure("boundary_loops_in", before.boundary_loops);
+    r.figure("boundary_loops", after.boundary_loops);
+
+    let at = format!("{} vertices and {} faces", after.vertices, after.faces);
+    match o.stop {
+        StopReason::Reached => {}
+        StopReason::MaxError { cost } => r.warn(format!(
+            "target ({target}) not reached: stopped at {at}; the next collapse costs {cost:.3e}, above max_error = {}",
+            p.max_error
+        )),
+        StopReason::Exhausted => r.warn(format!(
+            "target ({target}) not reached: stopped at {at}; every remaining collapse is refused \
+             (link {}, flip {}, degenerate {}, quality {}, boundary {}, locked {})",
+            refused.link,
+            refused.flip,
+            refused.degenerate,
+            refused.quality,
+            refused.boundary,
+            refused.locked
+        )),
+    }
+    if before.locked_vertices > 0 {
+        r.warn(format!(
+            "{} non-manifold vertices (or vertices of faces that repeat a vertex) were locked: \
+             they keep their place and no edge at them collapses",
+            before.locked_vertices
+        ));
+    }
+    if before.isolated_vertices > 0 {
+        r.warn(format!(
+            "{} vertices used by no face were dropped",
+            before.isolated_vertices
+        ));
+    }
+}
+
+coarsen_stage::export_stage!(SimplifyQem);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_mesh::DVec3;
+    use coarsen_shapes::{disk_with_holes, icosphere, plane_grid};
+
+    fn run(
+        mesh: &Mesh,
+        target: Option<Target>,
+        params: QemParams,
+    ) -> (Result<Mesh, StageError>, StageReport) {
+        let mut report = StageReport::default();
+        let mut cx = Context::new(mesh, &mut report);
+        cx.target = target;
+        let out = SimplifyQem::new(params).run(mesh.clone(), &mut cx);
+        (out, report)
+    }
+
+    #[test]
+    fn needs_a_target_and_says_so() {
+        let stage = SimplifyQem::new(QemParams::default());
+        assert!(stage.contract().needs.target);
+        assert!(
+            !stage.contract().needs.manifold,
+            "non-manifold vertices are locked instead"
+        );
+        let (out, _) = run(&icosphere(1.0, 1).unwrap(), None, QemParams::default());
+        let e = out.unwrap_err().to_string();
+        assert!(e.contains("`simplify.qem` needs a target"), "{e}");
+    }
+
+    #[test]
+    fn parameters_out_of_range_are_named() {
+        let bad = QemParams {
+            max_error: -1.0,
+            boundary_weight: f64::NAN,
+            min_quality: 1.5,
+            area_weighted: true,
+        };
+        let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
+        assert_eq!(fields, ["max_error", "boundary_weight", "min_quality"]);
+        assert!(QemParams::default().validate().is_empty());
+    }
+
+    #[test]
+    fn example_table_builds_through_the_registry() {
+        let d = descriptor();
+        let mut table: toml::Table =
+            toml::from_str(&d.example_toml().replace("[[stage]]\n", "")).unwrap();
+        assert_eq!(table.remove("kind"), Some("simplify.qem".into()));
+        let stage = (d.build)(&table).ok().unwrap();
+        assert_eq!(stage.kind(), "simplify.qem");
+        assert_eq!(stage.params()["boundary_weight"].as_float(), Some(1000.0));
+    }
+
+    #[test]
+    fn vertex_target_is_exact_and_the_report_has_every_figure() {
+        let sphere = icosphere(2.0, 3).unwrap();
+        let (out, report) = run(&sphere, Some(Target::Vertices(123)), QemParams::default());
+        let out = out.unwrap();
+        assert_eq!(out.n_vertices(), 123);
+        assert_eq!(report.get("vertices"), Some(&123.into()));
+        assert_eq!(report.get("stop"), Some(&"reached".into()));
+        assert_eq!(report.get("collapses"), Some(&(642 - 123).into()));
+        for name in [
+            "refused",
+            "sve",
+            "max_cost",
+            "faces",
+            "boundary_loops",
+            "locked_vertices",
+        ] {
+            assert!(report.get(name).is_some(), "missing figure {name}");
+        }
+        assert!(report.get("sve").unwrap().as_f64().unwrap() > 0.0);
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    }
+
+    #[test]
+    fn ratio_target_removes_that_share_of_faces() {
+        let sphere = icosphere(1.0, 3).unwrap();
+        let (out, _) = run(&sphere, Some(Target::Ratio(0.7)), QemParams::default());
+        // 1280 faces · 0.3 = 384.
+        assert_eq!(out.unwrap().n_faces(), 384);
+    }
+
+    #[test]
+    fn unreachable_target_is_a_warning_not_an_error() {
+        // A tetrahedron cannot lose a vertex and stay a closed manifold.
+        let tet = Mesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
+            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
+        );
+        let (out, report) = run(&tet, Some(Target::Vertices(3)), QemParams::default());
+        assert_eq!(out.unwrap(), tet);
+        assert_eq!(report.get("stop"), Some(&"exhausted".into()));
+        assert!(
+            report.warnings[0].contains("target (3 vertices) not reached"),
+            "{:?}",
+            report.warnings
+        );
+    }
+
+    #[test]
+    fn max_error_stops_early_with_a_warning() {
+        let sphere = icosphere(1.0, 3).unwrap();
+        let params = QemParams {
+            max_error: 1e-12,
+            ..QemParams::default()
+        };
+        let (out, report) = run(&sphere, Some(Target::Vertices(12)), params);
+        assert!(out.unwrap().n_vertices() > 12);
+        assert_eq!(report.get("stop"), Some(&"max_error".into()));
+        assert!(
+            report.warnings[0].contains("above max_error"),
+            "{:?}",
+            report.warnings
+        );
+    }
+
+    #[test]
+    fn holes_stay_open() {
+        let disk = disk_with_holes(2, 4, 1.0).unwrap();
+        let (out, report) = run(&disk, Some(Target::Vertices(60)), QemParams::default());
+        assert_eq!(out.unwrap().n_vertices(), 60);
+        assert_eq!(report.get("boundary_loops_in"), Some(&3.into()));
+        assert_eq!(report.get("boundary_loops"), Some(&3.into()));
+    }
+
+    #[test]
+    fn flat_grid_keeps_its_border_and_corners() {
+        let grid = plane_grid(12, 12, 1.0).unwrap();
+        let (out, report) = run(&grid, Some(Target::Vertices(20)), QemParams::default());
+        let out = out.unwrap();
+        assert_eq!(out.n_vertices(), 20);
+        assert_eq!(report.get("boundary_loops"), Some(&1.into()));
+        let bbox = out.bbox();
+        assert_eq!((bbox.min, bbox.max), (grid.bbox().min, grid.bbox().max));
+        assert!((out.area() - grid.area()).abs() < 1e-9 * grid.area());
+    }
+}
