@@ -46,6 +46,9 @@ pub struct KeyIssue {
     pub message: String,
 }
 
+/// What building a stage from its parameter table gives: the stage, or every problem.
+pub type BuildResult = Result<Box<dyn DynStage>, Vec<KeyIssue>>;
+
 /// The registry record of one stage kind: constant data and function pointers.
 #[derive(Clone, Copy)]
 pub struct StageDescriptor {
@@ -62,7 +65,7 @@ pub struct StageDescriptor {
     /// The contract of the stage built with default parameters.
     pub default_contract: fn() -> Contract,
     /// Builds the stage from a parameter table, reporting every problem at once.
-    pub build: fn(&toml::Table) -> Result<Box<dyn DynStage>, Vec<KeyIssue>>,
+    pub build: fn(&toml::Table) -> BuildResult,
 }
 
 impl fmt::Debug for StageDescriptor {
@@ -98,7 +101,7 @@ impl StageDescriptor {
     }
 }
 
-fn build<S: Stage>(table: &toml::Table) -> Result<Box<dyn DynStage>, Vec<KeyIssue>> {
+fn build<S: Stage>(table: &toml::Table) -> BuildResult {
     let fields = <S::Params as crate::params::ParamFields>::fields();
     let mut issues = Vec::new();
     // Unknown keys, each with the nearest known one.

@@ -1,0 +1,304 @@
+//! The cases of the tables and the published figures they are compared with.
+//!
+//! Published figures are copied from the papers and from `../shared/spec/metrics.md`
+//! (measured there by an independent tool); they are labelled as such in every table and
+//! never mixed with what this program measures.
+
+use coarsen_stage::Target;
+
+/// Which table a case belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum TableId {
+    /// Paper 1, Table 1.
+    Paper1Table1,
+    /// Paper 1, Table 2.
+    Paper1Table2,
+    /// Paper 2, Table 1.
+    Paper2Table1,
+    /// Other tools on the bunny at 5000 vertices.
+    Tools,
+}
+
+impl TableId {
+    /// Every table, in print order.
+    pub const ALL: [TableId; 4] = [
+        TableId::Paper1Table1,
+        TableId::Paper1Table2,
+        TableId::Paper2Table1,
+        TableId::Tools,
+    ];
+
+    /// Heading and one paragraph of explanation.
+    pub fn heading(self) -> (&'static str, &'static str) {
+        match self {
+            TableId::Paper1Table1 => (
+                "Paper 1, Table 1 — adaptive CVT coarsening (r = 2, with post-process)",
+                "Shu, Wang & Dong 2009, Table 1, against `adaptive-cvt` and the QEM baseline at the same vertex count.",
+            ),
+            TableId::Paper1Table2 => (
+                "Paper 1, Table 2 — bunny at 5000 vertices, r = 0.5",
+                "Shu, Wang & Dong 2009, Table 2 (their QEM row included), against `adaptive-cvt-r05` and our QEM.",
+            ),
+            TableId::Paper2Table1 => (
+                "Paper 2, Table 1 — 70 % and 95 % of faces removed",
+                "Zhou, Zhang & Cheng: SVEC against QEM. `sve` is the accumulated squared-volume error of the performed collapses (metrics.md).",
+            ),
+            TableId::Tools => (
+                "Other tools — bunny (raw scan, 5 holes) at 5000 vertices",
+                "Figures of other tools as measured by an independent tool on a 2-core machine (metrics.md), beside ours.",
+            ),
+        }
+    }
+}
+
+/// Figures published elsewhere for a case (paper tables, other tools).
+#[derive(Clone, Copy, Debug)]
+pub struct Published {
+    /// Where the row comes from.
+    pub source: &'static str,
+    /// α_min in degrees.
+    pub alpha_min: f64,
+    /// α_avg in degrees.
+    pub alpha_avg: f64,
+    /// Percent of triangles under 30°.
+    pub p_lt30: f64,
+    /// Q_min, when published.
+    pub q_min: Option<f64>,
+    /// Q_avg.
+    pub q_avg: f64,
+    /// Hausdorff distance in % of the bounding-box diagonal.
+    pub hausdorff: Option<f64>,
+    /// Time as published.
+    pub time: &'static str,
+}
+
+/// One measured row: a mesh, a shipped pipeline, a target.
+#[derive(Clone, Copy, Debug)]
+pub struct Case {
+    /// The table.
+    pub table: TableId,
+    /// File name in the data folder.
+    pub mesh: &'static str,
+    /// Name of a shipped pipeline.
+    pub pipeline: &'static str,
+    /// The run target.
+    pub target: Target,
+    /// Published rows shown above this case (only on the first case of a group).
+    pub published: &'static [Published],
+}
+
+// One argument per column of a published table row, so rows read like the tables.
+#[allow(clippy::too_many_arguments)]
+const fn p(
+    source: &'static str,
+    alpha_min: f64,
+    alpha_avg: f64,
+    p_lt30: f64,
+    q_min: Option<f64>,
+    q_avg: f64,
+    hausdorff: Option<f64>,
+    time: &'static str,
+) -> Published {
+    Published {
+        source,
+        alpha_min,
+        alpha_avg,
+        p_lt30,
+        q_min,
+        q_avg,
+        hausdorff,
+        time,
+    }
+}
+
+const BUNNY: &str = "stanford-bunny.obj";
+const ROCKER: &str = "rocker-arm.obj";
+
+const P1T1_BUNNY_3000: &[Published] = &[p(
+    "paper 1 Table 1",
+    17.76,
+    46.40,
+    0.70,
+    Some(0.33),
+    0.83,
+    Some(0.9),
+    "",
+)];
+const P1T1_BUNNY_5000: &[Published] = &[p(
+    "paper 1 Table 1",
+    15.87,
+    46.21,
+    0.75,
+    Some(0.25),
+    0.82,
+    Some(0.7),
+    "",
+)];
+const P1T1_BUNNY_8000: &[Published] = &[p(
+    "paper 1 Table 1",
+    17.43,
+    45.87,
+    0.82,
+    Some(0.28),
+    0.82,
+    Some(0.5),
+    "",
+)];
+const P1T1_ROCKER_8000: &[Published] = &[p(
+    "paper 1 Table 1",
+    16.73,
+    46.25,
+    0.70,
+    Some(0.33),
+    0.83,
+    Some(0.8),
+    "",
+)];
+const P1T2: &[Published] = &[
+    p(
+        "paper 1 Table 2 (r = 0.5)",
+        2.42,
+        48.96,
+        1.00,
+        None,
+        0.86,
+        Some(0.6),
+        "~31 s (2008)",
+    ),
+    p(
+        "paper 1 Table 2, QEM",
+        1.08,
+        34.53,
+        35.53,
+        None,
+        0.65,
+        Some(0.2),
+        "",
+    ),
+];
+const TOOLS: &[Published] = &[
+    p(
+        "pyacvd, subdivide(3) (uniform ACVD)",
+        38.4,
+        53.4,
+        0.00,
+        Some(0.66),
+        0.918,
+        Some(0.98),
+        "13.3 s",
+    ),
+    p(
+        "pyacvd with curvature weights",
+        5.0,
+        50.1,
+        2.0,
+        Some(0.10),
+        0.88,
+        Some(1.07),
+        "22 s",
+    ),
+    p(
+        "MeshLab isotropic remeshing",
+        4.3,
+        48.7,
+        4.2,
+        Some(0.09),
+        0.864,
+        Some(0.58),
+        "3.6 s",
+    ),
+    p(
+        "MeshLab quadric decimation (QEM)",
+        7.8,
+        36.4,
+        29.3,
+        Some(0.14),
+        0.683,
+        Some(0.19),
+        "1.6 s",
+    ),
+    p(
+        "meshoptimizer simplify (QEM)",
+        0.3,
+        31.3,
+        45.9,
+        Some(0.01),
+        0.595,
+        Some(0.19),
+        "0.05 s",
+    ),
+];
+
+const fn case(
+    table: TableId,
+    mesh: &'static str,
+    pipeline: &'static str,
+    target: Target,
+    published: &'static [Published],
+) -> Case {
+    Case {
+        table,
+        mesh,
+        pipeline,
+        target,
+        published,
+    }
+}
+
+/// Every case, in print order.
+pub fn all() -> Vec<Case> {
+    use TableId::*;
+    use Target::*;
+    let mut v = vec![
+        case(
+            Paper1Table1,
+            BUNNY,
+            "adaptive-cvt",
+            Vertices(3000),
+            P1T1_BUNNY_3000,
+        ),
+        case(Paper1Table1, BUNNY, "qem", Vertices(3000), &[]),
+        case(
+            Paper1Table1,
+            BUNNY,
+            "adaptive-cvt",
+            Vertices(5000),
+            P1T1_BUNNY_5000,
+        ),
+        case(Paper1Table1, BUNNY, "qem", Vertices(5000), &[]),
+        case(
+            Paper1Table1,
+            BUNNY,
+            "adaptive-cvt",
+            Vertices(8000),
+            P1T1_BUNNY_8000,
+        ),
+        case(Paper1Table1, BUNNY, "qem", Vertices(8000), &[]),
+        case(
+            Paper1Table1,
+            ROCKER,
+            "adaptive-cvt",
+            Vertices(8000),
+            P1T1_ROCKER_8000,
+        ),
+        case(Paper1Table1, ROCKER, "qem", Vertices(8000), &[]),
+        case(
+            Paper1Table2,
+            BUNNY,
+            "adaptive-cvt-r05",
+            Vertices(5000),
+            P1T2,
+        ),
+        case(Paper1Table2, BUNNY, "qem", Vertices(5000), &[]),
+    ];
+    for mesh in [BUNNY, ROCKER, "fandisk.obj", "spot.obj", "cow.obj"] {
+        for ratio in [0.7, 0.95] {
+            v.push(case(Paper2Table1, mesh, "svec", Ratio(ratio), &[]));
+            v.push(case(Paper2Table1, mesh, "qem", Ratio(ratio), &[]));
+        }
+    }
+    v.push(case(Tools, BUNNY, "uniform-cvt", Vertices(5000), TOOLS));
+    v.push(case(Tools, BUNNY, "adaptive-cvt", Vertices(5000), &[]));
+    v.push(case(Tools, BUNNY, "qem", Vertices(5000), &[]));
+    v
+}

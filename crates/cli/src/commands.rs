@@ -1,0 +1,318 @@
+//! One function per subcommand.
+
+use crate::load::{self, Input};
+use crate::{Failure, RunArgs, TargetArgs};
+use anyhow::Context as _;
+use coarsen_io::{PlyEncoding, WriteOptions};
+use coarsen_mesh::Topology;
+use coarsen_pipeline::{Overrides, Pipeline, RunOptions, parse_set};
+use coarsen_stage::{Registry, Target};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+type CmdResult = Result<(), Failure>;
+
+fn registry() -> Result<Registry, Failure> {
+    coarsen_builtin::registry().map_err(|e| Failure::Runtime(e.into()))
+}
+
+fn overrides(target: &TargetArgs, sets: &[String]) -> Result<Overrides, Failure> {
+    let target = match (target.vertices, target.faces, target.ratio) {
+        (Some(n), _, _) => Some(Target::Vertices(n)),
+        (_, Some(n), _) => Some(Target::Faces(n)),
+        (_, _, Some(r)) => Some(Target::Ratio(r)),
+        _ => None,
+    };
+    let sets = sets
+        .iter()
+        .map(|s| parse_set(s))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(Failure::Usage)?;
+    Ok(Overrides { target, sets })
+}
+
+/// A pipeline from a file path, or from the shipped pipelines by name.
+fn load_pipeline(
+    spec: &str,
+    registry: &Registry,
+    overrides: &Overrides,
+) -> Result<Pipeline, Failure> {
+    let path = Path::new(spec);
+    let parsed = if path.exists() {
+        Pipeline::from_path(path, registry, overrides)
+    } else if let Some(text) = coarsen_builtin::pipeline(spec) {
+        Pipeline::parse(
+            text,
+            &format!("<shipped pipeline {spec}>"),
+            registry,
+            overrides,
+        )
+    } else {
+        let names: Vec<_> = coarsen_builtin::PIPELINES.iter().map(|(n, _)| *n).collect();
+        return Err(Failure::Usage(format!(
+            "no pipeline file `{spec}` and no shipped pipeline of that name (shipped: {})",
+            names.join(", ")
+        )));
+    };
+    parsed.map_err(|d| Failure::Usage(format!("pipeline has errors:\n{d}")))
+}
+
+fn write_options(ascii: bool) -> WriteOptions {
+    WriteOptions {
+        ply_encoding: if ascii {
+            PlyEncoding::Ascii
+        } else {
+            PlyEncoding::BinaryLittleEndian
+        },
+        ..Default::default()
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file and a rename.
+fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut tmp =
+        tempfile::NamedTempFile::new_in(&dir).with_context(|| format!("{}", path.display()))?;
+    tmp.write_all(bytes)
+        .with_context(|| format!("{}", path.display()))?;
+    tmp.persist(path)
+        .map_err(|e| e.error)
+        .with_context(|| format!("{}", path.display()))?;
+    Ok(())
+}
+
+pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
+    let registry = registry()?;
+    let overrides = overrides(&args.target, &args.sets)?;
+    let pipeline = load_pipeline(&args.pipeline, &registry, &overrides)?;
+    load::ensure_not_input(args.input.as_deref(), &args.output)?;
+    let (input, name) = match &args.input {
+        Some(path) => (load::load(path, args.weld)?, path.display().to_string()),
+        None => (
+            Input {
+                mesh: coarsen_shapes::demo(),
+                notes: vec!["built-in demo mesh".into()],
+            },
+            "demo".into(),
+        ),
+    };
+    let opts = RunOptions {
+        sanity: args.sanity || RunOptions::default().sanity,
+        ..Default::default()
+    };
+    let (mesh, mut report) = pipeline
+        .run(input.mesh, opts)
+        .map_err(anyhow::Error::from)?;
+    report.input = name;
+    report.input_notes = input.notes;
+    coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
+    if let Some(path) = &args.report {
+        write_atomically(path, report.to_json().as_bytes())?;
+    }
+    if !quiet {
+        print!("{}", report.summary());
+        println!("wrote {}", args.output.display());
+    }
+    Ok(())
+}
+
+pub fn stages(markdown: bool) -> CmdResult {
+    let registry = registry()?;
+    let mut out = String::new();
+    for d in registry.iter() {
+        let defaults = (d.defaults)();
+        if markdown {
+            out.push_str(&format!(
+                "## `{}`\n\n{}\n\n_Crate: `{}`._\n\n",
+                d.kind, d.summary, d.crate_name
+            ));
+            let fields = (d.fields)();
+            if fields.is_empty() {
+                out.push_str("No parameters.\n\n");
+                continue;
+            }
+            out.push_str("| parameter | type | default | meaning |\n| --- | --- | --- | --- |\n");
+            for f in fields {
+                let default = defaults
+                    .get(f.name)
+                    .map(|v| v.to_string())
+                    .unwrap_or_else(|| "(none)".into());
+                let doc = f.doc.split_whitespace().collect::<Vec<_>>().join(" ");
+                out.push_str(&format!(
+                    "| `{}` | `{}` | `{}` | {} |\n",
+                    f.name, f.ty, default, doc
+                ));
+            }
+            out.push('\n');
+        } else {
+            out.push_str(&format!(
+                "{}  ({})\n    {}\n",
+                d.kind, d.crate_name, d.summary
+            ));
+            for f in (d.fields)() {
+                let default = defaults
+                    .get(f.name)
+                    .map(|v| v.to_string())
+                    .unwrap_or_else(|| "(none)".into());
+                let doc = f.doc.split_whitespace().collect::<Vec<_>>().join(" ");
+                out.push_str(&format!("    {:<18} = {:<10} {}\n", f.name, default, doc));
+            }
+            out.push('\n');
+        }
+    }
+    print!("{out}");
+    Ok(())
+}
+
+pub fn check(spec: &str, target: &TargetArgs, sets: &[String], quiet: bool) -> CmdResult {
+    let registry = registry()?;
+    let p = load_pipeline(spec, &registry, &overrides(target, sets)?)?;
+    if !quiet {
+        let kinds: Vec<_> = p.stages.iter().map(|s| s.kind).collect();
+        let target = p
+            .target
+            .map(|t| t.to_string())
+            .unwrap_or_else(|| "none".into());
+        println!(
+            "{spec}: ok — pipeline `{}`, target {target}, stages: {}",
+            p.name,
+            kinds.join(" → ")
+        );
+    }
+    Ok(())
+}
+
+pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
+    let input = if raw {
+        load::load_raw(path)?
+    } else {
+        load::load(path, weld)?
+    };
+    let mesh = &input.mesh;
+    let topo = Topology::build(mesh).summary(mesh);
+    let quality = coarsen_metrics::quality(mesh).map_err(anyhow::Error::from)?;
+    let bbox = mesh.bbox();
+    if json {
+        let v = serde_json::json!({
+            "file": path.display().to_string(),
+            "notes": input.notes,
+            "bbox_min": [bbox.min.x, bbox.min.y, bbox.min.z],
+            "bbox_max": [bbox.max.x, bbox.max.y, bbox.max.z],
+            "bbox_diagonal": bbox.diagonal(),
+            "area": mesh.area(),
+            "attributes": attribute_list(mesh),
+            "topology": topo,
+            "quality": quality,
+        });
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&v).map_err(anyhow::Error::from)?
+        );
+        return Ok(());
+    }
+    println!("{}", path.display());
+    for n in &input.notes {
+        println!("  note: {n}");
+    }
+    println!("  vertices           {}", mesh.n_vertices());
+    println!("  faces              {}", mesh.n_faces());
+    println!(
+        "  bbox               [{:.6}, {:.6}, {:.6}] – [{:.6}, {:.6}, {:.6}] (diagonal {:.6})",
+        bbox.min.x,
+        bbox.min.y,
+        bbox.min.z,
+        bbox.max.x,
+        bbox.max.y,
+        bbox.max.z,
+        bbox.diagonal()
+    );
+    println!("  area               {:.6}", mesh.area());
+    print_topology(&topo);
+    println!(
+        "  angles             min {:.2}°, mean of minimum {:.2}°, {:.2} % of faces under 30°",
+        quality.alpha_min_deg, quality.alpha_avg_deg, quality.p_lt30_pct
+    );
+    println!(
+        "  quality (Q)        min {:.3}, mean {:.3}",
+        quality.q_min, quality.q_avg
+    );
+    let attrs = attribute_list(mesh);
+    if !attrs.is_empty() {
+        println!("  attributes         {}", attrs.join(", "));
+    }
+    Ok(())
+}
+
+fn print_topology(t: &coarsen_mesh::topology::TopologySummary) {
+    let yes_no = |b: bool| if b { "yes" } else { "no" };
+    let genus = match t.genus_total {
+        Some(g) => g.to_string(),
+        None => "undefined (non-manifold)".into(),
+    };
+    println!(
+        "  referenced vertices {} ({} unreferenced)",
+        t.n_vertices, t.n_isolated_vertices
+    );
+    println!(
+        "  edges              {} ({} on the boundary)",
+        t.n_edges, t.n_boundary_edges
+    );
+    println!("  components         {}", t.n_components);
+    println!("  boundary loops     {}", t.n_boundary_loops);
+    println!("  genus              {genus}");
+    println!("  euler              {}", t.euler);
+    println!(
+        "  manifold           {} ({} non-manifold edges, {} non-manifold vertices)",
+        yes_no(t.manifold),
+        t.n_non_manifold_edges,
+        t.n_non_manifold_vertices
+    );
+    println!("  oriented           {}", yes_no(t.consistently_oriented));
+    println!("  degenerate faces   {}", t.n_degenerate_faces);
+}
+
+fn attribute_list(mesh: &coarsen_mesh::Mesh) -> Vec<String> {
+    let v = mesh
+        .vertex_attrs
+        .iter()
+        .map(|(n, a)| format!("vertex {} `{n}`", a.kind()));
+    let f = mesh
+        .face_attrs
+        .iter()
+        .map(|(n, a)| format!("face {} `{n}`", a.kind()));
+    v.chain(f).collect()
+}
+
+pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResult {
+    load::ensure_not_input(Some(input), output)?;
+    let loaded = if clean {
+        load::load(input, false)?
+    } else {
+        load::load_raw(input)?
+    };
+    coarsen_io::write_path(&loaded.mesh, output, &write_options(ascii))?;
+    Ok(())
+}
+
+pub fn metrics(input: &Path, output: &Path, json: bool, samples_per_face: u32) -> CmdResult {
+    let a = load::load(input, false)?;
+    let b = load::load(output, false)?;
+    let opts = coarsen_metrics::MetricsOptions {
+        fidelity: coarsen_metrics::FidelityOptions { samples_per_face },
+    };
+    let report =
+        coarsen_metrics::measure(Some(&a.mesh), &b.mesh, &opts).map_err(anyhow::Error::from)?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).map_err(anyhow::Error::from)?
+        );
+    } else {
+        println!("{} against {}\n", output.display(), input.display());
+        print!("{}", report.to_markdown());
+    }
+    Ok(())
+}

@@ -1,0 +1,202 @@
+//! The `coarsen` command line: the only crate that knows the terminal.
+//!
+//! `coarsen_cli::main()` is the whole program; a third-party binary that links its own stage
+//! crates (`use my_stage as _;`) and calls it gets those stages too.
+
+mod commands;
+mod load;
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Coarsen big, badly shaped triangle meshes into small, well-shaped ones.
+#[derive(Parser, Debug)]
+#[command(name = "coarsen", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// Print nothing but errors.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a pipeline on a mesh (on the built-in demo mesh when no input is given).
+    Run(RunArgs),
+    /// List every registered stage with its summary, parameters and defaults.
+    Stages {
+        /// Print Markdown (the format of docs/stages.md).
+        #[arg(long)]
+        markdown: bool,
+    },
+    /// Check a pipeline file without loading any mesh.
+    Check {
+        /// Pipeline file, or the name of a shipped pipeline.
+        pipeline: String,
+        #[command(flatten)]
+        target: TargetArgs,
+        /// Override a stage parameter: STAGE.PARAM=VALUE (STAGE is a kind or an id).
+        #[arg(long = "set", value_name = "STAGE.PARAM=VALUE")]
+        sets: Vec<String>,
+    },
+    /// Print counts, bounding box, topology and triangle-angle summary of a mesh.
+    Info {
+        /// The mesh file (OBJ, PLY, STL, OFF).
+        mesh: PathBuf,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Report the file as it is, without load-time clean-up.
+        #[arg(long, conflicts_with = "weld")]
+        raw: bool,
+        /// Weld exactly coincident vertices during clean-up (always done for STL).
+        #[arg(long)]
+        weld: bool,
+    },
+    /// Convert a mesh file to another format (chosen by the output's extension).
+    Convert {
+        /// The input mesh.
+        input: PathBuf,
+        /// The output mesh (.obj, .ply, .stl, .off).
+        output: PathBuf,
+        /// Write ASCII PLY instead of binary.
+        #[arg(long)]
+        ascii: bool,
+        /// Apply load-time clean-up before writing.
+        #[arg(long)]
+        clean: bool,
+    },
+    /// Compare a mesh with the input it came from: shape quality, fidelity, validity.
+    Metrics {
+        /// The original mesh.
+        input: PathBuf,
+        /// The mesh to measure (e.g. another tool's output).
+        output: PathBuf,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Distance samples per face of the larger mesh, both directions together.
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+        samples_per_face: u32,
+    },
+}
+
+/// The run target from the command line.
+#[derive(Args, Debug, Clone, Default)]
+struct TargetArgs {
+    /// Target vertex count.
+    #[arg(long, group = "target")]
+    vertices: Option<u64>,
+    /// Target face count.
+    #[arg(long, group = "target")]
+    faces: Option<u64>,
+    /// Fraction of the input's faces to remove, in [0, 1) (0.7 removes 70 %).
+    #[arg(long, group = "target")]
+    ratio: Option<f64>,
+}
+
+#[derive(Args, Debug)]
+struct RunArgs {
+    /// Pipeline file, or the name of a shipped pipeline (see `coarsen run --help`).
+    pipeline: String,
+    /// The input mesh; the built-in demo mesh when omitted.
+    input: Option<PathBuf>,
+    /// Where to write the result (.ply, .obj, .stl, .off).
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    target: TargetArgs,
+    /// Override a stage parameter: STAGE.PARAM=VALUE (STAGE is a kind or an id).
+    #[arg(long = "set", value_name = "STAGE.PARAM=VALUE")]
+    sets: Vec<String>,
+    /// Write the run report as JSON to this file.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Weld exactly coincident vertices on load (default: only for STL).
+    #[arg(long)]
+    weld: bool,
+    /// Run the mesh sanity check after every stage (always on in debug builds).
+    #[arg(long)]
+    sanity: bool,
+    /// Write ASCII PLY instead of binary.
+    #[arg(long)]
+    ascii: bool,
+}
+
+/// A failure, sorted by its exit code.
+#[derive(Debug)]
+pub enum Failure {
+    /// Bad usage, bad pipeline file or parameters: exit code 2.
+    Usage(String),
+    /// The run itself failed (bad mesh file, stage error): exit code 1.
+    Runtime(anyhow::Error),
+}
+
+impl From<coarsen_io::IoError> for Failure {
+    fn from(e: coarsen_io::IoError) -> Self {
+        Failure::Runtime(e.into())
+    }
+}
+
+impl From<anyhow::Error> for Failure {
+    fn from(e: anyhow::Error) -> Self {
+        Failure::Runtime(e)
+    }
+}
+
+/// Runs the command line and returns the process exit code: 0 success, 1 runtime failure,
+/// 2 usage or pipeline error.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let quiet = cli.quiet;
+    let result = match cli.command {
+        Command::Run(args) => commands::run(args, quiet),
+        Command::Stages { markdown } => commands::stages(markdown),
+        Command::Check {
+            pipeline,
+            target,
+            sets,
+        } => commands::check(&pipeline, &target, &sets, quiet),
+        Command::Info {
+            mesh,
+            json,
+            raw,
+            weld,
+        } => commands::info(&mesh, json, raw, weld),
+        Command::Convert {
+            input,
+            output,
+            ascii,
+            clean,
+        } => commands::convert(&input, &output, ascii, clean),
+        Command::Metrics {
+            input,
+            output,
+            json,
+            samples_per_face,
+        } => commands::metrics(&input, &output, json, samples_per_face),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Usage(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(2)
+        }
+        Err(Failure::Runtime(e)) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -1,0 +1,5 @@
+//! The `coarsen` binary.
+
+fn main() -> std::process::ExitCode {
+    coarsen_cli::main()
+}

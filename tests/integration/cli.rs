@@ -1,0 +1,227 @@
+//! The `coarsen` command: exit codes, outputs, reports, and never a partial output file.
+
+use coarsen_tests::{pipeline_file, run_cli, stderr, stdout};
+use std::fs;
+
+const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
+
+#[test]
+fn run_without_input_uses_the_demo_mesh_and_writes_output_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo.ply");
+    let report = dir.path().join("report.json");
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            "demo",
+            "-o",
+            out.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mesh = coarsen_io::read_path(&out, &Default::default())
+        .unwrap()
+        .mesh;
+    let demo = coarsen_shapes::demo();
+    // The demo pipeline removes 75 % of the faces.
+    assert_eq!(mesh.n_faces(), demo.n_faces() / 4);
+    let json: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["input"], "demo");
+    assert_eq!(json["stages"][0]["kind"], "simplify.qem");
+    assert_eq!(json["stages"][1]["kind"], "metrics");
+    assert_eq!(json["stages"][1]["figures"]["validity"]["manifold"], true);
+    assert!(stdout(&o).contains("simplify.qem"));
+}
+
+#[test]
+fn a_pipeline_error_exits_2_and_names_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.toml");
+    fs::write(
+        &p,
+        "[pipeline]\nname = \"bad\"\n\n[[stage]]\nkind = \"simplify.qme\"\n",
+    )
+    .unwrap();
+    let out = dir.path().join("x.ply");
+    let o = run_cli(
+        EXE,
+        &["run", p.to_str().unwrap(), "-o", out.to_str().unwrap()],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains(
+            "bad.toml:5:8: unknown stage kind `simplify.qme` (did you mean `simplify.qem`?)"
+        ),
+        "{e}"
+    );
+    assert!(!out.exists());
+    let o = run_cli(EXE, &["check", p.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    assert_eq!(run_cli(EXE, &["run"]).status.code(), Some(2));
+    assert_eq!(run_cli(EXE, &["frobnicate"]).status.code(), Some(2));
+    let o = run_cli(EXE, &["run", "no-such-pipeline", "-o", "x.ply"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("shipped: demo"), "{}", stderr(&o));
+    let o = run_cli(
+        EXE,
+        &["check", "demo", "--set", "simplify.qem.min_quality=2"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--set simplify.qem.min_quality=2: simplify.qem: must be in 0..=1"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn a_failed_run_exits_1_and_leaves_an_existing_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("broken.obj");
+    fs::write(&input, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
+    let out = dir.path().join("out.ply");
+    fs::write(&out, b"precious").unwrap();
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            "demo",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("broken.obj:4"), "{e}");
+    assert_eq!(fs::read(&out).unwrap(), b"precious");
+    // Nothing else was left behind in the folder (no temporary files).
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+#[test]
+fn the_input_is_never_overwritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sphere.ply");
+    coarsen_io::write_path(
+        &coarsen_shapes::icosphere(1.0, 2).unwrap(),
+        &input,
+        &Default::default(),
+    )
+    .unwrap();
+    let before = fs::read(&input).unwrap();
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            "demo",
+            input.to_str().unwrap(),
+            "-o",
+            input.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("refusing to overwrite the input"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(fs::read(&input).unwrap(), before);
+}
+
+#[test]
+fn command_line_target_and_set_reach_the_stages() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sphere.off");
+    coarsen_io::write_path(
+        &coarsen_shapes::icosphere(1.0, 3).unwrap(),
+        &input,
+        &Default::default(),
+    )
+    .unwrap();
+    let out = dir.path().join("small.obj");
+    let report = dir.path().join("r.json");
+    let qem = pipeline_file("qem");
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            qem.to_str().unwrap(),
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--vertices",
+            "100",
+            "--set",
+            "simplify.qem.min_quality=0.2",
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        coarsen_io::read_path(&out, &Default::default())
+            .unwrap()
+            .mesh
+            .n_vertices(),
+        100
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["target"]["vertices"], 100);
+    assert_eq!(json["stages"][0]["params"]["min_quality"], 0.2);
+}
+
+#[test]
+fn stages_lists_builtins_and_the_linked_plugin_with_defaults() {
+    let o = run_cli(EXE, &["stages"]);
+    assert!(o.status.success());
+    let s = stdout(&o);
+    for kind in ["metrics", "simplify.qem", "smooth.taubin"] {
+        assert!(
+            s.lines().any(|l| l.starts_with(kind)),
+            "{kind} missing from:\n{s}"
+        );
+    }
+    assert!(s.contains("lambda"), "{s}");
+    let md = stdout(&run_cli(EXE, &["stages", "--markdown"]));
+    assert!(
+        md.contains("## `smooth.taubin`") && md.contains("| `mu` | `f64` | `-0.53` |"),
+        "{md}"
+    );
+}
+
+#[test]
+fn convert_and_info_on_a_procedural_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("torus.stl");
+    let torus = coarsen_shapes::torus(2.0, 0.5, 24, 12).unwrap();
+    coarsen_io::write_path(&torus, &a, &Default::default()).unwrap();
+    let b = dir.path().join("torus.ply");
+    // STL is a soup on disk; --clean welds it back into a closed torus.
+    let o = run_cli(
+        EXE,
+        &[
+            "convert",
+            "--clean",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run_cli(EXE, &["info", "--json", b.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(json["topology"]["genus_total"], 1);
+    assert_eq!(json["topology"]["n_boundary_loops"], 0);
+    assert_eq!(json["topology"]["n_vertices"], torus.n_vertices());
+}

@@ -1,0 +1,207 @@
+//! The real meshes of `../shared/data`: they load, `coarsen info` agrees with
+//! `../shared/README.md`, and format round trips are exact.
+
+use coarsen_mesh::Topology;
+use coarsen_tests::{run_cli, shared_data, stderr, stdout};
+
+const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
+
+/// What `../shared/README.md` says of each file, as read raw (no clean-up).
+struct Expected {
+    file: &'static str,
+    vertices: usize,
+    faces: usize,
+    components: Option<usize>,
+    boundary_loops: Option<usize>,
+    genus: Option<i64>,
+    non_manifold_vertices: Option<usize>,
+    non_manifold_edges: Option<usize>,
+}
+
+const EXPECTED: &[Expected] = &[
+    Expected {
+        file: "stanford-bunny.obj",
+        vertices: 35_947,
+        faces: 69_451,
+        components: Some(1),
+        boundary_loops: Some(5),
+        genus: Some(0),
+        non_manifold_vertices: Some(0),
+        non_manifold_edges: Some(0),
+    },
+    Expected {
+        file: "rocker-arm.obj",
+        vertices: 10_044,
+        faces: 20_088,
+        components: Some(1),
+        boundary_loops: Some(0),
+        genus: Some(1),
+        non_manifold_vertices: Some(0),
+        non_manifold_edges: Some(0),
+    },
+    Expected {
+        file: "fandisk.obj",
+        vertices: 6_475,
+        faces: 12_946,
+        components: Some(1),
+        boundary_loops: Some(0),
+        genus: Some(0),
+        non_manifold_vertices: Some(0),
+        non_manifold_edges: Some(0),
+    },
+    Expected {
+        file: "spot.obj",
+        vertices: 2_930,
+        faces: 5_856,
+        components: Some(1),
+        boundary_loops: Some(0),
+        genus: Some(0),
+        non_manifold_vertices: Some(0),
+        non_manifold_edges: Some(0),
+    },
+    Expected {
+        file: "cow.obj",
+        vertices: 2_903,
+        faces: 5_804,
+        components: Some(1),
+        boundary_loops: Some(0),
+        genus: None,
+        non_manifold_vertices: Some(1),
+        non_manifold_edges: Some(0),
+    },
+    Expected {
+        file: "teapot.obj",
+        vertices: 3_644,
+        faces: 6_320,
+        components: None,
+        boundary_loops: None,
+        genus: None,
+        non_manifold_vertices: Some(38),
+        non_manifold_edges: None,
+    },
+    Expected {
+        file: "beetle.obj",
+        vertices: 1_148,
+        faces: 2_053,
+        components: Some(2),
+        boundary_loops: Some(23),
+        genus: None,
+        non_manifold_vertices: None,
+        non_manifold_edges: Some(47),
+    },
+    Expected {
+        file: "suzanne.obj",
+        vertices: 507,
+        faces: 968,
+        components: Some(3),
+        boundary_loops: Some(4),
+        genus: None,
+        non_manifold_vertices: None,
+        non_manifold_edges: Some(1),
+    },
+];
+
+#[test]
+fn every_shared_mesh_loads_with_the_documented_counts_and_topology() {
+    let Some(dir) = shared_data() else { return };
+    for e in EXPECTED {
+        let mesh = coarsen_io::read_path(&dir.join(e.file), &Default::default())
+            .unwrap()
+            .mesh;
+        assert_eq!(
+            (mesh.n_vertices(), mesh.n_faces()),
+            (e.vertices, e.faces),
+            "{}",
+            e.file
+        );
+        let t = Topology::build(&mesh).summary(&mesh);
+        let check = |what: &str, got: usize, want: Option<usize>| {
+            if let Some(want) = want {
+                assert_eq!(got, want, "{}: {what}", e.file);
+            }
+        };
+        check("components", t.n_components, e.components);
+        check("boundary loops", t.n_boundary_loops, e.boundary_loops);
+        check(
+            "non-manifold vertices",
+            t.n_non_manifold_vertices,
+            e.non_manifold_vertices,
+        );
+        check(
+            "non-manifold edges",
+            t.n_non_manifold_edges,
+            e.non_manifold_edges,
+        );
+        if e.genus.is_some() {
+            assert_eq!(t.genus_total, e.genus, "{}: genus", e.file);
+        }
+    }
+}
+
+#[test]
+fn info_reports_the_bunny_as_the_shared_readme_describes_it() {
+    let Some(dir) = shared_data() else { return };
+    let bunny = dir.join("stanford-bunny.obj");
+    let o = run_cli(EXE, &["info", "--json", bunny.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    // Clean-up drops the 1,113 unreferenced vertices and says so.
+    assert_eq!(json["topology"]["n_vertices"], 35_947 - 1_113);
+    assert!(
+        json["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("1113")),
+        "{json}"
+    );
+    assert_eq!(json["topology"]["n_boundary_loops"], 5);
+    assert_eq!(json["topology"]["genus_total"], 0);
+    // The input's angle figures, as an independent tool measured them (metrics.md).
+    let q = &json["quality"];
+    assert!(
+        (q["alpha_min_deg"].as_f64().unwrap() - 0.48).abs() < 0.005,
+        "{q}"
+    );
+    assert!(
+        (q["alpha_avg_deg"].as_f64().unwrap() - 36.8).abs() < 0.05,
+        "{q}"
+    );
+    assert!(
+        (q["p_lt30_pct"].as_f64().unwrap() - 6.8).abs() < 0.05,
+        "{q}"
+    );
+    assert!((q["q_avg"].as_f64().unwrap() - 0.714).abs() < 0.0005, "{q}");
+}
+
+#[test]
+fn obj_to_binary_ply_to_obj_keeps_positions_bit_for_bit_and_connectivity() {
+    let Some(dir) = shared_data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    for e in EXPECTED {
+        let src = dir.join(e.file);
+        let ply = tmp.path().join("a.ply");
+        let obj = tmp.path().join("b.obj");
+        for (from, to) in [(&src, &ply), (&ply, &obj)] {
+            let o = run_cli(
+                EXE,
+                &["convert", from.to_str().unwrap(), to.to_str().unwrap()],
+            );
+            assert!(o.status.success(), "{}: {}", e.file, stderr(&o));
+        }
+        let a = coarsen_io::read_path(&src, &Default::default())
+            .unwrap()
+            .mesh;
+        let b = coarsen_io::read_path(&obj, &Default::default())
+            .unwrap()
+            .mesh;
+        let bits = |m: &coarsen_mesh::Mesh| {
+            m.positions
+                .iter()
+                .map(|p| p.to_array().map(f64::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&a), bits(&b), "{}", e.file);
+        assert_eq!(a.faces, b.faces, "{}", e.file);
+    }
+}

@@ -1,0 +1,7 @@
+//! Coarsen's integration tests: one binary (ripgrep style), one module per concern.
+
+mod cli;
+mod data;
+mod malformed;
+mod pipelines;
+mod plugin;

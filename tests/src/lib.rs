@@ -1,0 +1,47 @@
+//! Support for coarsen's integration tests: where the shared meshes are, and running the CLI.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The folder of real test meshes (`../shared/data` beside the checkout, or `$COARSEN_DATA`),
+/// or `None` — after printing why — when it is absent, so the calling test can return early.
+pub fn shared_data() -> Option<PathBuf> {
+    let dir = std::env::var_os("COARSEN_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
+    if dir.join("stanford-bunny.obj").is_file() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipped: shared test meshes not found at {} (set COARSEN_DATA)",
+            dir.display()
+        );
+        None
+    }
+}
+
+/// The path of a shipped pipeline file.
+pub fn pipeline_file(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../pipelines")
+        .join(format!("{name}.toml"))
+}
+
+/// Runs the CLI binary `exe` with `args`, without standard input.
+pub fn run_cli(exe: &str, args: &[&str]) -> Output {
+    Command::new(exe)
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("the CLI binary runs")
+}
+
+/// Standard error of a finished command, as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Standard output of a finished command, as text.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
