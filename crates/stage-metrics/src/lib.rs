@@ -3,9 +3,7 @@
 //! may stand anywhere in a pipeline (after each stage of interest, or at the end).
 
 use coarsen_metrics::{FidelityOptions, MetricsOptions, measure};
-use coarsen_stage::{
-    Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
-};
+use coarsen_stage::{Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, params};
 
 params! {
     /// Parameters of `metrics`.
@@ -46,13 +44,7 @@ impl Stage for MetricsStage {
     }
 
     fn contract(&self) -> Contract {
-        Contract {
-            needs: Needs {
-                original: self.0.fidelity,
-                ..Default::default()
-            },
-            ..Default::default()
-        }
+        Contract::default()
     }
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {

@@ -114,8 +114,9 @@ impl Stage for SimplifyQem {
             .map_err(|m| StageError::Input(format!("`{}`: {m}", Self::KIND)))?;
         let goal = match target {
             Target::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
+            // A ratio counts the faces of the run's input, wherever the stage stands.
             Target::Faces(_) | Target::Ratio(_) => {
-                Goal::Faces(usize::try_from(target.faces_for(&mesh)).unwrap_or(usize::MAX))
+                Goal::Faces(usize::try_from(target.faces_for(cx.original)).unwrap_or(usize::MAX))
             }
         };
         let mut live = LiveMesh::new(&mesh)

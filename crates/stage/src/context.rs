@@ -13,7 +13,7 @@ pub enum Target {
     Vertices(u64),
     /// This many output faces (exactly where the method allows, else as near as it can).
     Faces(u64),
-    /// This fraction of the input's faces removed, in `[0, 1)` (paper 2's 70 % is `0.7`).
+    /// This fraction of the run input's faces removed, in `[0, 1)` (paper 2's 70 % is `0.7`).
     Ratio(f64),
 }
 
@@ -28,7 +28,8 @@ impl fmt::Display for Target {
 }
 
 impl Target {
-    /// The target as a vertex count for `mesh`.
+    /// The target as a vertex count for `mesh` (stages pass the run's input,
+    /// [`Context::original`], so that a ratio means the same wherever the stage stands).
     ///
     /// Face counts and ratios convert with the mesh's own vertex/face proportion, which
     /// for triangle meshes is close to ½ (exactly so, up to the Euler characteristic and
@@ -116,7 +117,7 @@ impl StageReport {
 
 /// The run as a stage sees it.
 pub struct Context<'a> {
-    /// The mesh the run started from (after load-time clean-up).
+    /// The mesh the run started from (after load-time clean-up); always available.
     pub original: &'a Mesh,
     /// The run target, if the pipeline or the command line gave one.
     pub target: Option<Target>,

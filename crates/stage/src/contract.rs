@@ -47,8 +47,6 @@ impl fmt::Display for AttrRef {
 pub struct Needs {
     /// The input must be an edge- and vertex-manifold mesh.
     pub manifold: bool,
-    /// The stage reads the original input mesh (kept in memory for it).
-    pub original: bool,
     /// The stage needs a run target (`--vertices`, `--faces`, `--ratio` or the pipeline's).
     pub target: bool,
 }
