@@ -220,12 +220,7 @@ fn measured_row(case: &Case, outcome: &Outcome) -> String {
                 .iter()
                 .filter_map(|s| s.figures.get("sve").and_then(|x| x.as_f64()))
                 .reduce(|a, b| a + b);
-            let kept = v.manifold
-                && v.n_components == m.input.n_components
-                && v.n_boundary_loops == m.input.n_boundary_loops
-                && v.genus == m.input.genus
-                && v.n_flipped.unwrap_or(0) == 0
-                && v.n_degenerate == 0;
+            let validity = validity_text(v, &m.input);
             let stages: Vec<String> = m
                 .run
                 .stages
@@ -246,11 +241,49 @@ fn measured_row(case: &Case, outcome: &Outcome) -> String {
                 pct(f.map(|f| f.rms_dist_pct)),
                 sve.map(|s| format!("{s:.3e}"))
                     .unwrap_or_else(|| "—".into()),
-                if kept { "yes" } else { "**no**" },
+                validity,
                 stages.join(" + "),
                 m.run.seconds + m.load_seconds,
             )
         }
+    }
+}
+
+/// "yes", or what is wrong: lost topology, flipped or degenerate faces.
+fn validity_text(v: &Validity, input: &Validity) -> String {
+    let mut wrong = Vec::new();
+    if !v.manifold {
+        wrong.push("non-manifold".to_string());
+    }
+    if v.n_components != input.n_components {
+        wrong.push(format!(
+            "{} → {} components",
+            input.n_components, v.n_components
+        ));
+    }
+    if v.n_boundary_loops != input.n_boundary_loops {
+        wrong.push(format!(
+            "{} → {} boundary loops",
+            input.n_boundary_loops, v.n_boundary_loops
+        ));
+    }
+    if v.genus != input.genus {
+        let g = |g: Option<i64>| {
+            g.map(|g| g.to_string())
+                .unwrap_or_else(|| "undefined".into())
+        };
+        wrong.push(format!("genus {} → {}", g(input.genus), g(v.genus)));
+    }
+    if let Some(n) = v.n_flipped.filter(|&n| n > 0) {
+        wrong.push(format!("{n} flipped"));
+    }
+    if v.n_degenerate > 0 {
+        wrong.push(format!("{} degenerate", v.n_degenerate));
+    }
+    if wrong.is_empty() {
+        "yes".into()
+    } else {
+        format!("**no**: {}", wrong.join(", "))
     }
 }
 

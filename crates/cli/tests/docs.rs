@@ -5,7 +5,10 @@ use std::process::Command;
 
 #[test]
 fn docs_stages_md_matches_the_registry() {
-    let out = Command::new(env!("CARGO_BIN_EXE_coarsen")).args(["stages", "--markdown"]).output().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_coarsen"))
+        .args(["stages", "--markdown"])
+        .output()
+        .unwrap();
     assert!(out.status.success());
     let body = String::from_utf8(out.stdout).unwrap();
     let text = format!(
@@ -18,5 +21,8 @@ fn docs_stages_md_matches_the_registry() {
         std::fs::write(&path, &text).unwrap();
     }
     let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
-    assert!(on_disk == text, "docs/stages.md is stale: run COARSEN_BLESS=1 cargo test -p coarsen-cli --test docs");
+    assert!(
+        on_disk == text,
+        "docs/stages.md is stale: run COARSEN_BLESS=1 cargo test -p coarsen-cli --test docs"
+    );
 }
