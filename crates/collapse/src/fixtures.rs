@@ -3,7 +3,6 @@
 use crate::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit};
 use coarsen_geom::DVec3;
 use coarsen_mesh::Mesh;
-use std::collections::BTreeMap;
 
 /// `(nx + 1) × (ny + 1)` vertices on the unit square, vertex `j·(nx+1) + i` at
 /// `(i/nx, j/ny, height(x, y))`; each cell split along its (0,0)–(1,1) diagonal, faces
@@ -29,86 +28,12 @@ pub fn grid(nx: u32, ny: u32, height: impl Fn(f64, f64) -> f64) -> Mesh {
 
 /// The unit icosphere: an icosahedron with each face split in four `levels` times.
 pub fn icosphere(levels: u32) -> Mesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut positions: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut faces: Vec<[Index; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid: BTreeMap<(Index, Index), Index> = BTreeMap::new();
-        let mut split = |a: Index, b: Index, positions: &mut Vec<DVec3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                positions.push(((positions[a as usize] + positions[b as usize]) / 2.0).normalize());
-                positions.len() as Index - 1
-            })
-        };
-        let mut next = Vec::with_capacity(faces.len() * 4);
-        for [a, b, c] in faces {
-            let ab = split(a, b, &mut positions);
-            let bc = split(b, c, &mut positions);
-            let ca = split(c, a, &mut positions);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        faces = next;
-    }
-    Mesh::new(positions, faces)
+    coarsen_shapes::icosphere(1.0, levels).expect("a valid icosphere level")
 }
 
 /// A torus around the z axis: `nu × nv` vertices, radii `big` and `small`.
 pub fn torus(big: f64, small: f64, nu: u32, nv: u32) -> Mesh {
-    let mut positions = Vec::new();
-    for i in 0..nu {
-        let u = i as f64 / nu as f64 * std::f64::consts::TAU;
-        for j in 0..nv {
-            let v = j as f64 / nv as f64 * std::f64::consts::TAU;
-            let r = big + small * v.cos();
-            positions.push(DVec3::new(r * u.cos(), r * u.sin(), small * v.sin()));
-        }
-    }
-    let at = |i: u32, j: u32| (i % nu) * nv + (j % nv);
-    let mut faces = Vec::new();
-    for i in 0..nu {
-        for j in 0..nv {
-            faces.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-            faces.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    Mesh::new(positions, faces)
+    coarsen_shapes::torus(big, small, nu, nv).expect("valid torus parameters")
 }
 
 /// A tetrahedron, faces outward.
