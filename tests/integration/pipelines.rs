@@ -48,3 +48,25 @@ fn shipped_pipelines_are_the_files_in_pipelines() {
         "every pipelines/*.toml is shipped in the binary, and only those"
     );
 }
+
+#[test]
+fn every_stage_example_toml_round_trips_to_its_defaults() {
+    let registry = coarsen_builtin::registry().unwrap();
+    for d in registry.iter() {
+        // Declare whatever the stage reads with its defaults, so the example stands alone.
+        let inputs: Vec<String> = (d.default_contract)()
+            .reads
+            .iter()
+            .map(|a| format!("{{ domain = \"{}\", name = \"{}\", kind = \"{}\" }}", a.domain, a.name, a.kind))
+            .collect();
+        let text = format!(
+            "[pipeline]\ntarget = {{ vertices = 10 }}\ninputs = [{}]\n\n{}",
+            inputs.join(", "),
+            d.example_toml()
+        );
+        let p = Pipeline::parse(&text, "example.toml", &registry, &Overrides::default())
+            .unwrap_or_else(|e| panic!("{}: example does not parse:\n{text}\n{e}", d.kind));
+        assert_eq!(p.stages[0].kind, d.kind);
+        assert_eq!(p.stages[0].stage.params(), (d.defaults)(), "{}", d.kind);
+    }
+}
