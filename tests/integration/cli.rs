@@ -225,3 +225,95 @@ fn convert_and_info_on_a_procedural_mesh() {
     assert_eq!(json["topology"]["n_boundary_loops"], 0);
     assert_eq!(json["topology"]["n_vertices"], torus.n_vertices());
 }
+
+#[test]
+fn batch_processes_a_folder_keeps_going_past_failures_resumes_and_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = dir.path().join("in");
+    fs::create_dir_all(inputs.join("sub")).unwrap();
+    coarsen_io::write_path(
+        &coarsen_shapes::icosphere(1.0, 3).unwrap(),
+        &inputs.join("a.obj"),
+        &Default::default(),
+    )
+    .unwrap();
+    coarsen_io::write_path(
+        &coarsen_shapes::torus(2.0, 0.5, 32, 16).unwrap(),
+        &inputs.join("sub/b.ply"),
+        &Default::default(),
+    )
+    .unwrap();
+    fs::write(inputs.join("broken.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n").unwrap();
+    fs::write(inputs.join("notes.txt"), "not a mesh").unwrap();
+    let out = dir.path().join("out");
+    let args = |extra: &[&str]| {
+        let mut v = vec![
+            "batch",
+            inputs.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--pipeline",
+            "qem",
+            "--ratio",
+            "0.5",
+        ];
+        v.extend_from_slice(extra);
+        v.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |extra: &[&str]| {
+        let a = args(extra);
+        run_cli(EXE, &a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let o = run(&[]);
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "one file is broken: {}",
+        stderr(&o)
+    );
+    let table = stdout(&o);
+    assert!(
+        table.contains("3 files: 2 ok, 0 skipped, 1 failed"),
+        "{table}"
+    );
+    assert!(out.join("a.ply").is_file() && out.join("sub/b.ply").is_file());
+    let summary: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let failed: Vec<_> = summary
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["status"] == "failed")
+        .collect();
+    assert_eq!(failed.len(), 1);
+    assert!(
+        failed[0]["error"].as_str().unwrap().contains("broken.off"),
+        "{}",
+        failed[0]
+    );
+    assert_eq!(
+        fs::read_to_string(out.join("summary.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        4
+    );
+    // Resumable: up-to-date outputs are skipped, --force redoes them.
+    assert!(stdout(&run(&[])).contains("3 files: 0 ok, 2 skipped, 1 failed"));
+    assert!(stdout(&run(&["--force"])).contains("3 files: 2 ok, 0 skipped, 1 failed"));
+    // Shards partition the files.
+    let mut total = 0;
+    for i in 0..3 {
+        let shard = format!("{i}/3");
+        let o = run(&["--force", "--shard", &shard]);
+        let line = stdout(&o).lines().last().unwrap().to_string();
+        total += line
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse::<usize>()
+            .unwrap();
+        assert!(out.join(format!("summary-{i}-of-3.json")).is_file());
+    }
+    assert_eq!(total, 3);
+}

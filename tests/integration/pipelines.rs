@@ -57,7 +57,12 @@ fn every_stage_example_toml_round_trips_to_its_defaults() {
         let inputs: Vec<String> = (d.default_contract)()
             .reads
             .iter()
-            .map(|a| format!("{{ domain = \"{}\", name = \"{}\", kind = \"{}\" }}", a.domain, a.name, a.kind))
+            .map(|a| {
+                format!(
+                    "{{ domain = \"{}\", name = \"{}\", kind = \"{}\" }}",
+                    a.domain, a.name, a.kind
+                )
+            })
             .collect();
         let text = format!(
             "[pipeline]\ntarget = {{ vertices = 10 }}\ninputs = [{}]\n\n{}",

@@ -1,7 +1,7 @@
 //! One function per subcommand.
 
 use crate::load::{self, Input};
-use crate::{Failure, RunArgs, TargetArgs};
+use crate::{BatchArgs, Failure, RunArgs, TargetArgs, batch, progress};
 use anyhow::Context as _;
 use coarsen_io::{PlyEncoding, WriteOptions};
 use coarsen_mesh::Topology;
@@ -99,9 +99,10 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
             "demo".into(),
         ),
     };
+    let bars = progress::Bars::new(quiet);
     let opts = RunOptions {
         sanity: args.sanity || RunOptions::default().sanity,
-        ..Default::default()
+        progress: &bars,
     };
     let (mesh, mut report) = pipeline
         .run(input.mesh, opts)
@@ -115,6 +116,57 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     if !quiet {
         print!("{}", report.summary());
         println!("wrote {}", args.output.display());
+    }
+    Ok(())
+}
+
+pub fn batch(args: BatchArgs, quiet: bool) -> CmdResult {
+    let registry = registry()?;
+    let pipeline = load_pipeline(
+        &args.pipeline,
+        &registry,
+        &overrides(&args.target, &args.sets)?,
+    )?;
+    let format = batch::format_arg(&args.format)?;
+    std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
+    let jobs = args.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let rows = batch::run(&batch::Batch {
+        inputs: &args.inputs,
+        out: &args.out,
+        pipeline: &pipeline,
+        format,
+        force: args.force,
+        shard: args.shard,
+        jobs,
+        weld: args.weld,
+        quiet,
+    })?;
+    let suffix = args
+        .shard
+        .map(|s| format!("-{}-of-{}", s.index, s.count))
+        .unwrap_or_default();
+    let json = serde_json::to_string_pretty(&rows).map_err(anyhow::Error::from)?;
+    write_atomically(
+        &args.out.join(format!("summary{suffix}.json")),
+        json.as_bytes(),
+    )?;
+    write_atomically(
+        &args.out.join(format!("summary{suffix}.csv")),
+        batch::csv(&rows).as_bytes(),
+    )?;
+    if !quiet {
+        print!("{}", batch::table(&rows));
+    }
+    let failed = rows.iter().filter(|r| r.status == "failed").count();
+    if failed > 0 {
+        return Err(Failure::Runtime(anyhow::anyhow!(
+            "{failed} of {} files failed (see the summary)",
+            rows.len()
+        )));
     }
     Ok(())
 }

@@ -3,8 +3,10 @@
 //! `coarsen_cli::main()` is the whole program; a third-party binary that links its own stage
 //! crates (`use my_stage as _;`) and calls it gets those stages too.
 
+mod batch;
 mod commands;
 mod load;
+mod progress;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -16,15 +18,20 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// Print nothing but errors.
+    /// Print nothing but errors (no progress bars either).
     #[arg(short, long, global = true)]
     quiet: bool,
+    /// Log what happens on standard error: -v info, -vv debug, -vvv trace.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Run a pipeline on a mesh (on the built-in demo mesh when no input is given).
     Run(RunArgs),
+    /// Run a pipeline over many files (folders are searched recursively), in parallel.
+    Batch(BatchArgs),
     /// List every registered stage with its summary, parameters and defaults.
     Stages {
         /// Print Markdown (the format of docs/stages.md).
@@ -125,6 +132,39 @@ struct RunArgs {
     ascii: bool,
 }
 
+#[derive(Args, Debug)]
+struct BatchArgs {
+    /// Mesh files and folders (searched recursively for .obj, .ply, .stl, .off).
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Output folder; outputs keep their path relative to the input folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Pipeline file, or the name of a shipped pipeline.
+    #[arg(long, default_value = "demo")]
+    pipeline: String,
+    #[command(flatten)]
+    target: TargetArgs,
+    /// Override a stage parameter: STAGE.PARAM=VALUE (STAGE is a kind or an id).
+    #[arg(long = "set", value_name = "STAGE.PARAM=VALUE")]
+    sets: Vec<String>,
+    /// Files processed at once (default: the number of cores).
+    #[arg(short, long)]
+    jobs: Option<usize>,
+    /// Redo outputs that exist and are newer than their input.
+    #[arg(long)]
+    force: bool,
+    /// Process only shard I of N (0 ≤ I < N), a stable subset, for job arrays.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<batch::Shard>,
+    /// Output format: ply, obj, stl or off.
+    #[arg(long, default_value = "ply")]
+    format: String,
+    /// Weld exactly coincident vertices on load (always done for STL).
+    #[arg(long)]
+    weld: bool,
+}
+
 /// A failure, sorted by its exit code.
 #[derive(Debug)]
 pub enum Failure {
@@ -161,8 +201,10 @@ pub fn main() -> ExitCode {
         }
     };
     let quiet = cli.quiet;
+    progress::init_logs(cli.verbose);
     let result = match cli.command {
         Command::Run(args) => commands::run(args, quiet),
+        Command::Batch(args) => commands::batch(args, quiet),
         Command::Stages { markdown } => commands::stages(markdown),
         Command::Check {
             pipeline,

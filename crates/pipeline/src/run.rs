@@ -95,6 +95,13 @@ impl Pipeline {
                 }
             }
             let (vb, fb) = (mesh.n_vertices(), mesh.n_faces());
+            tracing::info!(
+                stage = index,
+                kind = s.kind,
+                vertices = vb,
+                faces = fb,
+                "stage starts"
+            );
             let mut stage_report = StageReport::default();
             let t = Instant::now();
             let mut cx = Context {
@@ -112,6 +119,20 @@ impl Pipeline {
                     source,
                 })?;
             let seconds = t.elapsed().as_secs_f64();
+            tracing::info!(
+                stage = index,
+                kind = s.kind,
+                vertices = mesh.n_vertices(),
+                faces = mesh.n_faces(),
+                seconds,
+                "stage done"
+            );
+            for (name, value) in &stage_report.figures {
+                tracing::debug!(stage = index, kind = s.kind, "{name} = {value}");
+            }
+            for w in &stage_report.warnings {
+                tracing::warn!(stage = index, kind = s.kind, "{w}");
+            }
             if opts.sanity {
                 sanity::sanity_check(&mesh).map_err(|e| RunError::Invalid {
                     index,
