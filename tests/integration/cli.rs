@@ -317,3 +317,61 @@ fn batch_processes_a_folder_keeps_going_past_failures_resumes_and_shards() {
     }
     assert_eq!(total, 3);
 }
+
+#[test]
+fn render_writes_a_png_of_one_mesh_or_two_side_by_side() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.ply");
+    let b = dir.path().join("b.ply");
+    coarsen_io::write_path(
+        &coarsen_shapes::icosphere(1.0, 3).unwrap(),
+        &a,
+        &Default::default(),
+    )
+    .unwrap();
+    coarsen_io::write_path(
+        &coarsen_shapes::icosphere(1.0, 1).unwrap(),
+        &b,
+        &Default::default(),
+    )
+    .unwrap();
+    let png = dir.path().join("pair.png");
+    let o = run_cli(
+        EXE,
+        &[
+            "render",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "40x30",
+            "--wireframe",
+            "--view",
+            "iso",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    // IHDR: width and height, big-endian, at bytes 16..24.
+    assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 80);
+    assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 30);
+    let o = run_cli(
+        EXE,
+        &[
+            "render",
+            a.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--attribute",
+            "nope",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("no vertex or face attribute `nope`"),
+        "{}",
+        stderr(&o)
+    );
+}

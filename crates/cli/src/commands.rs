@@ -171,6 +171,25 @@ pub fn batch(args: BatchArgs, quiet: bool) -> CmdResult {
     Ok(())
 }
 
+pub fn render(
+    meshes: &[PathBuf],
+    output: &Path,
+    opts: &coarsen_render::RenderOptions,
+) -> CmdResult {
+    for m in meshes {
+        load::ensure_not_input(Some(m), output)?;
+    }
+    let loaded = meshes
+        .iter()
+        .map(|m| load::load(m, false))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let refs: Vec<&coarsen_mesh::Mesh> = loaded.iter().map(|l| &l.mesh).collect();
+    let image = coarsen_render::render(&refs, opts).map_err(anyhow::Error::from)?;
+    let png = image.to_png().map_err(anyhow::Error::from)?;
+    write_atomically(output, &png)?;
+    Ok(())
+}
+
 pub fn stages(markdown: bool) -> CmdResult {
     let registry = registry()?;
     let mut out = String::new();

@@ -75,6 +75,30 @@ enum Command {
         #[arg(long)]
         clean: bool,
     },
+    /// Render one mesh, or two side by side with one camera (before/after), to a PNG image.
+    Render {
+        /// The mesh, or BEFORE and AFTER.
+        #[arg(required = true, num_args = 1..=2)]
+        meshes: Vec<PathBuf>,
+        /// The PNG file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Colour by this vertex or face attribute (scalars on a perceptual map, labels by hue).
+        #[arg(long)]
+        attribute: Option<String>,
+        /// Draw the edges.
+        #[arg(long)]
+        wireframe: bool,
+        /// Smooth shading (interpolated vertex normals) instead of flat.
+        #[arg(long)]
+        smooth: bool,
+        /// Camera: front, side, top or iso.
+        #[arg(long, default_value = "front")]
+        view: coarsen_render::View,
+        /// Size of each panel, WIDTHxHEIGHT.
+        #[arg(long, default_value = "800x800", value_parser = parse_size)]
+        size: (u32, u32),
+    },
     /// Compare a mesh with the input it came from: shape quality, fidelity, validity.
     Metrics {
         /// The original mesh.
@@ -88,6 +112,18 @@ enum Command {
         #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
         samples_per_face: u32,
     },
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got `{s}`"))?;
+    let n = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("bad size `{s}`"))
+    };
+    Ok((n(w)?, n(h)?))
 }
 
 /// The run target from the command line.
@@ -223,6 +259,25 @@ pub fn main() -> ExitCode {
             ascii,
             clean,
         } => commands::convert(&input, &output, ascii, clean),
+        Command::Render {
+            meshes,
+            output,
+            attribute,
+            wireframe,
+            smooth,
+            view,
+            size,
+        } => {
+            let opts = coarsen_render::RenderOptions {
+                width: size.0,
+                height: size.1,
+                view,
+                smooth,
+                wireframe,
+                attribute,
+            };
+            commands::render(&meshes, &output, &opts)
+        }
         Command::Metrics {
             input,
             output,
