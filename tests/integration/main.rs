@@ -2,6 +2,7 @@
 
 mod cli;
 mod data;
+mod html;
 mod malformed;
 mod pipelines;
 mod plugin;

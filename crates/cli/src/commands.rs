@@ -1,13 +1,14 @@
 //! One function per subcommand.
 
 use crate::load::{self, Input};
-use crate::{BatchArgs, Failure, RunArgs, TargetArgs, batch, progress};
+use crate::{BatchArgs, Failure, RunArgs, TargetArgs, batch, html, progress};
 use anyhow::Context as _;
 use coarsen_io::{PlyEncoding, WriteOptions};
+use coarsen_mesh::Mesh;
 use coarsen_mesh::Topology;
+use coarsen_pipeline::StageRecord;
 use coarsen_pipeline::{Overrides, Pipeline, RunOptions, parse_set};
 use coarsen_stage::{Registry, Target};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 type CmdResult = Result<(), Failure>;
@@ -69,19 +70,8 @@ fn write_options(ascii: bool) -> WriteOptions {
 }
 
 /// Writes `bytes` to `path` through a temporary file and a rename.
-fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let mut tmp =
-        tempfile::NamedTempFile::new_in(&dir).with_context(|| format!("{}", path.display()))?;
-    tmp.write_all(bytes)
-        .with_context(|| format!("{}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| e.error)
-        .with_context(|| format!("{}", path.display()))?;
-    Ok(())
+pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    Ok(coarsen_io::write_bytes(path, bytes)?)
 }
 
 pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
@@ -100,9 +90,24 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         ),
     };
     let bars = progress::Bars::new(quiet);
+    let pictures = args.html.is_some() || args.snapshots.is_some();
+    let recorder = pictures.then(|| {
+        let r = html::Recorder::new(args.snapshots.is_some(), 520, args.view, &input.mesh);
+        r.picture("input".into(), &input.mesh, None, false);
+        r
+    });
+    let observe = |record: &StageRecord, mesh: &Mesh| {
+        if let Some(r) = &recorder {
+            r.observe(record, mesh);
+        }
+    };
+    let original = args.html.is_some().then(|| input.mesh.clone());
     let opts = RunOptions {
         sanity: args.sanity || RunOptions::default().sanity,
         progress: &bars,
+        after_stage: recorder
+            .as_ref()
+            .map(|_| &observe as &dyn Fn(&StageRecord, &Mesh)),
     };
     let (mesh, mut report) = pipeline
         .run(input.mesh, opts)
@@ -112,6 +117,21 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
     if let Some(path) = &args.report {
         write_atomically(path, report.to_json().as_bytes())?;
+    }
+    if let Some(r) = &recorder {
+        r.picture("output".into(), &mesh, None, true);
+        if let Some(dir) = &args.snapshots {
+            r.write_all(dir)?;
+        }
+        if let (Some(path), Some(original)) = (&args.html, &original) {
+            let metrics = coarsen_metrics::measure(Some(original), &mesh, &Default::default());
+            let mut notes = r.errors.borrow().clone();
+            if let Err(e) = &metrics {
+                notes.push(format!("metrics not available: {e}"));
+            }
+            let page = html::page(&report, metrics.as_ref().ok(), &r.pictures.borrow(), &notes);
+            write_atomically(path, page.as_bytes())?;
+        }
     }
     if !quiet {
         print!("{}", report.summary());

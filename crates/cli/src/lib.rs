@@ -5,6 +5,7 @@
 
 mod batch;
 mod commands;
+mod html;
 mod load;
 mod progress;
 
@@ -166,6 +167,15 @@ struct RunArgs {
     /// Write ASCII PLY instead of binary.
     #[arg(long)]
     ascii: bool,
+    /// Write a self-contained HTML report (pictures, metrics against the input, timings).
+    #[arg(long, value_name = "FILE")]
+    html: Option<PathBuf>,
+    /// Write a picture after every stage (and of every attribute a stage adds) to this folder.
+    #[arg(long, value_name = "DIR")]
+    snapshots: Option<PathBuf>,
+    /// Camera of the pictures: front, side, top or iso.
+    #[arg(long, default_value = "front")]
+    view: coarsen_render::View,
 }
 
 #[derive(Args, Debug)]

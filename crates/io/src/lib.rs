@@ -216,6 +216,17 @@ pub fn write_path(mesh: &Mesh, path: &Path, opts: &WriteOptions) -> Result<(), I
     let format =
         Format::from_path(path).ok_or_else(|| IoError::file(&name, ErrorKind::UnknownFormat))?;
     check_writable(mesh, &name)?;
+    write_atomically(path, |w| write_unchecked(mesh, format, w, opts, &name))
+}
+
+/// Writes any file through a temporary file in the same directory and a rename, as
+/// [`write_path`] does for meshes: `fill` writes the content; on any error the target is
+/// left as it was. The file gets the permissions of the file it replaces, or `rw-r--r--`.
+pub fn write_atomically(
+    path: &Path,
+    fill: impl FnOnce(&mut BufWriter<&std::fs::File>) -> Result<(), IoError>,
+) -> Result<(), IoError> {
+    let name = path.display().to_string();
     let os = |e: std::io::Error| IoError::file(&name, e.into());
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -224,12 +235,21 @@ pub fn write_path(mesh: &Mesh, path: &Path, opts: &WriteOptions) -> Result<(), I
     let tmp = tempfile::NamedTempFile::new_in(dir).map_err(os)?;
     {
         let mut w = BufWriter::new(tmp.as_file());
-        write_unchecked(mesh, format, &mut w, opts, &name)?;
+        fill(&mut w)?;
         w.flush().map_err(os)?;
     }
     set_output_permissions(tmp.as_file(), path).map_err(os)?;
     tmp.persist(path).map_err(|e| os(e.error))?;
     Ok(())
+}
+
+/// Writes `bytes` to `path` atomically (see [`write_atomically`]).
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+    let name = path.display().to_string();
+    write_atomically(path, |w| {
+        w.write_all(bytes)
+            .map_err(|e| IoError::file(&name, e.into()))
+    })
 }
 
 /// Writes `mesh` in `format` to `w`.

@@ -12,6 +12,8 @@ pub struct RunOptions<'a> {
     pub progress: &'a dyn Progress,
     /// Run the exhaustive `sanity_check` after every stage (default: in debug builds).
     pub sanity: bool,
+    /// Called after every stage with its record and its output mesh (snapshots, reports).
+    pub after_stage: Option<&'a dyn Fn(&StageRecord, &Mesh)>,
 }
 
 impl Default for RunOptions<'_> {
@@ -19,6 +21,7 @@ impl Default for RunOptions<'_> {
         RunOptions {
             progress: &NoProgress,
             sanity: cfg!(debug_assertions),
+            after_stage: None,
         }
     }
 }
@@ -153,6 +156,9 @@ impl Pipeline {
                 figures: stage_report.figures.into_iter().collect(),
                 warnings: stage_report.warnings,
             });
+            if let (Some(observe), Some(record)) = (opts.after_stage, report.stages.last()) {
+                observe(record, &mesh);
+            }
         }
         report.seconds = start.elapsed().as_secs_f64();
         report.output_vertices = mesh.n_vertices();

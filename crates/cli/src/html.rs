@@ -1,0 +1,304 @@
+//! Pictures of a run: snapshots after each stage, and the self-contained HTML report.
+
+use base64::Engine as _;
+use coarsen_mesh::Mesh;
+use coarsen_metrics::MetricsReport;
+use coarsen_pipeline::{RunReport, StageRecord};
+use coarsen_render::{RenderOptions, View};
+use std::cell::RefCell;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// A titled PNG picture.
+pub struct Picture {
+    /// What it shows.
+    pub title: String,
+    /// PNG bytes.
+    pub png: Vec<u8>,
+}
+
+/// Collects pictures while a pipeline runs: after every stage, one picture per attribute the
+/// stage added (curvature maps, clusters), plus one of the mesh when `every_stage` is set.
+pub struct Recorder {
+    seen: RefCell<Vec<String>>,
+    /// Pictures so far, in order.
+    pub pictures: RefCell<Vec<Picture>>,
+    /// Errors met while rendering (reported, never fatal).
+    pub errors: RefCell<Vec<String>>,
+    every_stage: bool,
+    size: u32,
+    view: View,
+}
+
+impl Recorder {
+    /// A recorder whose pictures are `size` pixels square, seen from `view`.
+    pub fn new(every_stage: bool, size: u32, view: View, input: &Mesh) -> Recorder {
+        let seen = input
+            .vertex_attrs
+            .names()
+            .chain(input.face_attrs.names())
+            .map(String::from)
+            .collect();
+        Recorder {
+            seen: RefCell::new(seen),
+            pictures: RefCell::new(Vec::new()),
+            errors: RefCell::new(Vec::new()),
+            every_stage,
+            size,
+            view,
+        }
+    }
+
+    /// Renders `mesh` (coloured by `attribute`) and keeps the picture.
+    pub fn picture(&self, title: String, mesh: &Mesh, attribute: Option<String>, wireframe: bool) {
+        let opts = RenderOptions {
+            width: self.size,
+            height: self.size,
+            view: self.view,
+            smooth: attribute.is_some(),
+            wireframe,
+            attribute,
+        };
+        match coarsen_render::render(&[mesh], &opts).and_then(|img| img.to_png()) {
+            Ok(png) => self.pictures.borrow_mut().push(Picture { title, png }),
+            Err(e) => self.errors.borrow_mut().push(format!("{title}: {e}")),
+        }
+    }
+
+    /// The after-stage hook.
+    pub fn observe(&self, record: &StageRecord, mesh: &Mesh) {
+        let names: Vec<String> = mesh
+            .vertex_attrs
+            .names()
+            .chain(mesh.face_attrs.names())
+            .map(String::from)
+            .collect();
+        let new: Vec<String> = names
+            .iter()
+            .filter(|n| !self.seen.borrow().contains(n))
+            .cloned()
+            .collect();
+        for name in new {
+            let title = format!("after stage {} `{}`: {name}", record.index, record.kind);
+            self.picture(title, mesh, Some(name), false);
+        }
+        if self.every_stage {
+            self.picture(
+                format!("after stage {} `{}`", record.index, record.kind),
+                mesh,
+                None,
+                true,
+            );
+        }
+        *self.seen.borrow_mut() = names;
+    }
+
+    /// Writes every picture to `dir` as `NN-title.png`.
+    pub fn write_all(&self, dir: &std::path::Path) -> anyhow::Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir)?;
+        let mut written = Vec::new();
+        for (i, p) in self.pictures.borrow().iter().enumerate() {
+            let slug: String = p
+                .title
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || c == '.' {
+                        c
+                    } else {
+                        '-'
+                    }
+                })
+                .collect::<String>()
+                .split('-')
+                .filter(|s| !s.is_empty())
+                .collect::<Vec<_>>()
+                .join("-");
+            let path = dir.join(format!("{:02}-{slug}.png", i + 1));
+            crate::commands::write_atomically(&path, &p.png)?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+fn img(p: &Picture) -> String {
+    let data = base64::engine::general_purpose::STANDARD.encode(&p.png);
+    format!(
+        "<figure><img alt=\"{t}\" src=\"data:image/png;base64,{data}\"><figcaption>{t}</figcaption></figure>",
+        t = escape(&p.title)
+    )
+}
+
+/// An SVG bar chart of the smallest-angle histogram (5° bins from 0°).
+fn histogram_svg(bins: &[u32]) -> String {
+    let max = bins.iter().copied().max().unwrap_or(0).max(1) as f64;
+    let (w, h, bar) = (480.0, 160.0, 480.0 / bins.len().max(1) as f64);
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{}\" role=\"img\" aria-label=\"smallest angles\">",
+        h + 30.0
+    );
+    for (i, &n) in bins.iter().enumerate() {
+        let bh = n as f64 / max * h;
+        let x = i as f64 * bar;
+        let fill = if i < 6 { "#c2553a" } else { "#3a78c2" };
+        let _ = write!(
+            s,
+            "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{bh:.1}\" fill=\"{fill}\"><title>{}–{}°: {n}</title></rect>",
+            x + 1.0,
+            h - bh,
+            bar - 2.0,
+            i * 5,
+            i * 5 + 5
+        );
+        let _ = write!(
+            s,
+            "<text x=\"{:.1}\" y=\"{}\" font-size=\"10\" text-anchor=\"middle\">{}°</text>",
+            x + bar / 2.0,
+            h + 14.0,
+            i * 5 + 5
+        );
+    }
+    s.push_str("</svg>");
+    s
+}
+
+/// The self-contained HTML page of a run: pictures inline, no network needed.
+pub fn page(
+    report: &RunReport,
+    metrics: Option<&MetricsReport>,
+    pictures: &[Picture],
+    notes: &[String],
+) -> String {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>coarsen: {name}</title><style>\
+         body{{font:14px/1.45 system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#222}}\
+         table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}\
+         th{{background:#f2f2f2}}td:first-child,th:first-child{{text-align:left}}\
+         figure{{display:inline-block;margin:0 1em 1em 0}}figure img{{max-width:520px;border:1px solid #ddd}}\
+         figcaption{{font-size:12px;color:#555}}.warn{{color:#a33}}</style></head><body>",
+        name = escape(&report.pipeline)
+    );
+    let _ = write!(
+        h,
+        "<h1>coarsen run: pipeline <code>{}</code></h1><p>Input <code>{}</code>: {} vertices, {} faces → output: {} vertices, {} faces, in {:.3} s.</p>",
+        escape(&report.pipeline),
+        escape(&report.input),
+        report.input_vertices,
+        report.input_faces,
+        report.output_vertices,
+        report.output_faces,
+        report.seconds
+    );
+    h.push_str("<h2>Pictures</h2><div id=\"pictures\">");
+    for p in pictures {
+        h.push_str(&img(p));
+    }
+    h.push_str("</div>");
+    if let Some(m) = metrics {
+        let (q, v) = (&m.quality, &m.validity);
+        h.push_str("<h2>Output against the input</h2><table id=\"metrics\"><tr><th>figure</th><th>value</th></tr>");
+        let mut row = |k: &str, val: String| {
+            let _ = write!(h, "<tr><td>{k}</td><td>{}</td></tr>", escape(&val));
+        };
+        row(
+            "vertices / faces",
+            format!("{} / {}", v.n_vertices, v.n_faces),
+        );
+        row("α_min", format!("{:.2}°", q.alpha_min_deg));
+        row("α_avg", format!("{:.2}°", q.alpha_avg_deg));
+        row("triangles under 30°", format!("{:.2} %", q.p_lt30_pct));
+        row("Q_min / Q_avg", format!("{:.3} / {:.3}", q.q_min, q.q_avg));
+        if let Some(f) = &m.fidelity {
+            row(
+                "Hausdorff",
+                format!("{:.3} % of the diagonal", f.hausdorff_pct),
+            );
+            row(
+                "mean / RMS distance",
+                format!("{:.4} % / {:.4} %", f.mean_dist_pct, f.rms_dist_pct),
+            );
+            row("distance samples", f.n_samples.to_string());
+        }
+        row("manifold", v.manifold.to_string());
+        row(
+            "components / boundary loops",
+            format!("{} / {}", v.n_components, v.n_boundary_loops),
+        );
+        row(
+            "genus",
+            v.genus
+                .map(|g| g.to_string())
+                .unwrap_or_else(|| "undefined".into()),
+        );
+        row(
+            "degenerate / flipped faces",
+            format!(
+                "{} / {}",
+                v.n_degenerate,
+                v.n_flipped
+                    .map(|n| n.to_string())
+                    .unwrap_or_else(|| "—".into())
+            ),
+        );
+        h.push_str("</table><h3>Smallest angle of each triangle</h3>");
+        h.push_str(&histogram_svg(&q.min_angle_histogram));
+    }
+    h.push_str("<h2>Stages</h2><table id=\"stages\"><tr><th>#</th><th>stage</th><th>faces before</th><th>faces after</th><th>vertices after</th><th>seconds</th></tr>");
+    for s in &report.stages {
+        let _ = write!(
+            h,
+            "<tr><td>{}</td><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td></tr>",
+            s.index,
+            escape(&s.kind),
+            s.faces_before,
+            s.faces_after,
+            s.vertices_after,
+            s.seconds
+        );
+    }
+    h.push_str("</table>");
+    let warnings: Vec<String> = report
+        .stages
+        .iter()
+        .flat_map(|s| {
+            s.warnings
+                .iter()
+                .map(move |w| format!("stage {} `{}`: {w}", s.index, s.kind))
+        })
+        .chain(notes.iter().cloned())
+        .collect();
+    if !warnings.is_empty() {
+        h.push_str("<h2>Notes and warnings</h2><ul>");
+        for w in warnings {
+            let _ = write!(h, "<li class=\"warn\">{}</li>", escape(&w));
+        }
+        h.push_str("</ul>");
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn histogram_has_one_bar_per_bin_and_escapes_nothing_unsafe() {
+        let svg = histogram_svg(&[0, 3, 9, 1]);
+        assert_eq!(svg.matches("<rect").count(), 4);
+        assert!(svg.starts_with("<svg") && svg.ends_with("</svg>"));
+        assert_eq!(
+            escape("<a href=\"x\">&"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;"
+        );
+    }
+}
