@@ -6,3 +6,4 @@ mod html;
 mod malformed;
 mod pipelines;
 mod plugin;
+mod properties;

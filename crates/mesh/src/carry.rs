@@ -411,4 +411,37 @@ mod tests {
         assert!(out.face_attrs.is_empty());
         assert_eq!(report.dropped, vec![(Domain::Face, "cluster".into())]);
     }
+
+    proptest::proptest! {
+        #[test]
+        fn blended_values_stay_within_the_range_of_their_sources(
+            values in proptest::collection::vec(-1e6f64..1e6, 2..20),
+            blends in proptest::collection::vec(
+                proptest::collection::vec((0usize..20, 0.0f64..10.0), 1..6), 1..30),
+        ) {
+            let n = values.len();
+            let mut mesh = Mesh::new(vec![DVec3::ZERO; n], vec![]);
+            mesh.vertex_attrs.insert("s", AttrValues::Scalar(values.clone()));
+            let mut vo = VertexOrigins::default();
+            let mut sources = Vec::new();
+            for b in &blends {
+                let list: Vec<(Index, f64)> = b.iter().map(|&(v, w)| ((v % n) as Index, w)).collect();
+                vo.push_blend(list.iter().copied());
+                sources.push(list);
+            }
+            let (out, report) = mesh.rebuilt(vec![DVec3::ZERO; blends.len()], vec![], &vo, &FaceOrigins::default());
+            match out.vertex_attrs.scalar("s") {
+                Some(carried) => {
+                    for (x, list) in carried.iter().zip(&sources) {
+                        let used: Vec<f64> = list.iter().filter(|s| s.1 > 0.0).map(|s| values[s.0 as usize]).collect();
+                        let (lo, hi) = used.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+                        let tol = 1e-9 * hi.abs().max(lo.abs()).max(1.0);
+                        proptest::prop_assert!(*x >= lo - tol && *x <= hi + tol, "{x} outside [{lo}, {hi}]");
+                    }
+                }
+                // A blend whose weights are all zero has no origin: the column is dropped, and said so.
+                None => proptest::prop_assert!(report.dropped.iter().any(|(_, n)| n == "s")),
+            }
+        }
+    }
 }
