@@ -225,6 +225,7 @@ fn one(b: &Batch<'_>, input: &Path, output: &Path) -> Row {
         row.vertices_in = Some(loaded.mesh.n_vertices());
         row.faces_in = Some(loaded.mesh.n_faces());
         let (mesh, report) = b.pipeline.run(loaded.mesh, RunOptions::default())?;
+        let mesh = load::restore(mesh, loaded.scale_exponent);
         if let Some(parent) = output.parent() {
             std::fs::create_dir_all(parent)?;
         }

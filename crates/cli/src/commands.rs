@@ -85,6 +85,7 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
             Input {
                 mesh: coarsen_shapes::demo(),
                 notes: vec!["built-in demo mesh".into()],
+                scale_exponent: 0,
             },
             "demo".into(),
         ),
@@ -114,6 +115,7 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         .map_err(anyhow::Error::from)?;
     report.input = name;
     report.input_notes = input.notes;
+    let mesh = load::restore(mesh, input.scale_exponent);
     coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
     if let Some(path) = &args.report {
         write_atomically(path, report.to_json().as_bytes())?;
@@ -384,7 +386,8 @@ pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResu
     } else {
         load::load_raw(input)?
     };
-    coarsen_io::write_path(&loaded.mesh, output, &write_options(ascii))?;
+    let mesh = load::restore(loaded.mesh, loaded.scale_exponent);
+    coarsen_io::write_path(&mesh, output, &write_options(ascii))?;
     Ok(())
 }
 

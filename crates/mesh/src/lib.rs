@@ -27,6 +27,7 @@ pub mod attribute;
 pub mod carry;
 pub mod hygiene;
 pub mod sanity;
+pub mod scale;
 pub mod topology;
 
 pub use attribute::{AttrKind, AttrValues, Attributes, Domain};
