@@ -147,7 +147,7 @@ pub fn sanity_check_with(mesh: &Mesh, opts: &SanityOptions) -> Result<(), Sanity
     mesh.validate_indices()?;
     check_finite(mesh)?;
     check_faces(mesh, opts.degenerate_area_rel)?;
-    check_duplicates(mesh)?;
+    check_duplicates(mesh, opts.require_manifold)?;
     if opts.require_manifold || opts.require_oriented {
         let topo = Topology::try_build(mesh)?;
         if opts.require_manifold {
@@ -256,17 +256,27 @@ fn check_faces(mesh: &Mesh, area_rel: f64) -> Result<(), SanityError> {
 }
 
 /// Faces grouped by vertex set; of all faces that repeat a lower face's set, the lowest
-/// is reported with the lowest face of its set.
-fn check_duplicates(mesh: &Mesh) -> Result<(), SanityError> {
+/// is reported with the lowest face of its set. A face and its opposite-orientation twin
+/// (a two-sided sheet, which load-time hygiene keeps) count as duplicates only when
+/// `opposite_too` (manifold meshes have none).
+fn check_duplicates(mesh: &Mesh, opposite_too: bool) -> Result<(), SanityError> {
     let order = faces_by_vertex_set(&mesh.faces, |_| true);
     let mut found: Option<(Index, Index)> = None;
-    for group in order.chunk_by(|a, b| a.0 == b.0) {
-        let first = group.iter().map(|g| g.2).min().unwrap_or(0);
-        let later = group.iter().map(|g| g.2).filter(|&f| f != first).min();
-        if let Some(face) = later
-            && found.is_none_or(|(f, _)| face < f)
-        {
-            found = Some((face, first));
+    for set in order.chunk_by(|a, b| a.0 == b.0) {
+        // Same orientation always duplicates; opposite only when asked.
+        let groups: Vec<&[([Index; 3], bool, Index)]> = if opposite_too {
+            vec![set]
+        } else {
+            set.chunk_by(|a, b| a.1 == b.1).collect()
+        };
+        for group in groups {
+            let first = group.iter().map(|g| g.2).min().unwrap_or(0);
+            let later = group.iter().map(|g| g.2).filter(|&f| f != first).min();
+            if let Some(face) = later
+                && found.is_none_or(|(f, _)| face < f)
+            {
+                found = Some((face, first));
+            }
         }
     }
     match found {
@@ -438,23 +448,24 @@ mod tests {
     }
 
     #[test]
-    fn duplicate_face_in_either_orientation_is_named() {
+    fn duplicates_are_named_and_opposite_twins_only_when_manifold_is_required() {
         let mut m = tetrahedron();
         m.faces.push([3, 1, 2]); // face 2 = 1-2-3, same orientation
         assert_eq!(
             sanity_check(&m),
             Err(SanityError::DuplicateFace { face: 4, first: 2 })
         );
-        m.faces[4] = [1, 3, 2]; // opposite orientation
+        m.faces[4] = [1, 3, 2]; // opposite orientation: a two-sided sheet, kept by hygiene
+        assert_eq!(sanity_check(&m), Ok(()));
         assert_eq!(
-            sanity_check(&m),
+            sanity_check_with(&m, &SanityOptions::strict()),
             Err(SanityError::DuplicateFace { face: 4, first: 2 })
         );
         // The later face sorts first within its set (0-1-2 runs forwards, face 0 = 0-2-1
         // backwards): still named as the later one.
         m.faces[4] = [0, 1, 2];
         assert_eq!(
-            sanity_check(&m),
+            sanity_check_with(&m, &SanityOptions::strict()),
             Err(SanityError::DuplicateFace { face: 4, first: 0 })
         );
     }

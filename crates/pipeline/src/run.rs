@@ -5,6 +5,15 @@ use coarsen_mesh::{Mesh, Topology, sanity};
 use coarsen_stage::{Context, NoProgress, Progress, StageError, StageReport};
 use std::time::Instant;
 
+/// What every stage's output must satisfy: valid indices, finite values, no face repeating
+/// a vertex, no duplicate face, no face of exactly zero area — the same bar as load-time
+/// hygiene, so an input that hygiene kept never fails it by itself.
+const STAGE_OUTPUT: sanity::SanityOptions = sanity::SanityOptions {
+    require_manifold: false,
+    require_oriented: false,
+    degenerate_area_rel: 0.0,
+};
+
 /// How to run a pipeline.
 #[derive(Clone, Copy)]
 pub struct RunOptions<'a> {
@@ -137,7 +146,7 @@ impl Pipeline {
                 tracing::warn!(stage = index, kind = s.kind, "{w}");
             }
             if opts.sanity {
-                sanity::sanity_check(&mesh).map_err(|e| RunError::Invalid {
+                sanity::sanity_check_with(&mesh, &STAGE_OUTPUT).map_err(|e| RunError::Invalid {
                     index,
                     kind: s.kind,
                     detail: e.to_string(),
