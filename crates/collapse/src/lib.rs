@@ -78,7 +78,9 @@
 //!   a closed one; a collapse that would remove every face of a vertex leaves no fan.
 //! * **degenerate** — a kept face whose area would fall below `1e-12 · diagonal²` (the
 //!   metrics' definition of a degenerate face), unless it already was degenerate;
-//! * **flip** — a kept face whose normal would turn by 90° or more;
+//! * **flip** — a kept face whose normal would turn by 90° or more, or by 60° or more from
+//!   its input face's normal (a bound on the drift over many collapses, which the per-collapse
+//!   test alone lets faces accumulate until they face away from the input);
 //! * **quality** (only with [`Options::min_quality`] > 0) — a kept face whose quality
 //!   (Frey–Borouchaki Q) would end below the minimum *and* below its current quality;
 //! * **boundary** and **locked** — counted when a candidate is ranked, per the table above.
@@ -132,6 +134,10 @@ pub enum Reach {
     /// Those containing the new vertex or one of its neighbours (the cost depends on the
     /// faces around the candidate, as with paper 2's per-face quadrics).
     Ring,
+    /// Those containing a vertex within two edges of the new vertex (the cost sums
+    /// per-face data around the candidate, and a face's data depends on the faces sharing
+    /// a vertex with it, as with paper 2's normal factor).
+    TwoRings,
 }
 
 /// The kind of a vertex, fixed when the [`LiveMesh`] is built.

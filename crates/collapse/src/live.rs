@@ -20,6 +20,9 @@ const PASSIVE: u8 = 2;
 /// (metrics.md's `n_degenerate`).
 const DEGENERATE_AREA: f64 = 1e-12;
 
+/// Cosine of the largest turn (60°) a face may make away from its input normal.
+const DRIFT_COS: f64 = 0.5;
+
 /// The most faces a [`LiveMesh`] takes: its vertex → faces arena (three corners per
 /// face, with room to grow) then fits `u32` offsets.
 pub const MAX_FACES: usize = (u32::MAX / 8) as usize;
@@ -94,6 +97,9 @@ pub struct LiveMesh {
     diagonal: f64,
     /// Twice the degenerate area: a face whose cross product is this short is degenerate.
     min_cross: f64,
+    /// Each input face's unit normal (zero when degenerate): no collapse may turn a face
+    /// 60° or more away from it, so that faces cannot drift over many collapses.
+    input_normal: Vec<DVec3>,
 }
 
 /// Work buffers of one run, reused by every collapse.
@@ -241,6 +247,20 @@ impl LiveMesh {
                 .map(|(p, _)| p),
         );
         let diagonal = bbox.diagonal();
+        let min_cross = 2.0 * DEGENERATE_AREA * diagonal * diagonal;
+        let input_normal = mesh
+            .faces
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.map(|v| mesh.positions[v as usize]);
+                let n = triangle::cross(a, b, c);
+                if n.length() > min_cross {
+                    n.normalize()
+                } else {
+                    DVec3::ZERO
+                }
+            })
+            .collect();
         Ok(LiveMesh {
             pos: mesh.positions.clone(),
             faces: mesh.faces.clone(),
@@ -254,7 +274,8 @@ impl LiveMesh {
             cluster_next: vec![NONE; n],
             cluster_tail: (0..n as Index).collect(),
             diagonal,
-            min_cross: 2.0 * DEGENERATE_AREA * diagonal * diagonal,
+            min_cross,
+            input_normal,
         })
     }
 
@@ -779,8 +800,11 @@ impl LiveMesh {
                 if n_new.length() <= self.min_cross {
                     return Err(Refusal::Degenerate);
                 }
-                // The normal turns by 90° or more.
-                if n_old.dot(n_new) <= 0.0 {
+                // The normal turns by 90° or more from now, or 60° or more from the input
+                // face's (so that faces cannot drift over many collapses).
+                if n_old.dot(n_new) <= 0.0
+                    || self.input_normal[f as usize].dot(n_new) <= DRIFT_COS * n_new.length()
+                {
                     return Err(Refusal::Flip);
                 }
             }
@@ -884,14 +908,28 @@ impl LiveMesh {
                 }
             }
         }
-        if reach == Reach::Ring {
+        if reach == Reach::TwoRings {
+            // The neighbours' neighbours too.
+            let ring = s.touched.len();
+            for i in 1..ring {
+                let u = s.touched[i];
+                for &f in self.lists.get(u) {
+                    for &w in &self.faces[f as usize] {
+                        if s.in_touched.insert(w) {
+                            s.touched.push(w);
+                        }
+                    }
+                }
+            }
+        }
+        if reach != Reach::Kept {
             for &u in &s.touched[1..] {
                 self.stamp[u as usize] = self.stamp[u as usize].wrapping_add(1);
             }
         }
         let centres = match reach {
             Reach::Kept => 1,
-            Reach::Ring => s.touched.len(),
+            Reach::Ring | Reach::TwoRings => s.touched.len(),
         };
         s.seen.clear();
         for i in 0..centres {
@@ -906,7 +944,7 @@ impl LiveMesh {
                             if u == v || !s.seen.insert(u) {
                                 continue;
                             }
-                            if reach == Reach::Ring && s.in_touched.contains(u) && u < v {
+                            if reach != Reach::Kept && s.in_touched.contains(u) && u < v {
                                 continue;
                             }
                             self.propose(model, &[v.min(u), v.max(u)], q, refused);
@@ -1074,6 +1112,48 @@ mod tests {
         }
     }
 
+    /// Collapses edge 12–13 of a flat 5 × 5 grid to a point `height` above its middle.
+    struct Lift {
+        height: f64,
+    }
+
+    impl CostModel for Lift {
+        fn unit(&self) -> Unit {
+            Unit::Edge
+        }
+        fn reach(&self) -> Reach {
+            Reach::Kept
+        }
+        fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan> {
+            let [a, b] = [merge.vertices[0], merge.vertices[1]];
+            let mid = (mesh.position(a) + mesh.position(b)) / 2.0;
+            let lifted = [a, b] == [12, 13];
+            Some(Plan {
+                position: if lifted {
+                    mid + DVec3::Z * self.height
+                } else {
+                    mid
+                },
+                cost: if lifted { 0.0 } else { 1.0 },
+            })
+        }
+        fn merged(&mut self, _: &LiveMesh, _: Index, _: &[Index]) {}
+    }
+
+    #[test]
+    fn faces_may_not_turn_sixty_degrees_from_their_input_normal() {
+        let mesh = grid(4, 4, |_, _| 0.0);
+        // Lifted 0.5 above the middle of an edge 0.25 long: every kept face tilts by
+        // 63°–76°, less than the 90° of a flip but more than the 60° of the drift bound.
+        let (_, outcome, _) = run(&mesh, &mut Lift { height: 0.5 }, Goal::Vertices(24));
+        assert!(outcome.refused.flip >= 1, "{:?}", outcome.refused);
+        assert_ne!((outcome.log[0].kept, outcome.log[0].removed[0]), (12, 13));
+        // A small lift (well under 60°) is allowed.
+        let (_, outcome, _) = run(&mesh, &mut Lift { height: 0.05 }, Goal::Vertices(24));
+        assert_eq!(outcome.refused.flip, 0);
+        assert_eq!((outcome.log[0].kept, outcome.log[0].removed[0]), (12, 13));
+    }
+
     #[test]
     fn no_face_flips_on_a_folded_strip() {
         //  z                      A strip 4 cells wide, folded at x = ½ through 179°: the
@@ -1236,6 +1316,52 @@ mod tests {
             "3 → 1 each time"
         );
         assert_eq!(assert_closed_manifold(&out).euler, 2);
+    }
+
+    #[test]
+    fn two_rings_reach_recosts_every_triangle_within_two_edges_of_the_new_vertex() {
+        let mesh = icosphere(2);
+        let calls = std::cell::RefCell::new(Vec::new());
+        let mut model = Scripted {
+            unit: Unit::Triangle,
+            reach: Reach::TwoRings,
+            cost: |_: &LiveMesh, v: &[Index]| {
+                let mut t = [v[0], v[1], v[2]];
+                t.sort_unstable();
+                calls.borrow_mut().push(t);
+                0.0
+            },
+        };
+        let (_, outcome, live) = run(&mesh, &mut model, Goal::Vertices(mesh.n_vertices() - 2));
+        assert_eq!(outcome.collapses, 1);
+        let kept = outcome.log[0].kept;
+        // Ranking costs every face once, the pop costs the first again; the rest is requeue.
+        let requeued: std::collections::BTreeSet<[Index; 3]> = calls.borrow()[mesh.n_faces() + 1..]
+            .iter()
+            .copied()
+            .collect();
+        let neighbours = |v: Index| -> Vec<Index> {
+            live.faces_around(v)
+                .iter()
+                .flat_map(|&f| live.face(f))
+                .collect()
+        };
+        let mut near: Vec<Index> = neighbours(kept).into_iter().flat_map(neighbours).collect();
+        near.sort_unstable();
+        near.dedup();
+        let expect: std::collections::BTreeSet<[Index; 3]> = live
+            .live_faces()
+            .map(|f| live.face(f))
+            .filter(|t| t.iter().any(|v| near.contains(v)))
+            .map(|mut t| {
+                t.sort_unstable();
+                t
+            })
+            .collect();
+        assert_eq!(requeued, expect);
+        // Some of them do not touch the new vertex's ring: a Ring reach would miss them.
+        let ring = neighbours(kept);
+        assert!(expect.iter().any(|t| t.iter().all(|v| !ring.contains(v))));
     }
 
     #[test]

@@ -1,0 +1,462 @@
+//! Paper 2's constriction error as a [`CostModel`] of the collapse engine.
+
+use coarsen_collapse::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind};
+use coarsen_geom::{DVec3, Quadric, triangle};
+use std::f64::consts::PI;
+
+/// Relative determinant below which the summed quadric's minimiser is not trusted (Eq. 8
+/// takes over).
+const SOLVE_TOLERANCE: f64 = 1e-10;
+
+/// How far from the merged vertices' centroid the minimiser may lie, in units of their
+/// largest distance to it; farther, Eq. 8 takes over.
+const MAX_REACH: f64 = 4.0;
+
+/// Settings of [`SvecModel`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SvecOptions {
+    /// Triangles whose Gauss-curvature factor K_t exceeds this are strong-feature
+    /// triangles; `None` takes mean + `feature_sigma` · σ of K_t over the input.
+    pub feature_threshold: Option<f64>,
+    /// How many standard deviations above the mean the automatic threshold sits.
+    pub feature_sigma: f64,
+    /// Weight each face's quadric by φᵢ (see the crate docs) before placing and costing.
+    pub volume_constraint: bool,
+}
+
+impl Default for SvecOptions {
+    fn default() -> Self {
+        SvecOptions {
+            feature_threshold: None,
+            feature_sigma: 2.0,
+            volume_constraint: false,
+        }
+    }
+}
+
+/// Per-face and per-vertex data of paper 2's constriction error, kept current as the
+/// engine collapses.
+#[derive(Clone, Debug)]
+pub struct SvecModel {
+    unit: Unit,
+    /// Unit normal of each face (zero when degenerate).
+    normal: Vec<DVec3>,
+    /// Area of each face, in units of the squared diagonal.
+    area: Vec<f64>,
+    /// Qᵢ = (1/9)·Wᵢ·Nᵢ·Sᵢ²·p pᵀ, scaled to a unit diagonal.
+    quadric: Vec<Quadric>,
+    /// (1/9)·Sᵢ²·p pᵀ (the plain squared volume), scaled to a unit diagonal; for φ.
+    volume: Vec<Quadric>,
+    /// Σ areas of the faces around each vertex (A_v), unit-diagonal units.
+    vertex_area: Vec<f64>,
+    /// |angle deficit| of each vertex (2π − Σα inside, π − Σα on the boundary).
+    deficit: Vec<f64>,
+    threshold: f64,
+    /// 1 / diagonal.
+    scale: f64,
+    volume_constraint: bool,
+    feature_collapses: usize,
+    /// Work buffers of `merged`.
+    touched: Vec<Index>,
+    face_mark: Vec<u32>,
+    vertex_mark: Vec<u32>,
+    generation: u32,
+}
+
+/// |2π − Σα| (interior) or |π − Σα| (boundary) at `v`, and the area around it.
+fn deficit_and_area(mesh: &LiveMesh, area: &[f64], v: Index) -> (f64, f64) {
+    let mut angle_sum = 0.0;
+    let mut a = 0.0;
+    for &f in mesh.faces_around(v) {
+        let face = mesh.face(f);
+        let c = face.iter().position(|&u| u == v).unwrap_or(0);
+        let [p, q, r] = [face[c], face[(c + 1) % 3], face[(c + 2) % 3]].map(|u| mesh.position(u));
+        angle_sum += triangle::angle_between(q - p, r - p);
+        a += area[f as usize];
+    }
+    let full = if mesh.kind(v) == VertexKind::Boundary {
+        PI
+    } else {
+        2.0 * PI
+    };
+    ((full - angle_sum).abs(), a)
+}
+
+/// Calls `visit` once for each face around any of `verts` (faces around several of them
+/// once, at the first).
+#[inline]
+fn for_faces_around(mesh: &LiveMesh, verts: &[Index], mut visit: impl FnMut(Index)) {
+    for (i, &v) in verts.iter().enumerate() {
+        for &f in mesh.faces_around(v) {
+            let face = mesh.face(f);
+            if verts[..i].iter().any(|u| face.contains(u)) {
+                continue;
+            }
+            visit(f);
+        }
+    }
+}
+
+impl SvecModel {
+    /// The data of `mesh`'s faces and vertices, and the feature threshold of its triangles.
+    pub fn new(mesh: &LiveMesh, opts: &SvecOptions) -> Self {
+        let n_faces = mesh.live_faces().last().map_or(0, |f| f as usize + 1);
+        let n_vertices = mesh.vertex_slots();
+        let d = mesh.diagonal();
+        let scale = if d > 0.0 && d.is_finite() {
+            1.0 / d
+        } else {
+            1.0
+        };
+        let mut m = SvecModel {
+            unit: Unit::Triangle,
+            normal: vec![DVec3::ZERO; n_faces],
+            area: vec![0.0; n_faces],
+            quadric: vec![Quadric::ZERO; n_faces],
+            volume: vec![Quadric::ZERO; n_faces],
+            vertex_area: vec![0.0; n_vertices],
+            deficit: vec![0.0; n_vertices],
+            threshold: f64::INFINITY,
+            scale,
+            volume_constraint: opts.volume_constraint,
+            feature_collapses: 0,
+            touched: Vec::new(),
+            face_mark: vec![0; n_faces],
+            vertex_mark: vec![0; n_vertices],
+            generation: 0,
+        };
+        for f in mesh.live_faces() {
+            m.update_shape(mesh, f);
+        }
+        for v in 0..n_vertices as Index {
+            if mesh.is_alive(v) && !mesh.faces_around(v).is_empty() {
+                m.update_vertex(mesh, v);
+            }
+        }
+        for f in mesh.live_faces() {
+            m.update_quadric(mesh, f);
+        }
+        m.threshold = match opts.feature_threshold {
+            Some(t) => t,
+            None => {
+                let ks: Vec<f64> = mesh
+                    .live_faces()
+                    .map(|f| m.triangle_curvature(&mesh.face(f)))
+                    .filter(|k| k.is_finite())
+                    .collect();
+                mean_plus_sigma(&ks, opts.feature_sigma)
+            }
+        };
+        m
+    }
+
+    /// Collapse triangles (the method) or edges (to finish on an exact count).
+    pub fn set_unit(&mut self, unit: Unit) {
+        self.unit = unit;
+    }
+
+    /// The Gauss-curvature threshold above which a triangle is a strong feature.
+    pub fn feature_threshold(&self) -> f64 {
+        self.threshold
+    }
+
+    /// Collapses so far whose new vertex was placed on a strong-feature vertex.
+    pub fn feature_collapses(&self) -> usize {
+        self.feature_collapses
+    }
+
+    /// Paper 2's K_t of the merged vertices: Σ |angle deficit| / Σ A_v.
+    pub fn triangle_curvature(&self, verts: &[Index]) -> f64 {
+        let (d, a) = verts.iter().fold((0.0, 0.0), |(d, a), &v| {
+            (
+                d + self.deficit[v as usize],
+                a + self.vertex_area[v as usize],
+            )
+        });
+        if a > 0.0 { d / a } else { 0.0 }
+    }
+
+    /// |K_v| = |angle deficit| / A_v of vertex `v`.
+    pub fn vertex_curvature(&self, v: Index) -> f64 {
+        let a = self.vertex_area[v as usize];
+        if a > 0.0 {
+            self.deficit[v as usize] / a
+        } else {
+            0.0
+        }
+    }
+
+    /// The quadric Qᵢ of face `f` (unit-diagonal units).
+    pub fn face_quadric(&self, f: Index) -> &Quadric {
+        &self.quadric[f as usize]
+    }
+
+    /// Normal and area of face `f` from the current positions.
+    fn update_shape(&mut self, mesh: &LiveMesh, f: Index) {
+        let [a, b, c] = mesh.face(f).map(|v| mesh.position(v));
+        let cross = triangle::cross(a, b, c);
+        let len = cross.length();
+        let fi = f as usize;
+        self.normal[fi] = if len > 0.0 && len.is_finite() {
+            cross / len
+        } else {
+            DVec3::ZERO
+        };
+        self.area[fi] = 0.5 * len * self.scale * self.scale;
+    }
+
+    /// A_v and the angle deficit of vertex `v`.
+    fn update_vertex(&mut self, mesh: &LiveMesh, v: Index) {
+        let (d, a) = deficit_and_area(mesh, &self.area, v);
+        self.deficit[v as usize] = d;
+        self.vertex_area[v as usize] = a;
+    }
+
+    /// Nᵢ (from the normals around face `f`) and then Qᵢ.
+    fn update_quadric(&mut self, mesh: &LiveMesh, f: Index) {
+        let fi = f as usize;
+        let n = self.normal[fi];
+        if n == DVec3::ZERO {
+            self.quadric[fi] = Quadric::ZERO;
+            self.volume[fi] = Quadric::ZERO;
+            return;
+        }
+        let face = mesh.face(f);
+        let (mut sum, mut count) = (0.0, 0usize);
+        for_faces_around(mesh, &face, |g| {
+            let m = self.normal[g as usize];
+            if g != f && m != DVec3::ZERO {
+                sum += 0.5 * (1.0 - n.dot(m).abs());
+                count += 1;
+            }
+        });
+        let normal_factor = if count > 0 { sum / count as f64 } else { 0.0 };
+        let [a, b, c] = face.map(|v| mesh.position(v));
+        let s = self.area[fi];
+        let shape = 2.0 * (1.0 - triangle::min_angle(a, b, c).cos()) * s;
+        // Distances squared are in world units: scale them to a unit diagonal too.
+        let plain = s * s / 9.0 * self.scale * self.scale;
+        self.volume[fi] = Quadric::from_plane(n, a, plain);
+        self.quadric[fi] = Quadric::from_plane(n, a, shape * normal_factor * plain);
+    }
+
+    /// Σ Qᵢ (each weighted by `phi` when given) over the faces around `verts`.
+    fn summed(&self, mesh: &LiveMesh, verts: &[Index], phi: Option<(DVec3, f64)>) -> Quadric {
+        let mut q = Quadric::ZERO;
+        for_faces_around(mesh, verts, |f| {
+            let w = match phi {
+                Some((p, mean)) => self.volume[f as usize].eval(p).max(0.0) / mean,
+                None => 1.0,
+            };
+            q += self.quadric[f as usize] * w;
+        });
+        q
+    }
+
+    /// Mean of the plain squared volumes (1/9)Sᵢ²(p·v̄)² around `verts` at `p`.
+    fn mean_volume(&self, mesh: &LiveMesh, verts: &[Index], p: DVec3) -> f64 {
+        let (mut sum, mut count) = (0.0, 0usize);
+        for_faces_around(mesh, verts, |f| {
+            sum += self.volume[f as usize].eval(p).max(0.0);
+            count += 1;
+        });
+        if count > 0 { sum / count as f64 } else { 0.0 }
+    }
+
+    /// Eq. 8: the A_v-weighted mean of the merged vertices (their plain mean when every
+    /// A_v is zero).
+    fn area_weighted_mean(&self, mesh: &LiveMesh, verts: &[Index]) -> DVec3 {
+        let total: f64 = verts.iter().map(|&v| self.vertex_area[v as usize]).sum();
+        if total > 0.0 {
+            verts
+                .iter()
+                .map(|&v| mesh.position(v) * (self.vertex_area[v as usize] / total))
+                .sum()
+        } else {
+            verts.iter().map(|&v| mesh.position(v)).sum::<DVec3>() / verts.len() as f64
+        }
+    }
+
+    /// Where the merged vertex goes, given the summed quadric `q` (the rules of the crate
+    /// docs), and whether the feature rule placed it.
+    fn place(&self, mesh: &LiveMesh, merge: &Merge<'_>, q: &Quadric) -> (DVec3, bool) {
+        let verts = merge.vertices;
+        if let Some(v) = merge.pinned {
+            return (mesh.position(v), false);
+        }
+        let mut boundary = verts
+            .iter()
+            .copied()
+            .filter(|&v| mesh.kind(v) == VertexKind::Boundary);
+        if let (Some(i), Some(j)) = (boundary.next(), boundary.next()) {
+            return (self.on_segment(mesh, q, i, j), false);
+        }
+        if self.triangle_curvature(verts) > self.threshold {
+            // The strong-feature vertex: the largest |K_v|, the first of equals.
+            let mut best = verts[0];
+            for &v in &verts[1..] {
+                if self.vertex_curvature(v) > self.vertex_curvature(best) {
+                    best = v;
+                }
+            }
+            return (mesh.position(best), true);
+        }
+        let n = verts.len() as f64;
+        let centroid = verts.iter().map(|&v| mesh.position(v)).sum::<DVec3>() / n;
+        let radius = verts
+            .iter()
+            .map(|&v| (mesh.position(v) - centroid).length())
+            .fold(0.0, f64::max);
+        match q.minimizer(SOLVE_TOLERANCE) {
+            Some(x) if (x - centroid).length() <= MAX_REACH * radius => (x, false),
+            _ => (self.area_weighted_mean(mesh, verts), false),
+        }
+    }
+
+    /// §3.5: v̄ = ω vᵢ + (1 − ω) vⱼ with ω ∈ [0, 1] minimising `q` along the segment; the
+    /// A_v-weighted point when `q` is flat along it.
+    fn on_segment(&self, mesh: &LiveMesh, q: &Quadric, i: Index, j: Index) -> DVec3 {
+        let (pi, pj) = (mesh.position(i), mesh.position(j));
+        let d = pi - pj;
+        let a = q.matrix();
+        // q(pj + ω d) = ω² dᵀAd + 2ω dᵀ(A pj + b) + q(pj).
+        let curvature = d.dot(a * d);
+        let slope = d.dot(a * pj + q.b);
+        let omega = if curvature > 0.0 && curvature.is_finite() {
+            (-slope / curvature).clamp(0.0, 1.0)
+        } else {
+            let (ai, aj) = (self.vertex_area[i as usize], self.vertex_area[j as usize]);
+            if ai + aj > 0.0 { ai / (ai + aj) } else { 0.5 }
+        };
+        pj + d * omega
+    }
+
+    /// Marks `i` in `marks` for the current generation; true when it was not yet marked.
+    fn mark(marks: &mut [u32], generation: u32, i: Index) -> bool {
+        let m = &mut marks[i as usize];
+        let fresh = *m != generation;
+        *m = generation;
+        fresh
+    }
+}
+
+/// mean + `sigma` · standard deviation of `values` (∞ when empty).
+fn mean_plus_sigma(values: &[f64], sigma: f64) -> f64 {
+    if values.is_empty() {
+        return f64::INFINITY;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|k| (k - mean) * (k - mean)).sum::<f64>() / n;
+    mean + sigma * var.sqrt()
+}
+
+impl CostModel for SvecModel {
+    fn unit(&self) -> Unit {
+        self.unit
+    }
+
+    fn reach(&self) -> Reach {
+        Reach::TwoRings
+    }
+
+    fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan> {
+        let q = self.summed(mesh, merge.vertices, None);
+        let (mut position, fixed) = self.place(mesh, merge, &q);
+        if !self.volume_constraint {
+            return Some(Plan {
+                position,
+                cost: q.eval(position),
+            });
+        }
+        // φᵢ: each face's plain squared volume at the unconstrained v̄, over their mean.
+        let mean = self.mean_volume(mesh, merge.vertices, position);
+        if mean <= 0.0 || !mean.is_finite() {
+            return Some(Plan {
+                position,
+                cost: q.eval(position),
+            });
+        }
+        let q_phi = self.summed(mesh, merge.vertices, Some((position, mean)));
+        if !fixed {
+            position = self.place(mesh, merge, &q_phi).0;
+        }
+        Some(Plan {
+            position,
+            cost: q_phi.eval(position),
+        })
+    }
+
+    fn merged(&mut self, mesh: &LiveMesh, kept: Index, merged: &[Index]) {
+        // The caches still describe the mesh before the collapse: the plan that was
+        // carried out used the feature rule exactly when this says so.
+        let interior = merged.iter().all(|&v| mesh.kind(v) == VertexKind::Interior);
+        if interior && self.triangle_curvature(merged) > self.threshold {
+            self.feature_collapses += 1;
+        }
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.face_mark.iter_mut().for_each(|m| *m = 0);
+            self.vertex_mark.iter_mut().for_each(|m| *m = 0);
+            self.generation = 1;
+        }
+        let generation = self.generation;
+        // The faces around `kept` changed shape; `kept` and its neighbours changed angle
+        // sums and areas; every face sharing a vertex with a changed face changed Nᵢ.
+        let mut touched = std::mem::take(&mut self.touched);
+        touched.clear();
+        touched.push(kept);
+        Self::mark(&mut self.vertex_mark, generation, kept);
+        for &f in mesh.faces_around(kept) {
+            self.update_shape(mesh, f);
+            for v in mesh.face(f) {
+                if Self::mark(&mut self.vertex_mark, generation, v) {
+                    touched.push(v);
+                }
+            }
+        }
+        for &v in &touched {
+            self.update_vertex(mesh, v);
+        }
+        for &v in &touched {
+            for &f in mesh.faces_around(v) {
+                if Self::mark(&mut self.face_mark, generation, f) {
+                    self.update_quadric(mesh, f);
+                }
+            }
+        }
+        self.touched = touched;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_mesh::Mesh;
+
+    #[test]
+    fn omega_minimises_the_quadric_along_the_boundary_segment() {
+        // Two triangles; 0 and 1 are the ends of the segment.
+        let mesh = Mesh::new(
+            vec![
+                DVec3::ZERO,
+                DVec3::new(4.0, 0.0, 0.0),
+                DVec3::new(2.0, 2.0, 0.0),
+                DVec3::new(2.0, -2.0, 0.0),
+            ],
+            vec![[0, 1, 2], [1, 0, 3]],
+        );
+        let live = LiveMesh::new(&mesh).unwrap();
+        let model = SvecModel::new(&live, &SvecOptions::default());
+        // The plane x = 1 crosses the segment at ω = 3/4 (from vertex 1's side: 1 − ¼).
+        let q = Quadric::from_plane(DVec3::X, DVec3::new(1.0, 0.0, 0.0), 1.0);
+        let p = model.on_segment(&live, &q, 0, 1);
+        assert!((p - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-12, "{p}");
+        // Beyond the segment: clamped to the nearer end.
+        let q = Quadric::from_plane(DVec3::X, DVec3::new(9.0, 0.0, 0.0), 1.0);
+        assert_eq!(model.on_segment(&live, &q, 0, 1), DVec3::new(4.0, 0.0, 0.0));
+        // Flat along the segment: the A_v-weighted point (equal areas: the middle).
+        let p = model.on_segment(&live, &Quadric::ZERO, 0, 1);
+        assert!((p - DVec3::new(2.0, 0.0, 0.0)).length() < 1e-12, "{p}");
+    }
+}
