@@ -1,0 +1,598 @@
+//! The clustering engine: seeding, region growing and the ACVD minimisation loop.
+//!
+//! Faces are adjacent across an edge of exactly two faces (edges of three or more faces
+//! separate, like boundary edges). Clusters keep running [`Sums`], so a move test is O(1)
+//! in the energy plus a look at the fans of the moved face's three corners.
+
+use crate::energy::{Energy, Sums};
+use coarsen_geom::{DVec3, triangle};
+use coarsen_mesh::topology::NONE;
+use coarsen_mesh::{Mesh, Topology};
+use std::collections::VecDeque;
+
+/// Why a clustering could not be made.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ClusterError {
+    /// More clusters asked for than there are faces.
+    #[error("{clusters} clusters asked for, but the mesh has only {faces} faces")]
+    TooManyClusters {
+        /// Clusters asked for.
+        clusters: usize,
+        /// Faces of the mesh.
+        faces: usize,
+    },
+    /// Fewer clusters than connected components (each needs one).
+    #[error(
+        "{clusters} clusters asked for, but the mesh has {components} connected components (each needs at least one)"
+    )]
+    TooFewClusters {
+        /// Clusters asked for.
+        clusters: usize,
+        /// Components of the mesh.
+        components: usize,
+    },
+    /// A face that takes no part in the adjacency (it repeats a vertex).
+    #[error("face {face} repeats a vertex index; clean the mesh first")]
+    SkippedFace {
+        /// The face.
+        face: usize,
+    },
+    /// A density value that is not a positive finite number.
+    #[error("density at vertex {vertex} is {value}; it must be positive and finite")]
+    BadDensity {
+        /// The vertex.
+        vertex: usize,
+        /// Its value.
+        value: f64,
+    },
+    /// A label column whose length or values do not fit the mesh.
+    #[error("cluster label of face {face} is {label}, not below the cluster count {clusters}")]
+    BadLabel {
+        /// The face.
+        face: usize,
+        /// Its label.
+        label: u32,
+        /// The cluster count.
+        clusters: usize,
+    },
+}
+
+/// The figures of one minimisation.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PassLog {
+    /// Faces moved in each pass.
+    pub moves: Vec<u64>,
+    /// Total energy at the end of each pass.
+    pub energy: Vec<f64>,
+    /// Energy before the first pass.
+    pub initial_energy: f64,
+    /// Improving moves refused because they would empty, split or pinch a cluster.
+    pub refused: u64,
+}
+
+/// A small deterministic PRNG (SplitMix64).
+#[derive(Clone, Debug)]
+pub struct SplitMix64(u64);
+
+impl SplitMix64 {
+    /// A generator from `seed`.
+    pub fn new(seed: u64) -> Self {
+        SplitMix64(seed)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// A number in `0..n` (`n > 0`).
+    pub fn below(&mut self, n: usize) -> usize {
+        ((self.next_u64() as u128 * n as u128) >> 64) as usize
+    }
+}
+
+/// A face clustering in progress over one mesh.
+pub struct Clusterer<'a> {
+    topo: &'a Topology,
+    faces: &'a [[u32; 3]],
+    energy: &'a dyn Energy,
+    /// Per face: the face across each edge (corner i → i+1), or `NONE`.
+    nbr: Vec<[u32; 3]>,
+    /// Per vertex: its faces form one closed fan.
+    closed: Vec<bool>,
+    /// Per face: its sums alone.
+    face_sums: Vec<Sums>,
+    labels: Vec<u32>,
+    sums: Vec<Sums>,
+}
+
+impl<'a> Clusterer<'a> {
+    /// A clusterer over `mesh` (whose adjacency is `topo`) with `energy`, face masses from
+    /// the energy and the optional per-vertex `density`. No face is labelled yet.
+    pub fn new(
+        mesh: &'a Mesh,
+        topo: &'a Topology,
+        energy: &'a dyn Energy,
+        density: Option<&[f64]>,
+    ) -> Result<Self, ClusterError> {
+        let nf = mesh.n_faces();
+        if let Some(face) = (0..nf).find(|&f| topo.is_skipped_face(f as u32)) {
+            return Err(ClusterError::SkippedFace { face });
+        }
+        if let Some(d) = density
+            && let Some((vertex, &value)) = d
+                .iter()
+                .enumerate()
+                .find(|(_, x)| !(x.is_finite() && **x > 0.0))
+        {
+            return Err(ClusterError::BadDensity { vertex, value });
+        }
+        // Normalised coordinates: centred, unit diagonal, so the sums keep their digits.
+        let bbox = mesh.bbox();
+        let center = bbox.center();
+        let scale = if bbox.diagonal() > 0.0 {
+            1.0 / bbox.diagonal()
+        } else {
+            1.0
+        };
+        let face_sums = (0..nf)
+            .map(|f| {
+                let [a, b, c] = mesh.corners(f).map(|p| (p - center) * scale);
+                let rho = density.map_or(1.0, |d| {
+                    mesh.faces[f].iter().map(|&v| d[v as usize]).sum::<f64>() / 3.0
+                });
+                let w = energy.face_mass(triangle::area(a, b, c), rho);
+                Sums::of(w, triangle::centroid(a, b, c))
+            })
+            .collect();
+        let nbr = (0..nf as u32)
+            .map(|f| {
+                topo.face_edges(f).map(|e| {
+                    let ef = topo.edge_faces(e);
+                    if ef.len() == 2 {
+                        if ef[0] == f { ef[1] } else { ef[0] }
+                    } else {
+                        NONE
+                    }
+                })
+            })
+            .collect();
+        let closed = (0..topo.n_vertices() as u32)
+            .map(|v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
+            .collect();
+        Ok(Clusterer {
+            topo,
+            faces: &mesh.faces,
+            energy,
+            nbr,
+            closed,
+            face_sums,
+            labels: vec![NONE; nf],
+            sums: Vec::new(),
+        })
+    }
+
+    /// The face across edge `i` (corner i → i+1) of face `f`, or `NONE`.
+    #[inline]
+    pub fn neighbor(&self, f: u32, i: usize) -> u32 {
+        self.nbr[f as usize][i]
+    }
+
+    /// The cluster of every face.
+    pub fn labels(&self) -> &[u32] {
+        &self.labels
+    }
+
+    /// Hands the labels over, consuming the clusterer.
+    pub fn into_labels(self) -> Vec<u32> {
+        self.labels
+    }
+
+    /// The number of clusters.
+    pub fn n_clusters(&self) -> usize {
+        self.sums.len()
+    }
+
+    /// The running sums of every cluster.
+    pub fn cluster_sums(&self) -> &[Sums] {
+        &self.sums
+    }
+
+    /// The total energy of the current clustering.
+    pub fn total_energy(&self) -> f64 {
+        self.sums.iter().map(|s| self.energy.cluster(s)).sum()
+    }
+
+    /// Connected components of faces over the adjacency: `(component per face, count)`.
+    pub fn components(&self) -> (Vec<u32>, usize) {
+        let nf = self.faces.len();
+        let mut comp = vec![NONE; nf];
+        let mut n = 0u32;
+        let mut stack = Vec::new();
+        for s in 0..nf {
+            if comp[s] != NONE {
+                continue;
+            }
+            comp[s] = n;
+            stack.push(s as u32);
+            while let Some(f) = stack.pop() {
+                for g in self.nbr[f as usize] {
+                    if g != NONE && comp[g as usize] == NONE {
+                        comp[g as usize] = n;
+                        stack.push(g);
+                    }
+                }
+            }
+            n += 1;
+        }
+        (comp, n as usize)
+    }
+
+    /// Picks `n` seed faces (at least one per component, the rest in proportion to each
+    /// component's mass) with a [`SplitMix64`] from `seed`, and grows them breadth-first
+    /// until every face belongs to a cluster.
+    pub fn seed(&mut self, n: usize, seed: u64) -> Result<(), ClusterError> {
+        let nf = self.faces.len();
+        if n > nf {
+            return Err(ClusterError::TooManyClusters {
+                clusters: n,
+                faces: nf,
+            });
+        }
+        let (comp, nc) = self.components();
+        if n < nc {
+            return Err(ClusterError::TooFewClusters {
+                clusters: n,
+                components: nc,
+            });
+        }
+        // Faces of each component, in face order (CSR).
+        let mut off = vec![0u32; nc + 1];
+        comp.iter().for_each(|&c| off[c as usize + 1] += 1);
+        for i in 0..nc {
+            off[i + 1] += off[i];
+        }
+        let mut pos = off.clone();
+        let mut members = vec![0u32; nf];
+        for (f, &c) in comp.iter().enumerate() {
+            members[pos[c as usize] as usize] = f as u32;
+            pos[c as usize] += 1;
+        }
+        let mass: Vec<f64> = (0..nc)
+            .map(|c| {
+                members[off[c] as usize..off[c + 1] as usize]
+                    .iter()
+                    .map(|&f| self.face_sums[f as usize].mass.max(0.0))
+                    .sum()
+            })
+            .collect();
+        let quota = allocate(n, &mass, |c| (off[c + 1] - off[c]) as usize);
+        let mut rng = SplitMix64::new(seed);
+        let mut labels = vec![NONE; nf];
+        let mut queue = VecDeque::with_capacity(nf);
+        let mut next = 0u32;
+        for c in 0..nc {
+            let part = &mut members[off[c] as usize..off[c + 1] as usize];
+            // Partial Fisher–Yates: the first `quota[c]` entries become the seeds.
+            for i in 0..quota[c] {
+                let j = i + rng.below(part.len() - i);
+                part.swap(i, j);
+                labels[part[i] as usize] = next;
+                queue.push_back(part[i]);
+                next += 1;
+            }
+        }
+        while let Some(f) = queue.pop_front() {
+            let l = labels[f as usize];
+            for g in self.nbr[f as usize] {
+                if g != NONE && labels[g as usize] == NONE {
+                    labels[g as usize] = l;
+                    queue.push_back(g);
+                }
+            }
+        }
+        self.set_labels(labels, n)
+    }
+
+    /// Takes over an existing clustering of `n` clusters (labels `0..n`).
+    pub fn set_labels(&mut self, labels: Vec<u32>, n: usize) -> Result<(), ClusterError> {
+        if let Some((face, &label)) = labels.iter().enumerate().find(|(_, l)| **l as usize >= n) {
+            return Err(ClusterError::BadLabel {
+                face,
+                label,
+                clusters: n,
+            });
+        }
+        let mut sums = vec![Sums::default(); n];
+        for (f, &l) in labels.iter().enumerate() {
+            sums[l as usize] = sums[l as usize].plus(self.face_sums[f]);
+        }
+        self.labels = labels;
+        self.sums = sums;
+        Ok(())
+    }
+
+    /// Number of runs of faces of cluster `c` around vertex `v`, counting face `t` in the
+    /// cluster when `t_in` and out of it otherwise.
+    #[inline]
+    fn runs(&self, v: u32, c: u32, t: u32, t_in: bool) -> u32 {
+        let fan = self.topo.vertex_faces(v);
+        let member = |g: u32| {
+            if g == t {
+                t_in
+            } else {
+                self.labels[g as usize] == c
+            }
+        };
+        let mut prev = match fan.last() {
+            Some(&g) if self.closed[v as usize] => member(g),
+            _ => false,
+        };
+        let (mut runs, mut all) = (0, true);
+        for &g in fan {
+            let m = member(g);
+            runs += (m && !prev) as u32;
+            all &= m;
+            prev = m;
+        }
+        if runs == 0 && all && !fan.is_empty() {
+            1
+        } else {
+            runs
+        }
+    }
+
+    /// True when face `t` may leave its cluster for cluster `to`: its cluster keeps a face
+    /// and stays connected without a pinch at `t`'s corners (paper 1's boundary test: the
+    /// donor's faces form one arc around each corner), and `to` gains `t` without closing
+    /// a loop or touching itself at a corner.
+    pub fn may_move(&self, t: u32, to: u32) -> bool {
+        let from = self.labels[t as usize];
+        if from == to || self.sums[from as usize].count < 1.5 {
+            return false;
+        }
+        self.faces[t as usize].iter().all(|&v| {
+            self.runs(v, from, t, false) <= 1
+                && self.runs(v, to, t, false) <= 1
+                && self.runs(v, to, t, true) <= 1
+        })
+    }
+
+    /// Energy change of moving face `t` to cluster `to`.
+    #[inline]
+    fn delta(&self, t: u32, to: u32) -> (f64, f64) {
+        let from = self.labels[t as usize] as usize;
+        let ft = self.face_sums[t as usize];
+        let (a, b) = (self.sums[from], self.sums[to as usize]);
+        let before = self.energy.cluster(&a) + self.energy.cluster(&b);
+        let after = self.energy.cluster(&a.minus(ft)) + self.energy.cluster(&b.plus(ft));
+        (after - before, before.abs())
+    }
+
+    /// Moves face `t` to cluster `to` (no checks).
+    pub fn apply_move(&mut self, t: u32, to: u32) {
+        let from = self.labels[t as usize] as usize;
+        let ft = self.face_sums[t as usize];
+        self.sums[from] = self.sums[from].minus(ft);
+        self.sums[to as usize] = self.sums[to as usize].plus(ft);
+        self.labels[t as usize] = to;
+    }
+
+    /// The ACVD loop: a queue of edges between different clusters with an end-of-pass
+    /// marker; an edge is tested only when one of its clusters changed in this pass or the
+    /// previous one. Starts from the edges of the faces in `start` (every face when
+    /// `None`); stops after a pass without moves or after `max_passes` passes.
+    pub fn minimize(
+        &mut self,
+        max_passes: u32,
+        start: Option<&[u32]>,
+        mut on_pass: impl FnMut(u32, u64, f64),
+    ) -> PassLog {
+        let topo = self.topo;
+        let ne = topo.n_edges();
+        let mut in_queue = vec![false; ne];
+        let mut queue: VecDeque<u32> = VecDeque::new();
+        let interior = |e: u32| e != NONE && topo.edge_faces(e).len() == 2;
+        let push_face = |f: u32, queue: &mut VecDeque<u32>, in_queue: &mut Vec<bool>| {
+            for e in topo.face_edges(f) {
+                if interior(e) && !in_queue[e as usize] {
+                    in_queue[e as usize] = true;
+                    queue.push_back(e);
+                }
+            }
+        };
+        match start {
+            None => {
+                for e in 0..ne as u32 {
+                    if interior(e) {
+                        let ef = topo.edge_faces(e);
+                        if self.labels[ef[0] as usize] != self.labels[ef[1] as usize] {
+                            in_queue[e as usize] = true;
+                            queue.push_back(e);
+                        }
+                    }
+                }
+            }
+            Some(faces) => faces
+                .iter()
+                .for_each(|&f| push_face(f, &mut queue, &mut in_queue)),
+        }
+        let mut log = PassLog {
+            initial_energy: self.total_energy(),
+            ..PassLog::default()
+        };
+        if max_passes == 0 || queue.is_empty() {
+            return log;
+        }
+        queue.push_back(NONE);
+        let mut last_mod = vec![0u32; self.sums.len()];
+        let mut pass = 1u32;
+        let mut moves = 0u64;
+        while let Some(e) = queue.pop_front() {
+            if e == NONE {
+                let energy = self.total_energy();
+                log.moves.push(moves);
+                log.energy.push(energy);
+                on_pass(pass, moves, energy);
+                if moves == 0 || pass >= max_passes || queue.is_empty() {
+                    break;
+                }
+                pass += 1;
+                moves = 0;
+                queue.push_back(NONE);
+                continue;
+            }
+            let ef = topo.edge_faces(e);
+            let (fa, fb) = (ef[0], ef[1]);
+            let (ca, cb) = (self.labels[fa as usize], self.labels[fb as usize]);
+            if ca == cb {
+                in_queue[e as usize] = false;
+                continue;
+            }
+            let fresh = |c: u32| last_mod[c as usize] + 1 >= pass;
+            if fresh(ca) || fresh(cb) {
+                let (da, sa) = self.delta(fa, cb);
+                let (db, sb) = self.delta(fb, ca);
+                let mut cands = [(da, sa, fa, cb), (db, sb, fb, ca)];
+                if db < da {
+                    cands.swap(0, 1);
+                }
+                for (d, scale, t, to) in cands {
+                    if d >= -1e-12 * scale {
+                        break;
+                    }
+                    if self.may_move(t, to) {
+                        let from = self.labels[t as usize];
+                        self.apply_move(t, to);
+                        last_mod[from as usize] = pass;
+                        last_mod[to as usize] = pass;
+                        moves += 1;
+                        push_face(t, &mut queue, &mut in_queue);
+                        break;
+                    }
+                    log.refused += 1;
+                }
+            }
+            let ef = topo.edge_faces(e);
+            if self.labels[ef[0] as usize] != self.labels[ef[1] as usize] {
+                queue.push_back(e);
+            } else {
+                in_queue[e as usize] = false;
+            }
+        }
+        log
+    }
+
+    /// Per cluster: whether its faces are connected across edges (a check for tests and
+    /// the dual's repairs).
+    pub fn connected_clusters(&self) -> Vec<bool> {
+        let n = self.sums.len();
+        let mut seen = vec![false; self.faces.len()];
+        let mut pieces = vec![0u32; n];
+        let mut stack = Vec::new();
+        for s in 0..self.faces.len() {
+            if seen[s] {
+                continue;
+            }
+            let c = self.labels[s];
+            pieces[c as usize] += 1;
+            seen[s] = true;
+            stack.push(s as u32);
+            while let Some(f) = stack.pop() {
+                for g in self.nbr[f as usize] {
+                    if g != NONE && !seen[g as usize] && self.labels[g as usize] == c {
+                        seen[g as usize] = true;
+                        stack.push(g);
+                    }
+                }
+            }
+        }
+        pieces.iter().map(|&p| p == 1).collect()
+    }
+}
+
+/// Splits `n` among components: one each, the rest in proportion to `mass` (largest
+/// remainder, ties to the lower index), never more than a component's `size`.
+fn allocate(n: usize, mass: &[f64], size: impl Fn(usize) -> usize) -> Vec<usize> {
+    let nc = mass.len();
+    let mut q = vec![1usize; nc];
+    let mut left = n - nc;
+    while left > 0 {
+        let open: Vec<usize> = (0..nc).filter(|&c| q[c] < size(c)).collect();
+        let total: f64 = open.iter().map(|&c| mass[c]).sum();
+        let mut rem: Vec<(f64, usize)> = Vec::with_capacity(open.len());
+        let mut given = 0;
+        for &c in &open {
+            let share = if total > 0.0 {
+                left as f64 * mass[c] / total
+            } else {
+                left as f64 / open.len() as f64
+            };
+            let whole = (share.floor() as usize).min(size(c) - q[c]);
+            q[c] += whole;
+            given += whole;
+            rem.push((share - share.floor(), c));
+        }
+        left -= given;
+        rem.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for &(_, c) in &rem {
+            if left == 0 {
+                break;
+            }
+            if q[c] < size(c) {
+                q[c] += 1;
+                left -= 1;
+            }
+        }
+    }
+    q
+}
+
+/// The mass centroid of each cluster in the mesh's own coordinates (area-weighted face
+/// centroids), for callers that place a point per cluster.
+pub fn cluster_centroids(mesh: &Mesh, labels: &[u32], n: usize) -> Vec<DVec3> {
+    let mut acc = vec![(DVec3::ZERO, 0.0f64, DVec3::ZERO, 0.0f64); n];
+    for (f, &l) in labels.iter().enumerate() {
+        let a = mesh.face_area(f);
+        let c = mesh.face_centroid(f);
+        let e = &mut acc[l as usize];
+        e.0 += a * c;
+        e.1 += a;
+        e.2 += c;
+        e.3 += 1.0;
+    }
+    acc.iter()
+        .map(|&(s, w, p, k)| if w > 0.0 { s / w } else { p / k.max(1.0) })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn allocation_gives_every_component_one_and_the_rest_by_mass() {
+        let q = allocate(10, &[1.0, 3.0, 0.0], |_| 100);
+        assert_eq!(q.iter().sum::<usize>(), 10);
+        assert_eq!(q[2], 1);
+        assert!(q[1] > q[0]);
+        // Capacities are respected.
+        let q = allocate(6, &[100.0, 1.0], |c| [2, 10][c]);
+        assert_eq!(q, vec![2, 4]);
+    }
+
+    #[test]
+    fn splitmix_is_deterministic_and_in_range() {
+        let mut a = SplitMix64::new(7);
+        let mut b = SplitMix64::new(7);
+        for _ in 0..100 {
+            let x = a.below(13);
+            assert_eq!(x, b.below(13));
+            assert!(x < 13);
+        }
+    }
+}

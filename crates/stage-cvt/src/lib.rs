@@ -1,0 +1,253 @@
+//! The `cluster.cvt` stage: centroidal Voronoi face clustering (paper 1 "Our face
+//! clustering method", after Valette & Chassery 2004), the first half of CVT coarsening.
+//!
+//! The faces are partitioned into n connected clusters minimising an [`Energy`]:
+//!
+//! * `energy = "shu2009"` — paper 1's Eq.(7), E⁽³⁾ = Σᵢ mᵢʳ (Σ‖yₜ‖² − ‖Σyₜ‖²/mᵢ), with
+//!   mᵢ the face count of cluster i and exponent `r` (r = 0 is the uniform case);
+//! * `energy = "valette2004"` — Eq.(1) on faces, masses wₜ = ρ(yₜ)·sₜ (area times the
+//!   mean of the vertex scalar `density` over the face's corners, 1 when none is named).
+//!
+//! | parameter | default | meaning |
+//! | --- | --- | --- |
+//! | `clusters` | `0` | cluster count; 0 takes the run's target as a vertex count (the dual has one vertex per cluster) |
+//! | `energy` | `"shu2009"` | `"shu2009"` or `"valette2004"` |
+//! | `r` | `2` | exponent of `shu2009` |
+//! | `density` | `""` | vertex scalar used as density ρ by `valette2004` (none when empty) |
+//! | `seed` | `1` | seed of the SplitMix64 that picks the seed faces |
+//! | `max_passes` | `200` | most passes of the minimisation |
+//!
+//! 1. **Seeds**: every connected component gets one seed face, the rest are shared in
+//!    proportion to the components' masses; the seed faces are drawn by SplitMix64 and
+//!    grown breadth-first (in a fixed order) until every face belongs to a cluster.
+//! 2. **Minimisation** (the ACVD loop): a queue of edges between different clusters with an
+//!    end-of-pass marker; an edge is tested only when one of its two clusters changed in
+//!    the current or previous pass. For an edge between faces a ∈ Vᵢ and b ∈ Vₖ the
+//!    energy with a moved to Vₖ and with b moved to Vᵢ is compared (O(1) from the
+//!    clusters' running sums) and the best improving move kept. A move is refused when it
+//!    would empty the donor cluster, split it or pinch it (paper 1's "cluster separation
+//!    detection": the donor's faces must form at most one arc around each corner of the
+//!    moved face), or when the receiving cluster would close a loop or touch itself at a
+//!    corner.
+//! 3. Stops after a pass without moves or after `max_passes`.
+//!
+//! Output: the face label `cluster` (`0..n`); every cluster is non-empty and connected.
+//! The report gives `clusters`, `passes`, `moves`, `moves_per_pass`, `energy_per_pass`
+//! (normalised coordinates: centred, unit bounding-box diagonal), `initial_energy` and
+//! `refused`.
+//!
+//! ```
+//! use coarsen_stage::{Context, Stage, StageReport};
+//! use coarsen_stage_cvt::{ClusterCvt, CvtParams};
+//! let sphere = coarsen_shapes::icosphere(1.0, 3).unwrap();
+//! let mut report = StageReport::default();
+//! let mut cx = Context::new(&sphere, &mut report);
+//! let params = CvtParams { clusters: 50, ..CvtParams::default() };
+//! let out = ClusterCvt::new(params).run(sphere.clone(), &mut cx)?;
+//! let labels = out.face_attrs.label("cluster").unwrap();
+//! assert_eq!(labels.iter().max(), Some(&49));
+//! # Ok::<(), coarsen_stage::StageError>(())
+//! ```
+
+pub mod energy;
+pub mod engine;
+
+pub use energy::{Energy, Shu2009, Sums, Valette2004};
+pub use engine::{ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids};
+
+use coarsen_mesh::Topology;
+use coarsen_stage::params::check_range;
+use coarsen_stage::{
+    AttrKind, AttrValues, Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError,
+    params,
+};
+use coarsen_stage::{AttrRef, StageReport};
+use serde::{Deserialize, Serialize};
+
+/// Name of the face label the stage writes.
+pub const CLUSTER: &str = "cluster";
+
+/// Which energy the clustering minimises.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EnergyKind {
+    /// Paper 1's E⁽³⁾ with exponent `r`.
+    #[default]
+    Shu2009,
+    /// Valette & Chassery 2004, area-weighted (times an optional density).
+    Valette2004,
+}
+
+params! {
+    /// Parameters of `cluster.cvt`.
+    pub struct CvtParams {
+        /// Number of clusters; 0 takes the run's target, as a vertex count.
+        pub clusters: u64 = 0,
+        /// Energy: "shu2009" (paper 1's E⁽³⁾ with exponent r) or "valette2004" (area-weighted).
+        pub energy: EnergyKind = EnergyKind::Shu2009,
+        /// Exponent r of "shu2009" on the cluster's face count (0 = uniform).
+        pub r: f64 = 2.0,
+        /// Vertex scalar used as density by "valette2004"; empty for none.
+        pub density: String = String::new(),
+        /// Seed of the generator that picks the seed faces.
+        pub seed: u64 = 1,
+        /// Most passes of the minimisation.
+        pub max_passes: u32 = 200,
+    }
+}
+
+impl Params for CvtParams {
+    fn validate(&self) -> Vec<ParamIssue> {
+        let mut issues = Vec::new();
+        check_range(&mut issues, "r", self.r, 0.0, 16.0);
+        check_range(&mut issues, "clusters", self.clusters, 0, u32::MAX as u64);
+        if !self.density.is_empty() && self.energy != EnergyKind::Valette2004 {
+            issues.push(ParamIssue::new(
+                "density",
+                "only energy = \"valette2004\" uses a density",
+            ));
+        }
+        issues
+    }
+}
+
+/// Result of [`cluster`]: the labels and the minimisation's figures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clustering {
+    /// The cluster of every face, `0..n`.
+    pub labels: Vec<u32>,
+    /// Number of clusters.
+    pub n: usize,
+    /// Passes, moves and energies.
+    pub log: PassLog,
+}
+
+/// The energy named by `kind` with exponent `r`.
+pub fn make_energy(kind: EnergyKind, r: f64) -> Box<dyn Energy> {
+    match kind {
+        EnergyKind::Shu2009 => Box::new(Shu2009 { r }),
+        EnergyKind::Valette2004 => Box::new(Valette2004),
+    }
+}
+
+/// Clusters the faces of `mesh` into `n` connected clusters (seeding and minimisation);
+/// `density` is the per-vertex density of `valette2004`. `on_pass(pass, moves, energy)`
+/// is called after each pass.
+pub fn cluster(
+    mesh: &Mesh,
+    topo: &Topology,
+    n: usize,
+    params: &CvtParams,
+    density: Option<&[f64]>,
+    on_pass: impl FnMut(u32, u64, f64),
+) -> Result<Clustering, ClusterError> {
+    let energy = make_energy(params.energy, params.r);
+    let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
+    c.seed(n, params.seed)?;
+    let log = c.minimize(params.max_passes, None, on_pass);
+    Ok(Clustering {
+        labels: c.into_labels(),
+        n,
+        log,
+    })
+}
+
+/// Centroidal Voronoi face clustering into the run target's vertex count.
+pub struct ClusterCvt(CvtParams);
+
+impl Stage for ClusterCvt {
+    type Params = CvtParams;
+    const KIND: &'static str = "cluster.cvt";
+    const SUMMARY: &'static str = "Centroidal Voronoi face clustering (paper 1, Valette–Chassery 2004): writes face label `cluster`.";
+
+    fn new(params: CvtParams) -> Self {
+        ClusterCvt(params)
+    }
+
+    fn contract(&self) -> Contract {
+        let p = &self.0;
+        Contract {
+            reads: if p.density.is_empty() {
+                Vec::new()
+            } else {
+                vec![AttrRef::vertex(p.density.clone(), AttrKind::Scalar)]
+            },
+            writes: vec![AttrRef::face(CLUSTER, AttrKind::Label)],
+            clears: Vec::new(),
+            needs: Needs {
+                target: p.clusters == 0,
+                ..Needs::default()
+            },
+        }
+    }
+
+    fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let p = &self.0;
+        let n = if p.clusters > 0 {
+            p.clusters
+        } else {
+            let t = cx.require_target(Self::KIND)?;
+            t.check()
+                .map_err(|m| StageError::Input(format!("`{}`: {m}", Self::KIND)))?;
+            t.vertices_for(cx.original)
+        };
+        let n = usize::try_from(n).unwrap_or(usize::MAX);
+        let density = if p.density.is_empty() {
+            None
+        } else {
+            Some(mesh.vertex_attrs.scalar(&p.density).ok_or_else(|| {
+                StageError::Input(format!(
+                    "`{}`: no vertex scalar `{}` for the density",
+                    Self::KIND,
+                    p.density
+                ))
+            })?)
+        };
+        let topo = Topology::try_build(&mesh)
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let progress = cx.progress;
+        progress.begin(Self::KIND, u64::from(p.max_passes));
+        let result = cluster(&mesh, &topo, n, p, density, |pass, moves, energy| {
+            progress.advance(
+                u64::from(pass),
+                &format!("{moves} moves, energy {energy:.6e}"),
+            )
+        });
+        progress.end();
+        let c = result.map_err(|e| match e {
+            ClusterError::TooManyClusters { .. } | ClusterError::TooFewClusters { .. } => {
+                StageError::Param {
+                    name: "clusters",
+                    message: e.to_string(),
+                }
+            }
+            e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
+        })?;
+        report(cx.report, &c, p);
+        mesh.face_attrs.insert(CLUSTER, AttrValues::Label(c.labels));
+        Ok(mesh)
+    }
+}
+
+/// Fills the stage report.
+fn report(r: &mut StageReport, c: &Clustering, p: &CvtParams) {
+    r.figure("energy", p.energy);
+    r.figure("clusters", c.n);
+    r.figure("passes", c.log.moves.len());
+    r.figure("moves", c.log.moves.iter().sum::<u64>());
+    r.figure("moves_per_pass", &c.log.moves);
+    r.figure("initial_energy", c.log.initial_energy);
+    r.figure("energy_per_pass", &c.log.energy);
+    r.figure("refused", c.log.refused);
+    if c.log.moves.len() as u32 >= p.max_passes && c.log.moves.last().is_some_and(|&m| m > 0) {
+        r.warn(format!(
+            "the minimisation stopped at max_passes = {} while faces were still moving",
+            p.max_passes
+        ));
+    }
+}
+
+coarsen_stage::export_stage!(ClusterCvt);
+
+#[cfg(test)]
+mod tests;

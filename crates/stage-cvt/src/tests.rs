@@ -1,0 +1,260 @@
+use super::*;
+use coarsen_shapes::{disk_with_holes, icosphere, plane_grid, torus};
+use coarsen_stage::{DVec3, Target};
+
+fn run(
+    mesh: &Mesh,
+    target: Option<Target>,
+    p: CvtParams,
+) -> (Result<Mesh, StageError>, StageReport) {
+    let mut report = StageReport::default();
+    let mut cx = Context::new(mesh, &mut report);
+    cx.target = target;
+    let out = ClusterCvt::new(p).run(mesh.clone(), &mut cx);
+    (out, report)
+}
+
+/// Exactly `n` clusters, none empty, each connected across edges.
+fn check_invariant(mesh: &Mesh, labels: &[u32], n: usize) {
+    assert_eq!(labels.len(), mesh.n_faces());
+    let topo = Topology::build(mesh);
+    let e = Valette2004;
+    let mut c = Clusterer::new(mesh, &topo, &e, None).unwrap();
+    c.set_labels(labels.to_vec(), n).unwrap();
+    assert_eq!(c.n_clusters(), n);
+    for (i, s) in c.cluster_sums().iter().enumerate() {
+        assert!(s.count >= 1.0, "cluster {i} is empty");
+    }
+    let connected = c.connected_clusters();
+    let bad: Vec<_> = (0..n).filter(|&i| !connected[i]).collect();
+    assert!(bad.is_empty(), "clusters in pieces: {bad:?}");
+}
+
+fn shapes() -> Vec<(&'static str, Mesh)> {
+    vec![
+        ("icosphere", icosphere(1.0, 4).unwrap()),
+        ("torus", torus(2.0, 0.7, 48, 24).unwrap()),
+        ("grid", plane_grid(30, 30, 1.0).unwrap()),
+        ("disk with holes", disk_with_holes(3, 4, 2.0).unwrap()),
+    ]
+}
+
+#[test]
+fn every_clustering_has_exactly_n_connected_non_empty_clusters() {
+    let mut rng = SplitMix64::new(99);
+    for (name, mesh) in shapes() {
+        for energy in [EnergyKind::Shu2009, EnergyKind::Valette2004] {
+            for _ in 0..4 {
+                let n = 1 + rng.below(mesh.n_faces() / 3);
+                let p = CvtParams {
+                    clusters: n as u64,
+                    energy,
+                    seed: rng.next_u64(),
+                    ..CvtParams::default()
+                };
+                let (out, report) = run(&mesh, None, p);
+                let out = out.unwrap_or_else(|e| panic!("{name} n={n}: {e}"));
+                let labels = out.face_attrs.label(CLUSTER).unwrap();
+                check_invariant(&mesh, labels, n);
+                assert_eq!(report.get("clusters"), Some(&n.into()));
+            }
+        }
+    }
+}
+
+#[test]
+fn minimisation_lowers_the_energy_and_reports_each_pass() {
+    let mesh = icosphere(1.0, 4).unwrap();
+    let p = CvtParams {
+        clusters: 100,
+        energy: EnergyKind::Valette2004,
+        ..CvtParams::default()
+    };
+    let (_, report) = run(&mesh, None, p);
+    let init = report.get("initial_energy").unwrap().as_f64().unwrap();
+    let per_pass: Vec<f64> =
+        serde_json::from_value(report.get("energy_per_pass").unwrap().clone()).unwrap();
+    let moves: Vec<u64> =
+        serde_json::from_value(report.get("moves_per_pass").unwrap().clone()).unwrap();
+    assert_eq!(per_pass.len(), moves.len());
+    assert_eq!(report.get("passes"), Some(&per_pass.len().into()));
+    assert!(
+        *per_pass.last().unwrap() < 0.8 * init,
+        "{init} → {per_pass:?}"
+    );
+    for w in per_pass.windows(2) {
+        assert!(w[1] <= w[0] * (1.0 + 1e-9), "energy rose: {per_pass:?}");
+    }
+    assert_eq!(*moves.last().unwrap(), 0, "converged before max_passes");
+}
+
+#[test]
+fn same_seed_same_labels_other_seed_other_labels() {
+    let mesh = torus(2.0, 0.7, 40, 20).unwrap();
+    let p = |seed| CvtParams {
+        clusters: 60,
+        seed,
+        ..CvtParams::default()
+    };
+    let a = run(&mesh, None, p(5)).0.unwrap();
+    let b = run(&mesh, None, p(5)).0.unwrap();
+    let c = run(&mesh, None, p(6)).0.unwrap();
+    assert_eq!(a, b);
+    assert_ne!(a.face_attrs.label(CLUSTER), c.face_attrs.label(CLUSTER));
+}
+
+#[test]
+fn cluster_count_comes_from_the_target_when_zero() {
+    let mesh = icosphere(1.0, 3).unwrap();
+    let stage = ClusterCvt::new(CvtParams::default());
+    assert!(stage.contract().needs.target);
+    let (out, _) = run(&mesh, Some(Target::Vertices(77)), CvtParams::default());
+    let labels = out.unwrap().face_attrs.label(CLUSTER).unwrap().to_vec();
+    check_invariant(&mesh, &labels, 77);
+    let (out, _) = run(&mesh, None, CvtParams::default());
+    assert!(out.unwrap_err().to_string().contains("needs a target"));
+}
+
+#[test]
+fn every_component_gets_a_cluster() {
+    // Two spheres side by side: 2 components.
+    let a = icosphere(1.0, 2).unwrap();
+    let mut m = a.clone();
+    let off = a.n_vertices() as u32;
+    m.positions
+        .extend(a.positions.iter().map(|p| *p + DVec3::new(5.0, 0.0, 0.0)));
+    m.faces.extend(a.faces.iter().map(|f| f.map(|v| v + off)));
+    let p = CvtParams {
+        clusters: 2,
+        ..CvtParams::default()
+    };
+    let labels = run(&m, None, p)
+        .0
+        .unwrap()
+        .face_attrs
+        .label(CLUSTER)
+        .unwrap()
+        .to_vec();
+    let half = a.n_faces();
+    assert!(labels[..half].iter().all(|&l| l == labels[0]));
+    assert!(labels[half..].iter().all(|&l| l == labels[half]));
+    assert_ne!(labels[0], labels[half]);
+    let p = CvtParams {
+        clusters: 1,
+        ..CvtParams::default()
+    };
+    let e = run(&m, None, p).0.unwrap_err().to_string();
+    assert!(e.contains("2 connected components"), "{e}");
+}
+
+#[test]
+fn bad_counts_and_parameters_are_named() {
+    let mesh = icosphere(1.0, 1).unwrap();
+    let p = CvtParams {
+        clusters: 1000,
+        ..CvtParams::default()
+    };
+    let e = run(&mesh, None, p).0.unwrap_err().to_string();
+    assert!(
+        e.contains("parameter `clusters`") && e.contains("only 80 faces"),
+        "{e}"
+    );
+    let bad = CvtParams {
+        r: -1.0,
+        density: "rho".into(),
+        ..CvtParams::default()
+    };
+    let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
+    assert_eq!(fields, ["r", "density"]);
+    assert!(CvtParams::default().validate().is_empty());
+}
+
+#[test]
+fn density_is_read_only_when_named_and_must_be_positive() {
+    let mut mesh = icosphere(1.0, 3).unwrap();
+    let p = CvtParams {
+        clusters: 40,
+        energy: EnergyKind::Valette2004,
+        density: "rho".into(),
+        ..CvtParams::default()
+    };
+    let reads = ClusterCvt::new(p.clone()).contract().reads;
+    assert_eq!(reads, vec![AttrRef::vertex("rho", AttrKind::Scalar)]);
+    assert!(
+        ClusterCvt::new(CvtParams::default())
+            .contract()
+            .reads
+            .is_empty()
+    );
+    let e = run(&mesh, None, p.clone()).0.unwrap_err().to_string();
+    assert!(e.contains("no vertex scalar `rho`"), "{e}");
+    // Denser at +z: more, smaller clusters there.
+    let rho: Vec<f64> = mesh
+        .positions
+        .iter()
+        .map(|q| 1.0 + 20.0 * (q.z + 1.0))
+        .collect();
+    mesh.vertex_attrs.insert("rho", AttrValues::Scalar(rho));
+    let out = run(&mesh, None, p.clone()).0.unwrap();
+    let labels = out.face_attrs.label(CLUSTER).unwrap();
+    check_invariant(&mesh, labels, 40);
+    let mut top = std::collections::BTreeSet::new();
+    let mut bottom = std::collections::BTreeSet::new();
+    for (f, &l) in labels.iter().enumerate() {
+        if mesh.face_centroid(f).z > 0.5 {
+            top.insert(l);
+        } else if mesh.face_centroid(f).z < -0.5 {
+            bottom.insert(l);
+        }
+    }
+    assert!(
+        2 * top.len() > 3 * bottom.len(),
+        "{} vs {}",
+        top.len(),
+        bottom.len()
+    );
+    let mut bad = mesh.clone();
+    bad.vertex_attrs
+        .insert("rho", AttrValues::Scalar(vec![0.0; bad.n_vertices()]));
+    let e = run(&bad, None, p).0.unwrap_err().to_string();
+    assert!(e.contains("density at vertex 0"), "{e}");
+}
+
+#[test]
+fn example_table_builds_through_the_registry() {
+    let d = descriptor();
+    let mut table: toml::Table =
+        toml::from_str(&d.example_toml().replace("[[stage]]\n", "")).unwrap();
+    assert_eq!(table.remove("kind"), Some("cluster.cvt".into()));
+    let stage = (d.build)(&table).ok().unwrap();
+    assert_eq!(stage.params()["energy"].as_str(), Some("shu2009"));
+}
+
+#[test]
+fn bunny_clusters_are_valid_at_5000() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/stanford-bunny.obj");
+    if !path.exists() {
+        println!("skipped: {} is absent", path.display());
+        return;
+    }
+    let mesh = coarsen_io::read_path(&path, &Default::default())
+        .unwrap()
+        .mesh;
+    let (mesh, _) = coarsen_mesh::clean(mesh, &Default::default()).unwrap();
+    let p = CvtParams {
+        clusters: 5000,
+        energy: EnergyKind::Valette2004,
+        ..CvtParams::default()
+    };
+    let t = std::time::Instant::now();
+    let (out, report) = run(&mesh, None, p);
+    let out = out.unwrap();
+    println!(
+        "bunny → 5000 clusters in {:?}: passes {:?}, moves {:?}",
+        t.elapsed(),
+        report.get("passes"),
+        report.get("moves")
+    );
+    check_invariant(&mesh, out.face_attrs.label(CLUSTER).unwrap(), 5000);
+}
