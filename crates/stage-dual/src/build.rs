@@ -1,0 +1,535 @@
+//! The dual construction, its validity diagnosis and the clustering repairs.
+
+use coarsen_mesh::topology::NONE;
+use coarsen_mesh::{Mesh, Topology};
+use coarsen_stage_cvt::{Clusterer, Valette2004};
+use std::collections::VecDeque;
+
+/// Why a dual triangulation could not be made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DualError {
+    /// The input is not a manifold, consistently oriented mesh.
+    NotManifold(String),
+    /// The label column does not fit the mesh.
+    BadLabels(String),
+    /// The clustering could not be repaired within the allowed rounds.
+    Unrepaired(String),
+}
+
+impl std::fmt::Display for DualError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DualError::NotManifold(m) => write!(f, "input is not a manifold oriented mesh: {m}"),
+            DualError::BadLabels(m) => write!(f, "bad cluster labels: {m}"),
+            DualError::Unrepaired(m) => write!(f, "the clustering could not be repaired: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for DualError {}
+
+/// The figures of one dual construction.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DualStats {
+    /// Clusters split (each paid for by merging two small clusters elsewhere).
+    pub repairs: usize,
+    /// Diagnosis rounds that found problems.
+    pub repair_rounds: usize,
+    /// Problems found in the first diagnosis, by kind.
+    pub first_problems: Problems,
+}
+
+/// Counts of problems found by one diagnosis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Problems {
+    /// Clusters in several pieces.
+    pub disconnected: usize,
+    /// Clusters that are not discs (holes, handles).
+    pub not_disc: usize,
+    /// Clusters whose faces form several arcs around a vertex.
+    pub pinched: usize,
+    /// Boundary loops met by fewer than three clusters, or a cluster met twice.
+    pub boundary: usize,
+    /// Dual edges of three or more triangles, or dual vertices of several fans.
+    pub non_manifold: usize,
+    /// Dual triangles on the same three clusters.
+    pub duplicate: usize,
+    /// Clusters with no dual triangle.
+    pub unused: usize,
+    /// Dual components, boundary loops or genus differing from the input's.
+    pub topology: usize,
+}
+
+impl Problems {
+    fn any(&self) -> bool {
+        self.disconnected
+            + self.not_disc
+            + self.pinched
+            + self.boundary
+            + self.non_manifold
+            + self.duplicate
+            + self.unused
+            + self.topology
+            > 0
+    }
+}
+
+/// The dual faces of a clustering, or the clusters to repair.
+pub(crate) struct Diagnosis {
+    pub faces: Vec<[u32; 3]>,
+    pub bad: Vec<u32>,
+    pub problems: Problems,
+}
+
+/// Clusters of the runs of faces around vertex `v`, in fan order (cyclically merged when
+/// the fan is closed).
+fn vertex_runs(topo: &Topology, labels: &[u32], v: u32, out: &mut Vec<u32>) {
+    out.clear();
+    let fan = topo.vertex_faces(v);
+    for &f in fan {
+        let l = labels[f as usize];
+        if out.last() != Some(&l) {
+            out.push(l);
+        }
+    }
+    if !topo.is_boundary_vertex(v) && out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+}
+
+/// Checks the clustering and builds the dual faces.
+pub(crate) fn diagnose(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &[u32],
+    n: usize,
+    expect: (usize, usize, Option<i64>),
+) -> Diagnosis {
+    let mut p = Problems::default();
+    let mut bad = vec![false; n];
+    let nf = mesh.n_faces();
+    // Connectivity and Euler characteristic per cluster.
+    let mut pieces = vec![0u32; n];
+    let mut seen = vec![false; nf];
+    let mut stack = Vec::new();
+    for s in 0..nf {
+        if seen[s] {
+            continue;
+        }
+        let c = labels[s];
+        pieces[c as usize] += 1;
+        seen[s] = true;
+        stack.push(s as u32);
+        while let Some(f) = stack.pop() {
+            for e in topo.face_edges(f) {
+                for &g in topo.edge_faces(e) {
+                    if !seen[g as usize] && labels[g as usize] == c {
+                        seen[g as usize] = true;
+                        stack.push(g);
+                    }
+                }
+            }
+        }
+    }
+    let mut chi = vec![0i64; n];
+    labels.iter().for_each(|&c| chi[c as usize] += 1);
+    for e in 0..topo.n_edges() as u32 {
+        let ef = topo.edge_faces(e);
+        chi[labels[ef[0] as usize] as usize] -= 1;
+        if ef.len() == 2 && labels[ef[1] as usize] != labels[ef[0] as usize] {
+            chi[labels[ef[1] as usize] as usize] -= 1;
+        }
+    }
+    let mut runs = Vec::new();
+    let mut faces = Vec::new();
+    let mut counted = vec![NONE; n];
+    for v in 0..topo.n_vertices() as u32 {
+        if topo.is_isolated_vertex(v) {
+            continue;
+        }
+        let fan = topo.vertex_faces(v);
+        for &f in fan {
+            let c = labels[f as usize];
+            if counted[c as usize] != v {
+                counted[c as usize] = v;
+                chi[c as usize] += 1;
+            }
+        }
+        vertex_runs(topo, labels, v, &mut runs);
+        // A cluster met twice around a vertex is pinched there.
+        let mut sorted = runs.clone();
+        sorted.sort_unstable();
+        for w in sorted.windows(2) {
+            if w[0] == w[1] && !bad[w[0] as usize] {
+                bad[w[0] as usize] = true;
+                p.pinched += 1;
+            }
+        }
+        for i in 1..runs.len().saturating_sub(1) {
+            faces.push([runs[0], runs[i], runs[i + 1]]);
+        }
+    }
+    for c in 0..n {
+        if pieces[c] != 1 {
+            bad[c] = true;
+            p.disconnected += 1;
+        } else if chi[c] != 1 {
+            bad[c] = true;
+            p.not_disc += 1;
+        }
+    }
+    // Boundary loops: at least three clusters along each, each met once over all loops.
+    let mut on_loop = vec![NONE; n];
+    for i in 0..topo.n_boundary_loops() {
+        let lp = topo.boundary_loop(i);
+        let mut seq: Vec<u32> = Vec::new();
+        for j in 0..lp.len() {
+            let (a, b) = (lp[j], lp[(j + 1) % lp.len()]);
+            let Some(e) = topo.find_edge(a, b) else {
+                continue;
+            };
+            let c = labels[topo.edge_faces(e)[0] as usize];
+            if seq.last() != Some(&c) {
+                seq.push(c);
+            }
+        }
+        if seq.len() > 1 && seq.first() == seq.last() {
+            seq.pop();
+        }
+        let mut flag = seq.len() < 3;
+        for &c in &seq {
+            if on_loop[c as usize] != NONE {
+                flag = true;
+                bad[c as usize] = true;
+            }
+            on_loop[c as usize] = i as u32;
+        }
+        if flag {
+            p.boundary += 1;
+            seq.iter().for_each(|&c| bad[c as usize] = true);
+        }
+    }
+    if !p.any() {
+        check_dual(&faces, n, expect, &mut bad, &mut p);
+    }
+    Diagnosis {
+        faces,
+        bad: (0..n as u32).filter(|&c| bad[c as usize]).collect(),
+        problems: p,
+    }
+}
+
+/// Checks the dual faces as a mesh: every cluster used, manifold, no duplicate, the
+/// input's components, boundary loops and genus.
+fn check_dual(
+    faces: &[[u32; 3]],
+    n: usize,
+    expect: (usize, usize, Option<i64>),
+    bad: &mut [bool],
+    p: &mut Problems,
+) {
+    let mut used = vec![false; n];
+    faces
+        .iter()
+        .flatten()
+        .for_each(|&c| used[c as usize] = true);
+    for c in 0..n {
+        if !used[c] {
+            bad[c] = true;
+            p.unused += 1;
+        }
+    }
+    let mut keys: Vec<([u32; 3], usize)> = faces
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let mut k = *f;
+            k.sort_unstable();
+            (k, i)
+        })
+        .collect();
+    keys.sort_unstable();
+    for w in keys.windows(2) {
+        if w[0].0 == w[1].0 {
+            p.duplicate += 1;
+            w[0].0.iter().for_each(|&c| bad[c as usize] = true);
+        }
+    }
+    let dual = Mesh::new(vec![coarsen_geom::DVec3::ZERO; n], faces.to_vec());
+    let Ok(t) = Topology::try_build(&dual) else {
+        p.topology += 1;
+        return;
+    };
+    for e in t.non_manifold_edges() {
+        p.non_manifold += 1;
+        t.edge(e).iter().for_each(|&c| bad[c as usize] = true);
+    }
+    for v in t.non_manifold_vertices() {
+        p.non_manifold += 1;
+        bad[v as usize] = true;
+    }
+    if p.any() {
+        return;
+    }
+    let got = (
+        t.n_components(),
+        t.n_boundary_loops(),
+        t.summary(&dual).genus_total,
+    );
+    if got != expect {
+        p.topology += 1;
+    }
+}
+
+/// Splits and merges clusters so that every cluster of `bad` is cut in two, paying for
+/// each new cluster by merging the smallest interior cluster far from the problems into
+/// its smallest neighbour. Returns the faces whose labels changed, or `None` when no
+/// cluster could be split.
+pub(crate) fn repair(
+    mesh: &Mesh,
+    topo: &Topology,
+    nbr: &dyn Fn(u32, usize) -> u32,
+    labels: &mut [u32],
+    n: usize,
+    bad: &[u32],
+) -> (Vec<u32>, usize) {
+    let nf = mesh.n_faces();
+    // Faces per cluster (CSR).
+    let mut off = vec![0u32; n + 1];
+    labels.iter().for_each(|&c| off[c as usize + 1] += 1);
+    for i in 0..n {
+        off[i + 1] += off[i];
+    }
+    let mut pos = off.clone();
+    let mut members = vec![0u32; nf];
+    for (f, &c) in labels.iter().enumerate() {
+        members[pos[c as usize] as usize] = f as u32;
+        pos[c as usize] += 1;
+    }
+    // Cluster adjacency and boundary contact.
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
+    let mut on_boundary = vec![false; n];
+    for e in 0..topo.n_edges() as u32 {
+        let ef = topo.edge_faces(e);
+        if ef.len() == 1 {
+            on_boundary[labels[ef[0] as usize] as usize] = true;
+        } else {
+            let (a, b) = (labels[ef[0] as usize], labels[ef[1] as usize]);
+            if a != b {
+                pairs.push((a, b));
+                pairs.push((b, a));
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    let mut adj_off = vec![0usize; n + 1];
+    pairs
+        .iter()
+        .for_each(|&(a, _)| adj_off[a as usize + 1] += 1);
+    for i in 0..n {
+        adj_off[i + 1] += adj_off[i];
+    }
+    let adj = |c: u32| &pairs[adj_off[c as usize]..adj_off[c as usize + 1]];
+    // Clusters that may not be merged: the bad ones and their neighbours.
+    let mut blocked = on_boundary.clone();
+    for &c in bad {
+        blocked[c as usize] = true;
+        adj(c).iter().for_each(|&(_, d)| blocked[d as usize] = true);
+    }
+    let mut by_size: Vec<u32> = (0..n as u32).collect();
+    by_size.sort_by_key(|&c| (off[c as usize + 1] - off[c as usize], c));
+    let mut next_free = 0usize;
+    let mut next_loose = 0usize;
+    // Clusters that may not take part in a merge at all: the bad ones, and those used.
+    let mut used = vec![false; n];
+    bad.iter().for_each(|&c| used[c as usize] = true);
+    let mut changed = Vec::new();
+    let mut splits = 0;
+    let mut dist = vec![u32::MAX; nf];
+    for &c in bad {
+        let faces = &members[off[c as usize] as usize..off[c as usize + 1] as usize];
+        if faces.len() < 2 {
+            continue;
+        }
+        // A pair (x merged into y) far from every problem and the boundary; failing
+        // that, any pair of clusters neither bad nor touched in this round.
+        let mut pick = None;
+        for strict in [true, false] {
+            let blocked_now = |d: u32, blocked: &[bool], used: &[bool]| {
+                if strict {
+                    blocked[d as usize]
+                } else {
+                    used[d as usize]
+                }
+            };
+            let start = if strict {
+                &mut next_free
+            } else {
+                &mut next_loose
+            };
+            while *start < by_size.len() {
+                let x = by_size[*start];
+                *start += 1;
+                if blocked_now(x, &blocked, &used) {
+                    continue;
+                }
+                let y = adj(x)
+                    .iter()
+                    .map(|&(_, d)| d)
+                    .filter(|&d| !blocked_now(d, &blocked, &used))
+                    .min_by_key(|&d| (off[d as usize + 1] - off[d as usize], d));
+                if let Some(y) = y {
+                    pick = Some((x, y));
+                    for z in [x, y] {
+                        blocked[z as usize] = true;
+                        used[z as usize] = true;
+                        adj(z).iter().for_each(|&(_, d)| blocked[d as usize] = true);
+                    }
+                    break;
+                }
+            }
+            if pick.is_some() {
+                break;
+            }
+        }
+        let Some((x, y)) = pick else {
+            break;
+        };
+        for &f in &members[off[x as usize] as usize..off[x as usize + 1] as usize] {
+            labels[f as usize] = y;
+            changed.push(f);
+        }
+        // Double sweep: the two faces of c farthest apart, then grow both.
+        let far = |from: &[u32], dist: &mut Vec<u32>, labels: &[u32]| -> u32 {
+            let mut q: VecDeque<u32> = VecDeque::new();
+            for &f in from {
+                dist[f as usize] = 0;
+                q.push_back(f);
+            }
+            let mut last = from[0];
+            while let Some(f) = q.pop_front() {
+                last = f;
+                for i in 0..3 {
+                    let g = nbr(f, i);
+                    if g != NONE && labels[g as usize] == c && dist[g as usize] == u32::MAX {
+                        dist[g as usize] = dist[f as usize] + 1;
+                        q.push_back(g);
+                    }
+                }
+            }
+            last
+        };
+        let reset = |dist: &mut Vec<u32>| faces.iter().for_each(|&f| dist[f as usize] = u32::MAX);
+        reset(&mut dist);
+        let a = far(&[faces[0]], &mut dist, labels);
+        reset(&mut dist);
+        let b = far(&[a], &mut dist, labels);
+        reset(&mut dist);
+        // Two-source growth: faces reached first from b go to x.
+        let mut owner = std::collections::HashMap::new();
+        let mut q: VecDeque<u32> = VecDeque::from([a, b]);
+        owner.insert(a, c);
+        owner.insert(b, x);
+        while let Some(f) = q.pop_front() {
+            let o = owner[&f];
+            for i in 0..3 {
+                let g = nbr(f, i);
+                if g != NONE && labels[g as usize] == c && !owner.contains_key(&g) {
+                    owner.insert(g, o);
+                    q.push_back(g);
+                }
+            }
+        }
+        for &f in faces {
+            if owner.get(&f) == Some(&x) {
+                labels[f as usize] = x;
+            }
+            changed.push(f);
+        }
+        splits += 1;
+    }
+    (changed, splits)
+}
+
+/// Runs a few constrained minimisation passes from the faces in `start`.
+pub(crate) fn relax(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &mut Vec<u32>,
+    n: usize,
+    start: &[u32],
+    passes: u32,
+) {
+    if passes == 0 || start.is_empty() {
+        return;
+    }
+    let energy = Valette2004;
+    let Ok(mut c) = Clusterer::new(mesh, topo, &energy, None) else {
+        return;
+    };
+    if c.set_labels(std::mem::take(labels), n).is_err() {
+        return;
+    }
+    c.minimize(passes, Some(start), |_, _, _| {});
+    *labels = c.into_labels();
+}
+
+/// The repair loop: diagnose, repair, relax, until the dual is valid or `max_rounds`.
+pub(crate) fn repaired_dual(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &mut Vec<u32>,
+    n: usize,
+    max_rounds: u32,
+    relax_passes: u32,
+) -> Result<(Vec<[u32; 3]>, DualStats), DualError> {
+    let summary = topo.summary(mesh);
+    let expect = (
+        summary.n_components,
+        summary.n_boundary_loops,
+        summary.genus_total,
+    );
+    let energy = Valette2004;
+    let helper = Clusterer::new(mesh, topo, &energy, None)
+        .map_err(|e| DualError::NotManifold(e.to_string()))?;
+    let nbr = |f: u32, i: usize| helper.neighbor(f, i);
+    let mut stats = DualStats::default();
+    for round in 0..=max_rounds {
+        let d = diagnose(mesh, topo, labels, n, expect);
+        if round == 0 {
+            stats.first_problems = d.problems;
+        }
+        if !d.problems.any() {
+            return Ok((d.faces, stats));
+        }
+        if round == max_rounds {
+            return Err(DualError::Unrepaired(format!(
+                "{:?} remain after {max_rounds} rounds (clusters {:?}…)",
+                d.problems,
+                &d.bad[..d.bad.len().min(8)]
+            )));
+        }
+        stats.repair_rounds += 1;
+        if d.bad.is_empty() {
+            return Err(DualError::Unrepaired(format!(
+                "{:?}, and no cluster to blame",
+                d.problems
+            )));
+        }
+        let (changed, splits) = repair(mesh, topo, &nbr, labels, n, &d.bad);
+        if splits == 0 {
+            return Err(DualError::Unrepaired(format!(
+                "{:?}: no cluster could be split (clusters {:?}…)",
+                d.problems,
+                &d.bad[..d.bad.len().min(8)]
+            )));
+        }
+        stats.repairs += splits;
+        // The last rounds do not relax, so that a repair is not undone.
+        if round + 2 < max_rounds {
+            relax(mesh, topo, labels, n, &changed, relax_passes);
+        }
+    }
+    Err(DualError::Unrepaired("no rounds".into()))
+}

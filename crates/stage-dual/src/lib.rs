@@ -1,0 +1,401 @@
+//! The `dual` stage: the dual triangulation of a face clustering (paper 1 "Mesh
+//! coarsening method", step 4, after Valette & Chassery 2004).
+//!
+//! Reads the face label `cluster` (`0..n`, every value used) and outputs exactly n
+//! vertices, one per cluster, and k − 2 triangles at every input vertex where k ≥ 3
+//! clusters meet, fanned in the cyclic order of the clusters around that vertex (the
+//! input's fan order), so that they are oriented like the input.
+//!
+//! # Validity and repairs
+//!
+//! The dual is a valid manifold with the input's components, boundary loops and genus when
+//! every cluster is a disc, no cluster meets itself around a vertex, the clusters meet each
+//! other in single arcs, and every boundary loop is met by at least three clusters, each
+//! only once. Before emitting anything the stage diagnoses the clustering (cluster
+//! connectivity and Euler characteristic, pinches, boundary loops) and then the dual faces
+//! themselves (a cluster without a triangle, duplicate triangles, non-manifold edges or
+//! vertices, components/loops/genus differing from the input's). Every cluster to blame is
+//! **split** in two (double sweep: grown from its two faces farthest apart) and the count is
+//! kept exact by **merging** the smallest interior cluster far from every problem into its
+//! smallest neighbour; a few constrained minimisation passes (`relax_passes`) then smooth
+//! the touched clusters, and the diagnosis runs again, at most `max_repair_rounds` times.
+//! If problems remain the stage fails: it never emits a broken mesh nor adds a vertex.
+//!
+//! # Boundaries
+//!
+//! Beyond paper 1: at a boundary vertex the fan is open, so its k clusters (in fan order,
+//! not merged cyclically) give k − 2 triangles and the two outermost clusters are joined by
+//! an output boundary edge. Along each input boundary loop the clusters touching it (at
+//! least three, each once) thus become an output boundary loop in the same order. Their
+//! vertices are put on the input boundary: the nearest point of the cluster's boundary
+//! edges to the placement below.
+//!
+//! # Placement (`placement`)
+//!
+//! * `closest-vertex` — paper 1: the input vertex of the cluster nearest its centroid;
+//! * `centroid` — the area-weighted centroid of the cluster;
+//! * `projected` — the nearest point of the input surface to that centroid;
+//! * `quadric` — the minimiser of the cluster's summed, area-weighted face-plane quadrics,
+//!   regularised towards the projected centroid (directions whose curvature is below
+//!   10⁻³ of the quadric's trace stay at it), and falling back to the projected centroid
+//!   when the point leaves the cluster's bounding box enlarged by half its diagonal.
+//!
+//! Vertex attributes are carried to each output vertex as the area-weighted blend of its
+//! cluster's vertices; face attributes do not survive.
+//!
+//! The report gives `vertices`, `faces`, `placement`, `repairs` (clusters split),
+//! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `boundary_clusters`
+//! `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate output
+//! triangle — e.g. three closest vertices in a row, or a boundary cluster between two
+//! others on a straight boundary — moved to their projected centroid, unsnapped).
+
+mod build;
+
+pub use build::{DualError, DualStats, Problems};
+
+use coarsen_geom::{Aabb, DVec3, Quadric};
+use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
+use coarsen_spatial::{Bvh, closest_point_on_segment};
+use coarsen_stage::{
+    AttrKind, AttrRef, Context, Contract, Domain, Mesh, Needs, Params, Stage, StageError, params,
+};
+use coarsen_stage_cvt::{CLUSTER, cluster_centroids};
+use serde::{Deserialize, Serialize};
+
+/// Where each cluster's output vertex goes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Placement {
+    /// The input vertex of the cluster nearest its centroid (paper 1).
+    ClosestVertex,
+    /// The area-weighted centroid.
+    Centroid,
+    /// The nearest point of the input surface to the centroid.
+    #[default]
+    Projected,
+    /// The guarded minimiser of the cluster's face-plane quadrics.
+    Quadric,
+}
+
+params! {
+    /// Parameters of `dual`.
+    pub struct DualParams {
+        /// Vertex placement: "closest-vertex", "centroid", "projected" or "quadric".
+        pub placement: Placement = Placement::Projected,
+        /// Most diagnose-and-repair rounds before giving up.
+        pub max_repair_rounds: u32 = 40,
+        /// Minimisation passes after each repair round (0 = none).
+        pub relax_passes: u32 = 8,
+    }
+}
+
+impl Params for DualParams {}
+
+/// The dual of a clustering: output mesh and figures.
+#[derive(Clone, Debug)]
+pub struct Dual {
+    /// The output mesh: one vertex per cluster.
+    pub mesh: Mesh,
+    /// Repairs made.
+    pub stats: DualStats,
+    /// Clusters whose vertex was put on the input boundary.
+    pub boundary_clusters: usize,
+    /// Quadric placements that fell back to the projected centroid.
+    pub quadric_fallbacks: usize,
+    /// Vertices moved to their (unsnapped) projected centroid to undo a degenerate face.
+    pub degenerate_fixes: usize,
+}
+
+/// The dual triangulation of `mesh` clustered by `labels` (`0..n`): repairs the clustering
+/// where needed (the repaired labels are written back), places the vertices, carries the
+/// vertex attributes.
+pub fn dual(
+    mesh: &Mesh,
+    labels: &mut Vec<u32>,
+    placement: Placement,
+    max_repair_rounds: u32,
+    relax_passes: u32,
+) -> Result<Dual, DualError> {
+    let topo = Topology::try_build(mesh).map_err(|e| DualError::NotManifold(e.to_string()))?;
+    if let Some(f) = (0..mesh.n_faces() as u32).find(|&f| topo.is_skipped_face(f)) {
+        return Err(DualError::NotManifold(format!("face {f} repeats a vertex")));
+    }
+    if let Some(&e) = topo.non_manifold_edges().first() {
+        let [a, b] = topo.edge(e);
+        return Err(DualError::NotManifold(format!(
+            "edge {a}-{b} has {} faces or a flipped orientation",
+            topo.edge_faces(e).len()
+        )));
+    }
+    if let Some(&v) = topo.non_manifold_vertices().first() {
+        return Err(DualError::NotManifold(format!(
+            "vertex {v} has {} fans",
+            topo.n_vertex_fans(v)
+        )));
+    }
+    if labels.len() != mesh.n_faces() {
+        return Err(DualError::BadLabels(format!(
+            "{} labels for {} faces",
+            labels.len(),
+            mesh.n_faces()
+        )));
+    }
+    let n = labels.iter().max().map_or(0, |&m| m as usize + 1);
+    let mut count = vec![0usize; n];
+    labels.iter().for_each(|&l| count[l as usize] += 1);
+    if let Some(c) = count.iter().position(|&k| k == 0) {
+        return Err(DualError::BadLabels(format!(
+            "cluster {c} has no face (labels must be 0..n, every value used)"
+        )));
+    }
+    let (faces, stats) =
+        build::repaired_dual(mesh, &topo, labels, n, max_repair_rounds, relax_passes)?;
+    let (mut positions, boundary_clusters, quadric_fallbacks) =
+        place(mesh, &topo, labels, n, placement, true);
+    // A degenerate output face (e.g. three closest vertices in a row on a flat part) gets
+    // its clusters' vertices moved to the projected centroids, the most central choice
+    // (the report's `degenerate_fixes`).
+    let diag2 = mesh.bbox().diagonal().powi(2);
+    let degenerate = |positions: &[DVec3]| -> Vec<u32> {
+        let mut v: Vec<u32> = faces
+            .iter()
+            .filter(|f| {
+                let [a, b, c] = f.map(|i| positions[i as usize]);
+                coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
+            })
+            .flatten()
+            .copied()
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    let bad = degenerate(&positions);
+    if !bad.is_empty() {
+        // Unsnapped: a boundary cluster between two others on a straight boundary would
+        // otherwise give a flat triangle; its vertex then stays just inside the boundary.
+        let (projected, _, _) = place(mesh, &topo, labels, n, Placement::Projected, false);
+        bad.iter()
+            .for_each(|&c| positions[c as usize] = projected[c as usize]);
+    }
+    if let Some(&c) = degenerate(&positions).first() {
+        return Err(DualError::Unrepaired(format!(
+            "the output vertex of cluster {c} lies on a degenerate triangle"
+        )));
+    }
+    let origins = vertex_origins(mesh, labels, n);
+    let mut fo = FaceOrigins::with_capacity(faces.len());
+    faces.iter().for_each(|_| fo.push_unknown());
+    let (out, _) = mesh.rebuilt(positions, faces, &origins, &fo);
+    Ok(Dual {
+        mesh: out,
+        stats,
+        boundary_clusters,
+        quadric_fallbacks,
+        degenerate_fixes: bad.len(),
+    })
+}
+
+/// Each cluster's vertex as the area-weighted blend of its faces' corners.
+fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
+    let mut entries: Vec<(u32, u32, f64)> = Vec::with_capacity(3 * mesh.n_faces());
+    for (f, &c) in labels.iter().enumerate() {
+        let w = mesh.face_area(f) / 3.0 + f64::MIN_POSITIVE;
+        mesh.faces[f].iter().for_each(|&v| entries.push((c, v, w)));
+    }
+    entries.sort_unstable_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    let mut o = VertexOrigins::with_capacity(n);
+    let mut i = 0;
+    for c in 0..n as u32 {
+        let mut blend: Vec<(u32, f64)> = Vec::new();
+        while i < entries.len() && entries[i].0 == c {
+            match blend.last_mut() {
+                Some(last) if last.0 == entries[i].1 => last.1 += entries[i].2,
+                _ => blend.push((entries[i].1, entries[i].2)),
+            }
+            i += 1;
+        }
+        o.push_blend(blend);
+    }
+    o
+}
+
+/// Output positions: `(positions, clusters on the boundary, quadric fall-backs)`.
+fn place(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &[u32],
+    n: usize,
+    placement: Placement,
+    snap: bool,
+) -> (Vec<DVec3>, usize, usize) {
+    let centroids = cluster_centroids(mesh, labels, n);
+    let needs_bvh = matches!(placement, Placement::Projected | Placement::Quadric);
+    let bvh = needs_bvh.then(|| Bvh::build(&mesh.positions, &mesh.faces));
+    let project = |p: DVec3| {
+        bvh.as_ref()
+            .and_then(|b| b.closest_point(p))
+            .map_or(p, |h| h.point)
+    };
+    let mut fallbacks = 0;
+    let mut pos: Vec<DVec3> = match placement {
+        Placement::Centroid => centroids.clone(),
+        Placement::Projected => centroids.iter().map(|&c| project(c)).collect(),
+        Placement::ClosestVertex => {
+            // Each cluster takes its nearest vertex not taken by a lower-numbered cluster,
+            // so that no two output vertices coincide (the centroid when all are taken).
+            let mut cand: Vec<(u32, f64, u32)> = Vec::with_capacity(3 * mesh.n_faces());
+            for (f, &c) in labels.iter().enumerate() {
+                for &v in &mesh.faces[f] {
+                    let d = mesh.positions[v as usize].distance_squared(centroids[c as usize]);
+                    cand.push((c, d, v));
+                }
+            }
+            cand.sort_unstable_by(|a, b| {
+                a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2))
+            });
+            let mut taken = vec![false; mesh.n_vertices()];
+            let mut pos = centroids.clone();
+            let mut i = 0;
+            for (c, p) in pos.iter_mut().enumerate() {
+                let mut done = false;
+                while i < cand.len() && cand[i].0 == c as u32 {
+                    let v = cand[i].2 as usize;
+                    if !done && !taken[v] {
+                        taken[v] = true;
+                        *p = mesh.positions[v];
+                        done = true;
+                    }
+                    i += 1;
+                }
+            }
+            pos
+        }
+        Placement::Quadric => {
+            let mut q = vec![Quadric::ZERO; n];
+            let mut boxes = vec![Aabb::EMPTY; n];
+            for (f, &c) in labels.iter().enumerate() {
+                let [a, b, cc] = mesh.corners(f);
+                let normal = mesh.face_normal(f);
+                if normal != DVec3::ZERO {
+                    q[c as usize] += Quadric::from_plane(normal, a, mesh.face_area(f));
+                }
+                [a, b, cc].iter().for_each(|p| boxes[c as usize].grow(*p));
+            }
+            (0..n)
+                .map(|c| {
+                    let p0 = project(centroids[c]);
+                    let m = q[c].matrix();
+                    let trace = q[c].a[0] + q[c].a[3] + q[c].a[5];
+                    let mu = 1e-3 * trace;
+                    let reg = m + coarsen_geom::DMat3::from_diagonal(DVec3::splat(mu));
+                    let rhs = -q[c].b + mu * p0;
+                    let bx = boxes[c];
+                    let margin = 0.5 * bx.diagonal();
+                    let inside = |x: DVec3| {
+                        (bx.min - DVec3::splat(margin)).cmple(x).all()
+                            && x.cmple(bx.max + DVec3::splat(margin)).all()
+                    };
+                    match coarsen_geom::solve::solve3(reg, rhs, 1e-14) {
+                        Some(x) if trace > 0.0 && inside(x) => x,
+                        _ => {
+                            fallbacks += 1;
+                            p0
+                        }
+                    }
+                })
+                .collect()
+        }
+    };
+    // Clusters on the boundary: their vertex goes to the nearest point of their boundary edges.
+    let mut best: Vec<Option<(f64, DVec3)>> = vec![None; n];
+    for e in 0..topo.n_edges() as u32 {
+        let ef = topo.edge_faces(e);
+        if ef.len() != 1 {
+            continue;
+        }
+        let c = labels[ef[0] as usize] as usize;
+        let [a, b] = topo.edge(e).map(|v| mesh.positions[v as usize]);
+        let (p, d) = closest_point_on_segment(pos[c], a, b);
+        if best[c].is_none_or(|(bd, _)| d < bd) {
+            best[c] = Some((d, p));
+        }
+    }
+    let mut on_boundary = 0;
+    for (c, b) in best.iter().enumerate().filter(|_| snap) {
+        if let Some((_, p)) = b {
+            pos[c] = *p;
+            on_boundary += 1;
+        }
+    }
+    (pos, on_boundary, fallbacks)
+}
+
+/// The dual triangulation of the face clustering `cluster`.
+pub struct DualStage(DualParams);
+
+impl Stage for DualStage {
+    type Params = DualParams;
+    const KIND: &'static str = "dual";
+    const SUMMARY: &'static str = "Dual triangulation of the face label `cluster`: one vertex per cluster, repairing the clustering where the dual would not be a valid manifold.";
+
+    fn new(params: DualParams) -> Self {
+        DualStage(params)
+    }
+
+    fn contract(&self) -> Contract {
+        Contract {
+            reads: vec![AttrRef::face(CLUSTER, AttrKind::Label)],
+            writes: Vec::new(),
+            clears: vec![Domain::Face],
+            needs: Needs {
+                manifold: true,
+                ..Needs::default()
+            },
+        }
+    }
+
+    fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let p = &self.0;
+        let mut labels = mesh
+            .face_attrs
+            .label(CLUSTER)
+            .ok_or_else(|| {
+                StageError::Input(format!("`{}`: no face label `{CLUSTER}`", Self::KIND))
+            })?
+            .to_vec();
+        let d = dual(
+            &mesh,
+            &mut labels,
+            p.placement,
+            p.max_repair_rounds,
+            p.relax_passes,
+        )
+        .map_err(|e| match e {
+            DualError::Unrepaired(_) => StageError::Internal(format!("`{}`: {e}", Self::KIND)),
+            e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
+        })?;
+        let r = &mut *cx.report;
+        r.figure("vertices", d.mesh.n_vertices());
+        r.figure("faces", d.mesh.n_faces());
+        r.figure("placement", p.placement);
+        r.figure("repairs", d.stats.repairs);
+        r.figure("repair_rounds", d.stats.repair_rounds);
+        r.figure("problems", d.stats.first_problems);
+        r.figure("boundary_clusters", d.boundary_clusters);
+        r.figure("quadric_fallbacks", d.quadric_fallbacks);
+        r.figure("degenerate_fixes", d.degenerate_fixes);
+        if d.stats.repairs > 0 {
+            r.warn(format!(
+                "the clustering was repaired: {} clusters split (each paid for by a merge elsewhere) in {} rounds",
+                d.stats.repairs, d.stats.repair_rounds
+            ));
+        }
+        Ok(d.mesh)
+    }
+}
+
+coarsen_stage::export_stage!(DualStage);
+
+#[cfg(test)]
+mod tests;

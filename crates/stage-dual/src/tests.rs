@@ -1,0 +1,237 @@
+use super::*;
+use coarsen_mesh::{SanityOptions, sanity_check_with};
+use coarsen_shapes::{disk_with_holes, icosphere, plane_grid, torus};
+use coarsen_stage::{AttrValues, StageReport};
+use coarsen_stage_cvt::{ClusterCvt, CvtParams, EnergyKind, SplitMix64};
+
+/// Clusters `mesh` into `n` and takes the dual with `placement`.
+fn coarsen(
+    mesh: &Mesh,
+    n: u64,
+    seed: u64,
+    energy: EnergyKind,
+    placement: Placement,
+) -> (Mesh, StageReport) {
+    let mut r1 = StageReport::default();
+    let mut cx = Context::new(mesh, &mut r1);
+    let p = CvtParams {
+        clusters: n,
+        energy,
+        r: if energy == EnergyKind::Shu2009 {
+            2.0
+        } else {
+            0.0
+        },
+        seed,
+        ..CvtParams::default()
+    };
+    let clustered = ClusterCvt::new(p).run(mesh.clone(), &mut cx).unwrap();
+    let mut report = StageReport::default();
+    let mut cx = Context::new(mesh, &mut report);
+    let out = DualStage::new(DualParams {
+        placement,
+        ..DualParams::default()
+    })
+    .run(clustered, &mut cx)
+    .unwrap_or_else(|e| panic!("n = {n}, seed = {seed}: {e}"));
+    (out, report)
+}
+
+/// Exact count, strict sanity, and the input's components, boundary loops and genus.
+fn check_valid(input: &Mesh, out: &Mesh, n: usize, what: &str) {
+    assert_eq!(out.n_vertices(), n, "{what}");
+    sanity_check_with(out, &SanityOptions::strict()).unwrap_or_else(|e| panic!("{what}: {e}"));
+    let (a, b) = (
+        Topology::build(input).summary(input),
+        Topology::build(out).summary(out),
+    );
+    assert_eq!(a.n_components, b.n_components, "{what}: components");
+    assert_eq!(a.n_boundary_loops, b.n_boundary_loops, "{what}: loops");
+    assert_eq!(a.genus_total, b.genus_total, "{what}: genus");
+    assert_eq!(b.n_isolated_vertices, 0, "{what}: every vertex used");
+}
+
+#[test]
+fn random_clusterings_of_test_shapes_give_valid_duals() {
+    let shapes = [
+        ("icosphere", icosphere(1.0, 4).unwrap(), 8),
+        ("torus", torus(2.0, 0.7, 48, 24).unwrap(), 20),
+        ("grid", plane_grid(30, 30, 1.0).unwrap(), 8),
+        ("disk with holes", disk_with_holes(2, 5, 2.0).unwrap(), 30),
+    ];
+    let mut rng = SplitMix64::new(2024);
+    for (name, mesh, min_n) in shapes {
+        for i in 0..6 {
+            let n = min_n + rng.below(mesh.n_faces() / 8);
+            let seed = rng.next_u64();
+            let energy = [EnergyKind::Shu2009, EnergyKind::Valette2004][i % 2];
+            let placement = [
+                Placement::Projected,
+                Placement::Quadric,
+                Placement::Centroid,
+                Placement::ClosestVertex,
+            ][i % 4];
+            let (out, _) = coarsen(&mesh, n as u64, seed, energy, placement);
+            let what = format!("{name} n={n} seed={seed} {placement:?}");
+            check_valid(&mesh, &out, n, &what);
+            let m = coarsen_metrics::measure(Some(&mesh), &out, &Default::default()).unwrap();
+            assert_eq!(m.validity.n_degenerate, 0, "{what}");
+            assert_eq!(m.validity.n_flipped, Some(0), "{what}");
+        }
+    }
+}
+
+#[test]
+fn boundary_clusters_sit_on_the_input_boundary() {
+    let grid = plane_grid(40, 40, 2.0).unwrap();
+    let (out, report) = coarsen(&grid, 60, 3, EnergyKind::Valette2004, Placement::Projected);
+    check_valid(&grid, &out, 60, "grid");
+    let t = Topology::build(&out);
+    let lp = t.boundary_loop(0);
+    let on_edge = |p: DVec3| (p.x.abs() - 1.0).abs() < 1e-12 || (p.y.abs() - 1.0).abs() < 1e-12;
+    assert!(lp.iter().all(|&v| on_edge(out.positions[v as usize])));
+    assert_eq!(report.get("boundary_clusters"), Some(&lp.len().into()));
+}
+
+#[test]
+fn triangles_are_oriented_like_the_input() {
+    let sphere = icosphere(1.0, 4).unwrap();
+    let (out, _) = coarsen(
+        &sphere,
+        100,
+        9,
+        EnergyKind::Valette2004,
+        Placement::Projected,
+    );
+    assert!(out.signed_volume() > 0.0);
+    for f in 0..out.n_faces() {
+        assert!(
+            out.face_normal(f).dot(out.face_centroid(f)) > 0.0,
+            "face {f}"
+        );
+    }
+}
+
+#[test]
+fn vertex_attributes_are_blended_and_face_attributes_cleared() {
+    let mut sphere = icosphere(1.0, 3).unwrap();
+    let h: Vec<f64> = sphere.positions.iter().map(|p| p.z).collect();
+    sphere.vertex_attrs.insert("height", AttrValues::Scalar(h));
+    let (out, _) = coarsen(
+        &sphere,
+        40,
+        1,
+        EnergyKind::Valette2004,
+        Placement::Projected,
+    );
+    let h = out.vertex_attrs.scalar("height").unwrap();
+    for (p, z) in out.positions.iter().zip(h) {
+        assert!((p.z - z).abs() < 0.5, "{} vs {z}", p.z);
+    }
+    assert!(out.face_attrs.is_empty());
+    let c = DualStage::new(DualParams::default()).contract();
+    assert_eq!(c.clears, vec![Domain::Face]);
+}
+
+#[test]
+fn missing_or_gapped_labels_are_input_errors() {
+    let sphere = icosphere(1.0, 2).unwrap();
+    let mut report = StageReport::default();
+    let mut cx = Context::new(&sphere, &mut report);
+    let e = DualStage::new(DualParams::default())
+        .run(sphere.clone(), &mut cx)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no face label `cluster`"), "{e}");
+    let mut gapped = sphere.clone();
+    let labels: Vec<u32> = (0..sphere.n_faces())
+        .map(|f| if f < 100 { 0 } else { 2 })
+        .collect();
+    gapped.face_attrs.insert(CLUSTER, AttrValues::Label(labels));
+    let e = DualStage::new(DualParams::default())
+        .run(gapped, &mut cx)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cluster 1 has no face"), "{e}");
+}
+
+#[test]
+fn a_bad_clustering_is_repaired_with_the_count_kept() {
+    // Two clusters on a sphere (hemispheres) cannot have a dual: repairs must give 2
+    // clusters... which is impossible, so the stage fails rather than emit a broken mesh.
+    let sphere = icosphere(1.0, 3).unwrap();
+    let mut labels: Vec<u32> = (0..sphere.n_faces())
+        .map(|f| (sphere.face_centroid(f).z > 0.0) as u32)
+        .collect();
+    let e = dual(&sphere, &mut labels, Placement::Projected, 5, 2).unwrap_err();
+    assert!(matches!(e, DualError::Unrepaired(_)), "{e}");
+    // Rings around the north pole (three annuli round a cap) above latitude-longitude
+    // cells: the annuli are not discs and must be split, paid for by merges of cells.
+    let sphere = icosphere(1.0, 4).unwrap();
+    let mut labels: Vec<u32> = (0..sphere.n_faces())
+        .map(|f| {
+            let c = sphere.face_centroid(f);
+            if c.z > 0.5 {
+                ((c.z - 0.5) * 7.99).floor() as u32
+            } else {
+                let sector = ((c.y.atan2(c.x) + std::f64::consts::PI) / std::f64::consts::TAU * 8.0)
+                    .floor()
+                    .min(7.0) as u32;
+                let band = ((c.z + 1.0) / 1.5 * 4.0).floor().min(3.0) as u32;
+                4 + band * 8 + sector
+            }
+        })
+        .collect();
+    let n = 36;
+    let d = dual(&sphere, &mut labels, Placement::Projected, 40, 4).unwrap();
+    assert!(d.stats.repairs >= 3, "{:?}", d.stats);
+    assert!(d.stats.first_problems.not_disc >= 3, "{:?}", d.stats);
+    check_valid(&sphere, &d.mesh, n, "bands");
+}
+
+fn real(name: &str) -> Option<Mesh> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(name);
+    if !path.exists() {
+        println!("skipped: {} is absent", path.display());
+        return None;
+    }
+    let mesh = coarsen_io::read_path(&path, &Default::default())
+        .unwrap()
+        .mesh;
+    Some(coarsen_mesh::clean(mesh, &Default::default()).unwrap().0)
+}
+
+#[test]
+fn real_meshes_give_valid_duals_with_exact_counts() {
+    let cases = [
+        ("stanford-bunny.obj", 3000),
+        ("stanford-bunny.obj", 5000),
+        ("stanford-bunny.obj", 8000),
+        ("rocker-arm.obj", 8000),
+    ];
+    for (name, n) in cases {
+        let Some(mesh) = real(name) else { return };
+        for placement in [Placement::Projected, Placement::Quadric] {
+            let t = std::time::Instant::now();
+            let (out, report) = coarsen(&mesh, n, 1, EnergyKind::Valette2004, placement);
+            let took = t.elapsed();
+            check_valid(&mesh, &out, n as usize, name);
+            let m = coarsen_metrics::measure(Some(&mesh), &out, &Default::default()).unwrap();
+            let (q, f) = (&m.quality, m.fidelity.as_ref().unwrap());
+            println!(
+                "{name} {n} {placement:?}: α_min {:.2} α_avg {:.2} P<30 {:.2} Q_min {:.3} Q_avg {:.3} H {:.3}% flipped {:?} repairs {:?} problems {:?} ({took:?})",
+                q.alpha_min_deg,
+                q.alpha_avg_deg,
+                q.p_lt30_pct,
+                q.q_min,
+                q.q_avg,
+                f.hausdorff_pct,
+                m.validity.n_flipped,
+                report.get("repairs"),
+                report.get("problems").map(|p| p.to_string()),
+            );
+        }
+    }
+}
