@@ -112,60 +112,14 @@ fn an_unknown_extension_is_a_clear_error() {
     assert!(stderr(&o).contains("mesh.xyz"), "{}", stderr(&o));
 }
 
-fn icosahedron_obj(scale: f64) -> String {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let v = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ];
-    let f = [
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let mut s = String::new();
-    for (x, y, z) in v {
-        s += &format!("v {} {} {}\n", x * scale, y * scale, z * scale);
-    }
-    for [a, b, c] in f {
-        s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
-    }
-    s
-}
-
 #[test]
 fn extreme_coordinates_coarsen_like_ordinary_ones_and_come_back_in_their_units() {
     let dir = tempfile::tempdir().unwrap();
     for scale in [1e-300, 1e300] {
         let input = dir.path().join("ico.obj");
-        std::fs::write(&input, icosahedron_obj(scale)).unwrap();
+        let mut ico = coarsen_shapes::icosphere(1.0, 0).unwrap();
+        ico.positions.iter_mut().for_each(|p| *p *= scale);
+        coarsen_io::write_path(&ico, &input, &Default::default()).unwrap();
         let out = dir.path().join("out.obj");
         let o = run_cli(
             EXE,

@@ -252,6 +252,58 @@ pub struct Refusals {
     pub model: u64,
 }
 
+impl Refusals {
+    /// The counts by reason name, for reports.
+    pub fn by_reason(&self) -> std::collections::BTreeMap<&'static str, u64> {
+        std::collections::BTreeMap::from([
+            ("link", self.link),
+            ("flip", self.flip),
+            ("degenerate", self.degenerate),
+            ("quality", self.quality),
+            ("boundary", self.boundary),
+            ("locked", self.locked),
+            ("model", self.model),
+        ])
+    }
+}
+
+impl StopReason {
+    /// A one-word name for reports: `reached`, `max_error` or `exhausted`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            StopReason::Reached => "reached",
+            StopReason::MaxError { .. } => "max_error",
+            StopReason::Exhausted => "exhausted",
+        }
+    }
+}
+
+impl Outcome {
+    /// Why the run stopped short of its goal, for a report warning; `None` when it reached it.
+    /// `target` says the goal in words, `max_error` is the limit the run had.
+    pub fn shortfall(
+        &self,
+        target: &str,
+        max_error: f64,
+        vertices: usize,
+        faces: usize,
+    ) -> Option<String> {
+        let at = format!("{vertices} vertices and {faces} faces");
+        let r = &self.refused;
+        match self.stop {
+            StopReason::Reached => None,
+            StopReason::MaxError { cost } => Some(format!(
+                "target ({target}) not reached: stopped at {at}; the next collapse costs {cost:.3e}, above max_error = {max_error}"
+            )),
+            StopReason::Exhausted => Some(format!(
+                "target ({target}) not reached: stopped at {at}; every remaining collapse is refused \
+                 (link {}, flip {}, degenerate {}, quality {}, boundary {}, locked {}, model {})",
+                r.link, r.flip, r.degenerate, r.quality, r.boundary, r.locked, r.model
+            )),
+        }
+    }
+}
+
 /// One collapse performed, in input vertex indices: enough to replay the sequence (and,
 /// later, to build a progressive mesh).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -39,15 +39,12 @@
 //! # Ok::<(), coarsen_stage::StageError>(())
 //! ```
 
-use coarsen_collapse::{
-    Goal, LiveMesh, Options, Outcome, QemOptions, QuadricModel, StopReason, Summary,
-};
+use coarsen_collapse::{Goal, LiveMesh, Options, Outcome, QemOptions, QuadricModel, Summary};
 use coarsen_stage::params::check_range;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     params,
 };
-use std::collections::BTreeMap;
 
 params! {
     /// Parameters of `simplify.qem`.
@@ -166,49 +163,25 @@ fn report(
     after: &Summary,
 ) {
     let refused = &o.refused;
-    let by_reason = BTreeMap::from([
-        ("link", refused.link),
-        ("flip", refused.flip),
-        ("degenerate", refused.degenerate),
-        ("quality", refused.quality),
-        ("boundary", refused.boundary),
-        ("locked", refused.locked),
-    ]);
+    let by_reason = refused.by_reason();
     r.figure("collapses", o.collapses);
     r.figure("refused", by_reason);
     r.figure("sve", o.sve);
     r.figure("max_cost", o.max_cost);
     r.figure("vertices", after.vertices);
     r.figure("faces", after.faces);
-    r.figure(
-        "stop",
-        match o.stop {
-            StopReason::Reached => "reached",
-            StopReason::MaxError { .. } => "max_error",
-            StopReason::Exhausted => "exhausted",
-        },
-    );
+    r.figure("stop", o.stop.name());
     r.figure("locked_vertices", before.locked_vertices);
     r.figure("boundary_loops_in", before.boundary_loops);
     r.figure("boundary_loops", after.boundary_loops);
 
-    let at = format!("{} vertices and {} faces", after.vertices, after.faces);
-    match o.stop {
-        StopReason::Reached => {}
-        StopReason::MaxError { cost } => r.warn(format!(
-            "target ({target}) not reached: stopped at {at}; the next collapse costs {cost:.3e}, above max_error = {}",
-            p.max_error
-        )),
-        StopReason::Exhausted => r.warn(format!(
-            "target ({target}) not reached: stopped at {at}; every remaining collapse is refused \
-             (link {}, flip {}, degenerate {}, quality {}, boundary {}, locked {})",
-            refused.link,
-            refused.flip,
-            refused.degenerate,
-            refused.quality,
-            refused.boundary,
-            refused.locked
-        )),
+    if let Some(w) = o.shortfall(
+        &target.to_string(),
+        p.max_error,
+        after.vertices,
+        after.faces,
+    ) {
+        r.warn(w);
     }
     if before.locked_vertices > 0 {
         r.warn(format!(

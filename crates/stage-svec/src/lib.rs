@@ -96,7 +96,6 @@ use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     params,
 };
-use std::collections::BTreeMap;
 
 params! {
     /// Parameters of `simplify.svec`.
@@ -280,15 +279,7 @@ fn report(
 ) {
     let o = &t.outcome;
     let refused = &o.refused;
-    let by_reason = BTreeMap::from([
-        ("link", refused.link),
-        ("flip", refused.flip),
-        ("degenerate", refused.degenerate),
-        ("quality", refused.quality),
-        ("boundary", refused.boundary),
-        ("locked", refused.locked),
-        ("model", refused.model),
-    ]);
+    let by_reason = refused.by_reason();
     r.figure("collapses", o.collapses);
     r.figure("triangle_collapses", t.triangle_collapses);
     r.figure("edge_collapses", t.edge_collapses);
@@ -301,35 +292,18 @@ fn report(
     r.figure("max_cost", o.max_cost);
     r.figure("vertices", after.vertices);
     r.figure("faces", after.faces);
-    r.figure(
-        "stop",
-        match o.stop {
-            StopReason::Reached => "reached",
-            StopReason::MaxError { .. } => "max_error",
-            StopReason::Exhausted => "exhausted",
-        },
-    );
+    r.figure("stop", o.stop.name());
     r.figure("locked_vertices", before.locked_vertices);
     r.figure("boundary_loops_in", before.boundary_loops);
     r.figure("boundary_loops", after.boundary_loops);
 
-    let at = format!("{} vertices and {} faces", after.vertices, after.faces);
-    match o.stop {
-        StopReason::Reached => {}
-        StopReason::MaxError { cost } => r.warn(format!(
-            "target ({target}) not reached: stopped at {at}; the next collapse costs {cost:.3e}, above max_error = {}",
-            p.max_error
-        )),
-        StopReason::Exhausted => r.warn(format!(
-            "target ({target}) not reached: stopped at {at}; every remaining collapse is refused \
-             (link {}, flip {}, degenerate {}, quality {}, boundary {}, locked {})",
-            refused.link,
-            refused.flip,
-            refused.degenerate,
-            refused.quality,
-            refused.boundary,
-            refused.locked
-        )),
+    if let Some(w) = o.shortfall(
+        &target.to_string(),
+        p.max_error,
+        after.vertices,
+        after.faces,
+    ) {
+        r.warn(w);
     }
     if t.edge_collapses > 2 {
         r.warn(format!(
