@@ -3,12 +3,19 @@
 //!
 //! # Sampling rule
 //!
-//! With `F = max(input faces, output faces)` and `k = `[`FidelityOptions::samples_per_face`]
-//! (default 10), `T = k·F` face samples are drawn in all: `⌈T/2⌉` on the input (measured
-//! against the output: the forward direction) and `⌊T/2⌋` on the output (measured against
-//! the input: the backward direction). On top of these, every vertex used by a face is a
-//! sample of its own mesh's direction, measured with the first face that uses it. So [`Fidelity::n_samples`] is
-//! `T + used input vertices + used output vertices`, at least the spec's `10 × F`.
+//! With `k = `[`FidelityOptions::samples_per_face`] (default 10), each mesh carries face
+//! samples in proportion to its own face count: `k·F_in` on the input (measured against
+//! the output: the forward direction) and `k·F_out` on the output (measured against the
+//! input: the backward direction), so `k·(F_in + F_out) ≥ k·max(F_in, F_out)` in all. On
+//! top of these, every vertex used by a face is a sample of its own mesh's direction,
+//! measured with the first face that uses it. So [`Fidelity::n_samples`] is
+//! `k·(F_in + F_out) + used input vertices + used output vertices`, at least the spec's
+//! `10 × max(F_in, F_out)` with the default `k`.
+//!
+//! Why per mesh: a coarsening's input may have hundreds of times the output's faces. Its
+//! many samples are then measured against the small output's tree, which is quick, and
+//! only the output's few samples walk the large input's tree; each surface is sampled
+//! equally densely (`k` per face on average).
 //!
 //! Face samples are spread over one mesh's faces in proportion to area: with `Cᵢ` the
 //! area of faces `0..i` and `A` the total, face `i` gets `⌊S·Cᵢ₊₁/A⌋ − ⌊S·Cᵢ/A⌋` of that
@@ -18,10 +25,18 @@
 //! triangle: the first is the centroid and the next ones fill the face evenly. The samples
 //! are thus a pure function of the mesh: no random state, the same every run.
 //!
+//! # Distances
+//!
 //! Each sample's distance is to the nearest point of the other surface (point to
-//! triangle, through a [`Bvh`]). Distances that are rounding noise — at most
-//! [`ROUNDING_FLOOR`] times the larger of the input's diagonal and its largest coordinate
-//! magnitude — count as exactly 0, so a mesh measured against itself scores 0.
+//! triangle, through a [`Bvh`]). The samples of one face lie within one small ball, so
+//! they are answered together: the other surface's triangles that can be nearest to some
+//! point of the ball are gathered once ([`Bvh::gather_near`]) and each sample looks at
+//! those alone; the ball is [`NEAR_GROW`] times the face's own, so that it serves the
+//! following faces too while it covers them. The distances are exactly those of one
+//! query per sample. Distances that are rounding noise — at most [`ROUNDING_FLOOR`] times
+//! the larger of the input's diagonal and its largest coordinate magnitude — count as
+//! exactly 0, so a mesh measured against itself scores 0.
+//!
 //! The faces are split into fixed chunks, measured in parallel and summed in chunk order:
 //! the figures are bit-for-bit the same on any number of threads.
 
@@ -29,11 +44,21 @@ use crate::error::{MetricsError, Role};
 use crate::prepare::{Prepared, map_chunks};
 use crate::validity::{encloses_volume, topology};
 use coarsen_mesh::{DVec3, Mesh};
-use coarsen_spatial::Bvh;
+use coarsen_spatial::{Bvh, NearSet};
 use serde::{Deserialize, Serialize};
 
 /// Distances up to this fraction of the input's scale (see the module docs) count as 0.
 pub const ROUNDING_FLOOR: f64 = 1e-12;
+
+/// Most triangles gathered for the samples of one face (see [`Bvh::gather_near`]);
+/// beyond that each sample walks the tree on its own.
+pub const NEAR_LIMIT: usize = 32;
+
+/// The ball of a gathering is this many times the face's own (centred on its centroid,
+/// through its farthest corner), so that one gathering serves the next faces too while
+/// they lie inside it. Measured on a 4M-face input: 1.5 saves a sixth of the time
+/// against 1; larger balls cost more on 70K-face inputs than they save.
+pub const NEAR_GROW: f64 = 1.5;
 
 /// Faces per parallel chunk.
 const CHUNK: usize = 1024;
@@ -46,8 +71,8 @@ const PLASTIC: f64 = 1.324_717_957_244_746;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FidelityOptions {
-    /// Face samples in all (both directions together) per face of the larger mesh; the
-    /// vertices come on top (see the module docs). Default 10, the spec's minimum.
+    /// Face samples per face, on each mesh (so `k·(F_in + F_out)` in all); the vertices
+    /// come on top (see the module docs). Default 10, which meets the spec's minimum.
     pub samples_per_face: u32,
 }
 
@@ -92,26 +117,21 @@ pub fn fidelity(
     output: &Mesh,
     opts: &FidelityOptions,
 ) -> Result<Fidelity, MetricsError> {
-    let input = Prepared::new(input, Role::Input)?;
-    let output = Prepared::new(output, Role::Output)?;
-    let (in_bvh, out_bvh) = rayon::join(
-        || Bvh::build(&input.mesh.positions, &input.mesh.faces),
-        || Bvh::build(&output.mesh.positions, &output.mesh.faces),
+    let (input, output) = rayon::join(
+        || Prepared::new(input, Role::Input),
+        || Prepared::new(output, Role::Output),
     );
+    let (input, output) = (input?, output?);
+    let floor = rounding_floor(&input, &output)?;
     let closed = |p: &Prepared, role| topology(p, role).is_ok_and(|t| encloses_volume(&t));
-    let both_closed = closed(&input, Role::Input) && closed(&output, Role::Output);
-    fidelity_of(&input, &in_bvh, &output, &out_bvh, both_closed, opts)
+    let sampled = sample_both(&input, &output, opts, floor, || closed(&input, Role::Input));
+    let both_closed = sampled.alongside && closed(&output, Role::Output);
+    Ok(figures(&input, &output, &sampled, both_closed))
 }
 
-/// [`fidelity`] of checked meshes with their trees built.
-pub(crate) fn fidelity_of(
-    input: &Prepared,
-    in_bvh: &Bvh,
-    output: &Prepared,
-    out_bvh: &Bvh,
-    both_closed: bool,
-    opts: &FidelityOptions,
-) -> Result<Fidelity, MetricsError> {
+/// Checks that both meshes have faces and the input a usable diagonal; returns the
+/// distance below which a sampled distance counts as 0 (see the module docs).
+pub(crate) fn rounding_floor(input: &Prepared, output: &Prepared) -> Result<f64, MetricsError> {
     for (p, role) in [(input, Role::Input), (output, Role::Output)] {
         if p.mesh.faces.is_empty() {
             return Err(MetricsError::NoFaces { mesh: role });
@@ -122,21 +142,81 @@ pub(crate) fn fidelity_of(
         return Err(MetricsError::BadExtent { diagonal });
     }
     let scale = diagonal.max(input.bbox.min.abs().max(input.bbox.max.abs()).max_element());
-    let floor = ROUNDING_FLOOR * scale;
+    Ok(ROUNDING_FLOOR * scale)
+}
 
-    let total =
-        u64::from(opts.samples_per_face) * input.mesh.n_faces().max(output.mesh.n_faces()) as u64;
-    let forward = one_side(input, out_bvh, total.div_ceil(2), floor);
-    let backward = one_side(output, in_bvh, total / 2, floor);
+/// The sampled distances of both directions, the input's tree (which the flip test needs
+/// too) and what was computed alongside.
+pub(crate) struct Sampled<T> {
+    /// From the input's samples to the output surface.
+    forward: Stats,
+    /// From the output's samples to the input surface.
+    backward: Stats,
+    /// The tree over the input's faces.
+    pub input_bvh: Bvh,
+    /// The result of the `alongside` task given to [`sample_both`].
+    pub alongside: T,
+}
 
+/// Samples both directions of checked meshes (`floor` from [`rounding_floor`]) and runs
+/// `alongside` (e.g. the input's topology) on the same threads.
+///
+/// The larger mesh's many samples need only the smaller mesh's tree, which is quick to
+/// build, so they are measured while the larger mesh's tree is being built; its fewer
+/// samples go last. Either way each direction's figures depend only on the two meshes.
+pub(crate) fn sample_both<T: Send>(
+    input: &Prepared,
+    output: &Prepared,
+    opts: &FidelityOptions,
+    floor: f64,
+    alongside: impl FnOnce() -> T + Send,
+) -> Sampled<T> {
+    let k = opts.samples_per_face;
+    let build = |p: &Prepared| Bvh::build(&p.mesh.positions, &p.mesh.faces);
+    if input.mesh.n_faces() >= output.mesh.n_faces() {
+        let output_bvh = build(output);
+        let (forward, (input_bvh, alongside)) = rayon::join(
+            || one_side(input, &output_bvh, k, floor),
+            || rayon::join(|| build(input), alongside),
+        );
+        let backward = one_side(output, &input_bvh, k, floor);
+        Sampled {
+            forward,
+            backward,
+            input_bvh,
+            alongside,
+        }
+    } else {
+        let (input_bvh, alongside) = rayon::join(|| build(input), alongside);
+        let (backward, output_bvh) =
+            rayon::join(|| one_side(output, &input_bvh, k, floor), || build(output));
+        let forward = one_side(input, &output_bvh, k, floor);
+        Sampled {
+            forward,
+            backward,
+            input_bvh,
+            alongside,
+        }
+    }
+}
+
+/// The figures of [`fidelity`] from the sampled distances.
+pub(crate) fn figures<T>(
+    input: &Prepared,
+    output: &Prepared,
+    sampled: &Sampled<T>,
+    both_closed: bool,
+) -> Fidelity {
+    let (forward, backward) = (sampled.forward, sampled.backward);
     let mut pooled = forward;
     pooled.merge(&backward);
     let n = pooled.count.max(1) as f64;
+    let diagonal = input.bbox.diagonal();
     let pct = |d: f64| 100.0 * d / diagonal;
     let volume_change_pct = both_closed
         .then(|| volume_change(input.mesh, output.mesh))
         .flatten();
-    Ok(Fidelity {
+    Fidelity {
         hausdorff_pct: pct(forward.max.max(backward.max)),
         mean_dist_pct: pct(pooled.sum / n),
         rms_dist_pct: pct((pooled.sum_sq / n).sqrt()),
@@ -145,7 +225,7 @@ pub(crate) fn fidelity_of(
         n_samples: pooled.count,
         bbox_diagonal: diagonal,
         volume_change_pct,
-    })
+    }
 }
 
 /// Relative change of signed volume, in percent; `None` when the input's is zero.
@@ -181,12 +261,27 @@ impl Stats {
     }
 }
 
-/// Distances from `samples` face samples plus every used vertex of `from` to the surface
-/// in `to`, gathered face by face: a face's samples are the vertices it is the first face
-/// to use, then its share of `samples`.
-fn one_side(from: &Prepared, to: &Bvh, samples: u64, floor: f64) -> Stats {
+/// Distances from `samples_per_face × faces` face samples plus every used vertex of
+/// `from` to the surface in `to`, gathered face by face: a face's samples are the vertices
+/// it is the first face to use, then its share of the face samples. All the samples of a
+/// face are answered from the triangles of `to` gathered once for that face
+/// ([`Bvh::gather_near`]).
+fn one_side(from: &Prepared, to: &Bvh, samples_per_face: u32, floor: f64) -> Stats {
+    one_side_with(from, to, samples_per_face, floor, true)
+}
+
+/// [`one_side`], or with `batched` false one walk of the tree per sample: the reference
+/// that the batched queries must match bit for bit.
+fn one_side_with(
+    from: &Prepared,
+    to: &Bvh,
+    samples_per_face: u32,
+    floor: f64,
+    batched: bool,
+) -> Stats {
     let mesh = from.mesh;
     let n_faces = mesh.n_faces();
+    let samples = u64::from(samples_per_face) * n_faces as u64;
 
     // Each used vertex is sampled once, with the first face that uses it.
     let mut owner = vec![u32::MAX; mesh.n_vertices()];
@@ -211,29 +306,43 @@ fn one_side(from: &Prepared, to: &Bvh, samples: u64, floor: f64) -> Stats {
         } else if f == n_faces {
             samples
         } else {
-            ((samples as f64 * cumulative[f] / area).floor() as u64).min(samples)
+            // The cast truncates, i.e. floors the non-negative quotient.
+            ((samples as f64 * cumulative[f] / area) as u64).min(samples)
         }
     };
 
     let parts = map_chunks(n_faces, CHUNK, |range| {
         let mut stats = Stats::default();
-        let mut measure = |p: DVec3| {
+        let mut near = NearSet::new();
+        let mut measure = |p: DVec3, near: &NearSet| {
             // `to` holds every face of a checked, non-empty mesh: a nearest point exists.
-            let d = to.closest_point(p).map_or(0.0, |h| h.distance());
+            let d = to.closest_point_near(near, p).map_or(0.0, |h| h.distance());
             stats.add(if d <= floor { 0.0 } else { d });
         };
         for f in range {
             let face = mesh.faces[f];
             let corners = mesh.corners(f);
-            for k in 0..3 {
-                if owner[face[k] as usize] == f as u32 && !face[..k].contains(&face[k]) {
-                    measure(corners[k]);
-                }
-            }
+            let owned: [bool; 3] = std::array::from_fn(|k| {
+                owner[face[k] as usize] == f as u32 && !face[..k].contains(&face[k])
+            });
+            let n_face = before(f + 1) - before(f);
+            let n = n_face + owned.iter().filter(|&&o| o).count() as u64;
             let [a, b, c] = corners;
-            for j in 0..before(f + 1) - before(f) {
+            // The set gathered for an earlier face serves while it covers this one.
+            if batched && n >= 2 && !corners.iter().all(|&x| near.covers(x)) {
+                let centre = (a + b + c) / 3.0;
+                let radius = corners
+                    .iter()
+                    .map(|&x| (x - centre).length())
+                    .fold(0.0, f64::max);
+                to.gather_near(centre, NEAR_GROW * radius, NEAR_LIMIT, &mut near);
+            }
+            for (&corner, _) in corners.iter().zip(owned).filter(|(_, o)| *o) {
+                measure(corner, &near);
+            }
+            for j in 0..n_face {
                 let (u, v) = face_sample(j);
-                measure(a + (b - a) * u + (c - a) * v);
+                measure(a + (b - a) * u + (c - a) * v, &near);
             }
         }
         stats
@@ -249,9 +358,12 @@ fn one_side(from: &Prepared, to: &Bvh, samples: u64, floor: f64) -> Stats {
 /// Barycentric `(u, v)` of the `j`-th sample in a face (weights of corners b and c).
 #[inline]
 fn face_sample(j: u64) -> (f64, f64) {
+    // `x − trunc(x)` as `f64::fract` computes it, with the truncation done by a cast (the
+    // arguments are non-negative and far below 2⁶³), which needs no call into libm.
+    let fract = |x: f64| x - (x as u64) as f64;
     let j = j as f64;
-    let u = (1.0 / 3.0 + j / PLASTIC).fract();
-    let v = (1.0 / 3.0 + j / (PLASTIC * PLASTIC)).fract();
+    let u = fract(1.0 / 3.0 + j / PLASTIC);
+    let v = fract(1.0 / 3.0 + j / (PLASTIC * PLASTIC));
     if u + v > 1.0 {
         (1.0 - u, 1.0 - v)
     } else {
@@ -317,20 +429,86 @@ mod tests {
         let opts = FidelityOptions {
             samples_per_face: 7,
         };
-        let f = fidelity(&fine, &coarse, &opts).unwrap();
-        let t = 7 * fine.n_faces() as u64;
-        assert_eq!(
-            f.n_samples,
-            t + fine.n_vertices() as u64 + coarse.n_vertices() as u64
+        let vertices = (fine.n_vertices() + coarse.n_vertices()) as u64;
+        let expect = 7 * (fine.n_faces() + coarse.n_faces()) as u64 + vertices;
+        // Either way round: each mesh carries k samples per face of its own.
+        for (input, output) in [(&fine, &coarse), (&coarse, &fine)] {
+            let f = fidelity(input, output, &opts).unwrap();
+            assert_eq!(f.n_samples, expect);
+            assert!(f.n_samples >= 7 * fine.n_faces() as u64);
+        }
+    }
+
+    /// A bumpy sphere: `m`'s vertices pushed in and out by a smooth pattern.
+    fn bumpy(m: &Mesh, amplitude: f64) -> Mesh {
+        let positions = m
+            .positions
+            .iter()
+            .map(|p| *p * (1.0 + amplitude * (5.0 * p.x).sin() * (3.0 * p.y + p.z).cos()))
+            .collect();
+        Mesh::new(positions, m.faces.clone())
+    }
+
+    #[test]
+    fn batched_queries_give_exactly_the_distances_of_one_query_per_sample() {
+        // Fine against coarse (small balls, sets reused), coarse against fine (large
+        // balls, many over the limit) and a mesh against itself (distance 0 everywhere).
+        let (fine, coarse) = (bumpy(&icosphere(4), 0.05), scaled(&icosphere(2), 1.01));
+        for (from, to) in [(&fine, &coarse), (&coarse, &fine), (&fine, &fine)] {
+            let (from, to) = (
+                Prepared::new(from, Role::Input).unwrap(),
+                Prepared::new(to, Role::Output).unwrap(),
+            );
+            let bvh = Bvh::build(&to.mesh.positions, &to.mesh.faces);
+            let floor = rounding_floor(&from, &to).unwrap();
+            let batched = one_side_with(&from, &bvh, 10, floor, true);
+            let reference = one_side_with(&from, &bvh, 10, floor, false);
+            assert_eq!(batched.count, reference.count);
+            assert_eq!(batched.max.to_bits(), reference.max.to_bits());
+            assert_eq!(batched.sum.to_bits(), reference.sum.to_bits());
+            assert_eq!(batched.sum_sq.to_bits(), reference.sum_sq.to_bits());
+        }
+    }
+
+    #[test]
+    fn input_smaller_than_output_gives_the_same_figures_on_one_thread() {
+        let (small, large) = (icosphere(2), bumpy(&icosphere(4), 0.02));
+        let opts = FidelityOptions::default();
+        let f = fidelity(&small, &large, &opts).unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        assert_eq!(pool.install(|| fidelity(&small, &large, &opts).unwrap()), f);
+        assert!(f.backward_max_pct > 0.0 && f.forward_max_pct > 0.0);
+        // The same pair the other way round swaps the directions' maxima.
+        let g = fidelity(&large, &small, &opts).unwrap();
+        assert_eq!(g.n_samples, f.n_samples);
+        let diag = |m: &Mesh| m.bbox().diagonal();
+        let back_to_model = |pct: f64, m: &Mesh| pct * diag(m);
+        assert!(
+            (back_to_model(g.forward_max_pct, &large) - back_to_model(f.backward_max_pct, &small))
+                .abs()
+                < 1e-12
         );
-        assert!(f.n_samples >= 7 * fine.n_faces() as u64);
     }
 
     #[test]
     fn face_samples_start_at_the_centroid_and_stay_inside() {
         assert_eq!(face_sample(0), (1.0 / 3.0, 1.0 / 3.0));
-        for j in 0..1000 {
+        for j in (0..1000).chain([123_456_789, 1 << 40]) {
             let (u, v) = face_sample(j);
+            // The cast-based fraction is `f64::fract`, bit for bit.
+            let (x, y) = (
+                1.0 / 3.0 + j as f64 / PLASTIC,
+                1.0 / 3.0 + j as f64 / (PLASTIC * PLASTIC),
+            );
+            let fold = if x.fract() + y.fract() > 1.0 {
+                (1.0 - x.fract(), 1.0 - y.fract())
+            } else {
+                (x.fract(), y.fract())
+            };
+            assert_eq!((u, v), fold);
             assert!(u >= 0.0 && v >= 0.0 && u + v <= 1.0, "{j}: {u} {v}");
         }
     }

@@ -46,7 +46,6 @@ pub use quality::{Quality, quality};
 pub use validity::{Validity, validity};
 
 use coarsen_mesh::Mesh;
-use coarsen_spatial::Bvh;
 use prepare::Prepared;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write;
@@ -79,28 +78,27 @@ pub fn measure(
     output: &Mesh,
     opts: &MetricsOptions,
 ) -> Result<MetricsReport, MetricsError> {
-    let out = Prepared::new(output, Role::Output)?;
-    let input = input.map(|m| Prepared::new(m, Role::Input)).transpose()?;
+    let (out, input) = rayon::join(
+        || Prepared::new(output, Role::Output),
+        || input.map(|m| Prepared::new(m, Role::Input)).transpose(),
+    );
+    let (out, input) = (out?, input?);
     let out_topology = validity::topology(&out, Role::Output)?;
     let quality = quality::quality_of(&out);
     let (fidelity, n_flipped) = match &input {
         None => (None, None),
         Some(inp) => {
-            let ((in_bvh, out_bvh), in_topology) = rayon::join(
-                || {
-                    rayon::join(
-                        || Bvh::build(&inp.mesh.positions, &inp.mesh.faces),
-                        || Bvh::build(&out.mesh.positions, &out.mesh.faces),
-                    )
-                },
-                || validity::topology(inp, Role::Input),
-            );
-            let in_topology = in_topology?;
+            let floor = fidelity::rounding_floor(inp, &out)?;
+            // The input's topology (for its closedness and the flip test's edge normals)
+            // is built alongside the distances, once.
+            let sampled = fidelity::sample_both(inp, &out, &opts.fidelity, floor, || {
+                validity::topology(inp, Role::Input)
+            });
+            let in_topology = sampled.alongside.as_ref().map_err(Clone::clone)?;
             let both_closed =
-                validity::encloses_volume(&out_topology) && validity::encloses_volume(&in_topology);
-            let fid =
-                fidelity::fidelity_of(inp, &in_bvh, &out, &out_bvh, both_closed, &opts.fidelity)?;
-            let n_flipped = validity::count_flipped(&out, inp, &in_bvh, &in_topology);
+                validity::encloses_volume(&out_topology) && validity::encloses_volume(in_topology);
+            let fid = fidelity::figures(inp, &out, &sampled, both_closed);
+            let n_flipped = validity::count_flipped(&out, inp, &sampled.input_bvh, in_topology);
             (Some(fid), Some(n_flipped))
         }
     };
@@ -167,59 +165,16 @@ mod tests {
     use super::*;
     use crate::test_meshes::icosphere;
     use coarsen_mesh::DVec3;
-    use std::path::PathBuf;
-
-    /// The shared test meshes, `../shared/data` beside the workspace.
-    fn data_dir() -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
-    }
-
-    /// Just enough OBJ for the test meshes: `v x y z` and `f a b c` (1-based, with
-    /// optional `/vt/vn` parts and negative indices); polygons are fanned.
-    fn read_obj(text: &str) -> Mesh {
-        let mut positions = Vec::new();
-        let mut faces = Vec::new();
-        for line in text.lines() {
-            let mut words = line.split_whitespace();
-            match words.next() {
-                Some("v") => {
-                    let c: Vec<f64> = words.take(3).map(|w| w.parse().unwrap()).collect();
-                    positions.push(DVec3::new(c[0], c[1], c[2]));
-                }
-                Some("f") => {
-                    let idx: Vec<u32> = words
-                        .map(|w| {
-                            let i: i64 = w.split('/').next().unwrap().parse().unwrap();
-                            if i < 0 {
-                                (positions.len() as i64 + i) as u32
-                            } else {
-                                (i - 1) as u32
-                            }
-                        })
-                        .collect();
-                    for k in 1..idx.len() - 1 {
-                        faces.push([idx[0], idx[k], idx[k + 1]]);
-                    }
-                }
-                _ => {}
-            }
-        }
-        Mesh::new(positions, faces)
-    }
 
     /// The acceptance figures: an independent tool measured the raw Stanford bunny at
     /// α_min 0.48°, α_avg 36.8°, P<30 6.8 %, Q_avg 0.714; against itself it is 0 apart.
     #[test]
     fn stanford_bunny_against_itself_matches_the_independent_figures() {
-        let path = data_dir().join("stanford-bunny.obj");
-        let Ok(text) = std::fs::read_to_string(&path) else {
-            println!("skipped: ../shared/data not found ({})", path.display());
+        let Some(bunny) = coarsen_testdata::raw("stanford-bunny.obj") else {
             return;
         };
-        let bunny = read_obj(&text);
         assert_eq!((bunny.n_vertices(), bunny.n_faces()), (35_947, 69_451));
         let r = measure(Some(&bunny), &bunny, &MetricsOptions::default()).unwrap();
-        println!("{}", r.to_markdown());
         let (q, f, v) = (&r.quality, r.fidelity.as_ref().unwrap(), &r.validity);
         assert_eq!(f.hausdorff_pct, 0.0);
         assert_eq!(f.mean_dist_pct, 0.0);

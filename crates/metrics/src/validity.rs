@@ -103,10 +103,18 @@ pub(crate) fn count_flipped(
     in_topology: &Topology,
 ) -> usize {
     let (out_mesh, in_mesh) = (output.mesh, input.mesh);
-    let vertex_normals = in_mesh.vertex_normals();
     let face_cross = |f: u32| {
         let [a, b, c] = in_mesh.corners(f as usize);
         triangle::cross(a, b, c)
+    };
+    // The area-weighted vertex normal (unnormalised: only its direction is used), for
+    // the few vertices that are nearest points; no table over the whole input.
+    let vertex_normal = |v: u32| -> DVec3 {
+        in_topology
+            .vertex_faces(v)
+            .iter()
+            .map(|&f| face_cross(f))
+            .sum()
     };
     // The input's normal at the nearest point: of the face, the edge or the vertex it
     // lies on (a barycentric weight of exactly 0 puts it on the opposite edge).
@@ -122,9 +130,9 @@ pub(crate) fn count_flipped(
             })
         };
         let n = match bary.map(|w| w != 0.0) {
-            [true, false, false] => vertex_normals[p as usize],
-            [false, true, false] => vertex_normals[q as usize],
-            [false, false, true] => vertex_normals[r as usize],
+            [true, false, false] => vertex_normal(p),
+            [false, true, false] => vertex_normal(q),
+            [false, false, true] => vertex_normal(r),
             [true, true, false] => edge_normal(p, q),
             [false, true, true] => edge_normal(q, r),
             [true, false, true] => edge_normal(r, p),
@@ -220,6 +228,41 @@ mod tests {
         let n = DVec3::new(-3.0, 0.0, 1.0).normalize();
         let (u, v) = (DVec3::Y, n.cross(DVec3::Y));
         let centre = DVec3::new(0.0, 0.0, 1.0);
+        let s = 3f64.sqrt() / 2.0;
+        let corners = vec![
+            centre + u * 0.1,
+            centre + (u * -0.5 + v * s) * 0.1,
+            centre + (u * -0.5 - v * s) * 0.1,
+        ];
+        let mut output = Mesh::new(corners, vec![[0, 1, 2]]);
+        assert!(output.face_normal(0).dot(n) > 0.999);
+        assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
+        output.faces[0].swap(1, 2);
+        assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(1));
+    }
+
+    /// A steep four-sided peak (apex at height 10 over a 2 × 2 base) and an output face
+    /// above it, tilted towards −x: its centroid's nearest input point is the apex, where
+    /// the input normal is the area-weighted mean of the four slopes (straight up). Judged
+    /// against the +x slope alone it would look turned over; it is not. The same face
+    /// turned over is.
+    #[test]
+    fn faces_above_a_sharp_peak_are_judged_against_the_vertex_normal() {
+        let input = Mesh::new(
+            vec![
+                DVec3::new(0.0, 0.0, 10.0),
+                DVec3::new(1.0, -1.0, 0.0),
+                DVec3::new(1.0, 1.0, 0.0),
+                DVec3::new(-1.0, 1.0, 0.0),
+                DVec3::new(-1.0, -1.0, 0.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]],
+        );
+        assert!(input.face_normal(0).x > 0.99);
+        let n = DVec3::new(-3.0, 0.0, 1.0).normalize();
+        assert!(n.dot(input.face_normal(0)) < 0.0);
+        let (u, v) = (DVec3::Y, n.cross(DVec3::Y));
+        let centre = DVec3::new(0.0, 0.0, 11.0);
         let s = 3f64.sqrt() / 2.0;
         let corners = vec![
             centre + u * 0.1,

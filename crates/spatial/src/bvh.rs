@@ -5,17 +5,29 @@
 //! contiguous memory and the index owns everything it needs (no borrow of the mesh).
 //!
 //! Build: top-down binned surface-area heuristic (16 bins on each axis of the centroid
-//! box), leaves of at most [`MAX_LEAF`] triangles; a node whose centroids all coincide, or
-//! that lies deeper than [`MAX_SAH_DEPTH`], is split at the median of its range instead,
-//! which bounds the depth. The build is single-threaded and depends only on the input
-//! arrays, so the same mesh always gives the same tree.
+//! box), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
+//! triangles, one whose centroids all coincide, or one deeper than [`MAX_SAH_DEPTH`] is
+//! split at the median of its widest axis instead, which bounds the depth. Ranges of at
+//! least 2¹⁴ triangles are split and their halves built in parallel (`rayon::join`), each
+//! into an array of its own; the pieces are then stitched into the order a one-piece,
+//! depth-first build gives (a node's two children side by side, the left child's subtree
+//! before the right one's). The tree thus depends only on the input arrays: the same on
+//! any number of threads.
 //!
 //! Query: depth-first, nearer child first, skipping any box farther than the best
 //! distance so far (the box distance is a lower bound of every triangle inside).
+//!
+//! Batched queries: points that lie close together (the samples of one face of another
+//! mesh) share one walk of the tree. [`Bvh::gather_near`] collects, into a reusable
+//! [`NearSet`], every triangle that can be nearest to some point of a ball;
+//! [`Bvh::closest_point_near`] then answers each point of the ball from those triangles
+//! alone, nearest to the ball's centre first, stopping as soon as no further one can be
+//! nearer. The distances are those of [`Bvh::closest_point`].
 
 use crate::closest::closest_point_on_triangle;
 use coarsen_geom::Aabb;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Most triangles in one leaf.
 pub const MAX_LEAF: usize = 4;
@@ -24,10 +36,18 @@ pub const MAX_LEAF: usize = 4;
 /// median, so the tree is at most `MAX_SAH_DEPTH + 32` levels deep.
 pub const MAX_SAH_DEPTH: usize = 64;
 
+/// Ranges of at most this many triangles are split at the median along the widest axis:
+/// near the leaves the heuristic's 3 × 16 bins cost more to evaluate than they save
+/// (measured: a 4M-face build 15 % faster, queries no slower).
+pub const MEDIAN_MAX: usize = 16;
+
 /// Traversal stack size: enough for the deepest possible tree (see [`MAX_SAH_DEPTH`]).
 const STACK: usize = MAX_SAH_DEPTH + 40;
 
 const BINS: usize = 16;
+
+/// Ranges of at least this many triangles are split into halves built in parallel.
+const PARALLEL_MIN: usize = 1 << 14;
 
 /// One node of the flat tree: a box, and either a range of triangles (leaf) or the index
 /// of its first child (inner node; the second child follows it).
@@ -42,9 +62,17 @@ struct Node {
 }
 
 impl Node {
+    /// A placeholder, overwritten when its subtree is placed.
+    const BLANK: Node = Node {
+        min: DVec3::ZERO,
+        max: DVec3::ZERO,
+        first: 0,
+        count: 0,
+    };
+
     #[inline]
     fn distance_squared(&self, p: DVec3) -> f64 {
-        let d = (self.min - p).max(p - self.max).max(DVec3::ZERO);
+        let d = max3(max3(self.min - p, p - self.max), DVec3::ZERO);
         d.length_squared()
     }
 }
@@ -80,6 +108,68 @@ pub struct Bvh {
     face_ids: Vec<u32>,
 }
 
+/// Relative rounding allowance of [`Bvh::gather_near`] and [`Bvh::closest_point_near`]:
+/// far above the few units in the last place that the distances carry, far below any
+/// distance that matters.
+pub const NEAR_SLACK: f64 = 1e-9;
+
+/// The triangles that can be nearest to some point of a ball, nearest to its centre
+/// first: filled by [`Bvh::gather_near`], read by [`Bvh::closest_point_near`]. Keep one
+/// per thread and reuse it, so that batches of queries allocate nothing.
+#[derive(Clone, Debug, Default)]
+pub struct NearSet {
+    center: DVec3,
+    radius: f64,
+    /// Allowance for rounding in the distances compared.
+    slack: f64,
+    /// The gathered triangles, by distance from the centre, then position in the tree.
+    candidates: Vec<Candidate>,
+    /// False when the set is not to be used (never gathered, or too many triangles).
+    ready: bool,
+}
+
+/// One triangle of a [`NearSet`].
+#[derive(Clone, Copy, Debug)]
+struct Candidate {
+    /// Distance from the ball's centre (squared while gathering).
+    distance: f64,
+    /// Position in the tree's triangle order.
+    tri: u32,
+    /// The triangle's box, a cheap lower bound of its distance to each query.
+    min: DVec3,
+    max: DVec3,
+}
+
+impl NearSet {
+    /// An empty set: every query through it walks the tree.
+    pub fn new() -> NearSet {
+        NearSet::default()
+    }
+
+    /// Empties the set, keeping its memory: queries through it walk the tree.
+    pub fn clear(&mut self) {
+        self.candidates.clear();
+        self.ready = false;
+    }
+
+    /// True when queries of `p` through the set look at the gathered triangles alone: the
+    /// set is gathered and `p` lies in its ball.
+    #[inline]
+    pub fn covers(&self, p: DVec3) -> bool {
+        self.ready && (p - self.center).length() <= self.radius
+    }
+
+    /// Number of triangles gathered (0 when the last gathering gave up).
+    pub fn len(&self) -> usize {
+        self.candidates.len()
+    }
+
+    /// True when no triangle is gathered.
+    pub fn is_empty(&self) -> bool {
+        self.candidates.is_empty()
+    }
+}
+
 /// A triangle waiting to be placed: its box and face index.
 #[derive(Clone, Copy)]
 struct Item {
@@ -111,15 +201,149 @@ impl Bounds {
 
     #[inline]
     fn add(&mut self, it: &Item) {
-        self.boxes.min = self.boxes.min.min(it.min);
-        self.boxes.max = self.boxes.max.max(it.max);
-        self.centroids.grow((it.min + it.max) * 0.5);
+        self.boxes.min = min3(self.boxes.min, it.min);
+        self.boxes.max = max3(self.boxes.max, it.max);
+        let c = (it.min + it.max) * 0.5;
+        self.centroids.min = min3(self.centroids.min, c);
+        self.centroids.max = max3(self.centroids.max, c);
     }
 
     fn of(items: &[Item]) -> Bounds {
         let mut b = Bounds::EMPTY;
         items.iter().for_each(|it| b.add(it));
         b
+    }
+
+    fn merged(mut self, o: Bounds) -> Bounds {
+        self.boxes.union(&o.boxes);
+        self.centroids.union(&o.centroids);
+        self
+    }
+}
+
+/// The faces that can be measured (see [`Bvh::build`]), in face order, with their boxes.
+fn items_of(positions: &[DVec3], faces: &[[u32; 3]]) -> Vec<Item> {
+    // An indexed collect writes in place; a face left out is marked with `u32::MAX`
+    // (never a face index here: there are at most `u32::MAX` faces) and dropped after.
+    let mut items: Vec<Item> = faces
+        .par_iter()
+        .enumerate()
+        .map(|(f, idx)| match corners(positions, idx) {
+            Some(c) => Item {
+                min: min3(min3(c[0], c[1]), c[2]),
+                max: max3(max3(c[0], c[1]), c[2]),
+                face: f as u32,
+            },
+            None => Item {
+                min: DVec3::ZERO,
+                max: DVec3::ZERO,
+                face: u32::MAX,
+            },
+        })
+        .collect();
+    items.retain(|it| it.face != u32::MAX);
+    items
+}
+
+/// A subtree under construction.
+enum Subtree {
+    /// Built in one piece: its root first, then its descendants, inner nodes' child
+    /// indices relative to this array (leaves' triangle ranges are already final).
+    Flat(Vec<Node>),
+    /// Split in two halves built in parallel: the root (box set, children not yet placed)
+    /// and both halves.
+    Split(Node, Box<(Subtree, Subtree)>),
+}
+
+impl Subtree {
+    /// Number of nodes.
+    fn len(&self) -> usize {
+        match self {
+            Subtree::Flat(nodes) => nodes.len(),
+            Subtree::Split(_, halves) => 1 + halves.0.len() + halves.1.len(),
+        }
+    }
+
+    /// Writes the subtree into `out` with its root at `out[at]` (a placeholder already
+    /// there) and its descendants appended, exactly where [`grow`] would have put them
+    /// had it built the whole tree in one piece.
+    fn flatten_into(self, out: &mut Vec<Node>, at: usize) {
+        match self {
+            Subtree::Flat(nodes) => {
+                // nodes[i], i ≥ 1, lands at out.len() + i − 1.
+                let shift = (out.len() - 1) as u32;
+                let place = |mut n: Node| {
+                    if n.count == 0 {
+                        n.first += shift;
+                    }
+                    n
+                };
+                out[at] = place(nodes[0]);
+                out.extend(nodes[1..].iter().map(|&n| place(n)));
+            }
+            Subtree::Split(mut root, halves) => {
+                let left = out.len();
+                root.first = left as u32;
+                root.count = 0;
+                out[at] = root;
+                out.extend([Node::BLANK; 2]);
+                let (l, r) = *halves;
+                l.flatten_into(out, left);
+                r.flatten_into(out, left + 1);
+            }
+        }
+    }
+}
+
+/// Builds the subtree over `items` (which start at `start` in leaf order) whose bounds
+/// are `bounds`, its root at `depth`: halves of at least [`PARALLEL_MIN`] items are built
+/// in parallel, smaller ranges in one piece by [`grow`].
+fn subtree(items: &mut [Item], start: usize, bounds: &Bounds, depth: usize) -> Subtree {
+    if items.len() < PARALLEL_MIN {
+        let mut nodes = vec![Node::BLANK];
+        grow(&mut nodes, items, start, bounds, depth);
+        return Subtree::Flat(nodes);
+    }
+    let mut root = Node {
+        min: bounds.boxes.min,
+        max: bounds.boxes.max,
+        ..Node::BLANK
+    };
+    let Some((mid, [lb, rb])) = split(items, bounds, depth) else {
+        root.first = start as u32;
+        root.count = items.len() as u32;
+        return Subtree::Flat(vec![root]);
+    };
+    let (l, r) = items.split_at_mut(mid);
+    let halves = rayon::join(
+        || subtree(l, start, &lb, depth + 1),
+        || subtree(r, start + mid, &rb, depth + 1),
+    );
+    Subtree::Split(root, Box::new(halves))
+}
+
+/// Builds the subtree over `items` into `nodes`, whose only element is its root's
+/// placeholder: depth first, left before right, the two children of a node appended side
+/// by side when it is split. `start` is the position of `items[0]` in leaf order and
+/// `depth` the root's depth.
+fn grow(nodes: &mut Vec<Node>, items: &mut [Item], start: usize, bounds: &Bounds, depth: usize) {
+    // The ranges still to place: (node, range start, range end, depth, their bounds).
+    let mut work = vec![(0usize, 0usize, items.len(), depth, *bounds)];
+    while let Some((node, lo, hi, depth, bounds)) = work.pop() {
+        let range = &mut items[lo..hi];
+        nodes[node].min = bounds.boxes.min;
+        nodes[node].max = bounds.boxes.max;
+        let Some((mid, [lb, rb])) = split(range, &bounds, depth) else {
+            nodes[node].first = (start + lo) as u32;
+            nodes[node].count = range.len() as u32;
+            continue;
+        };
+        let left = nodes.len();
+        nodes[node].first = left as u32;
+        nodes[node].count = 0;
+        nodes.extend([Node::BLANK; 2]);
+        work.push((left + 1, lo + mid, hi, depth + 1, rb));
+        work.push((left, lo, lo + mid, depth + 1, lb));
     }
 }
 
@@ -129,57 +353,36 @@ impl Bvh {
     /// Faces that cannot be measured — an index out of range, or a corner with a
     /// non-finite coordinate — are left out (see [`Bvh::len`]); zero-area faces are kept
     /// and measured as their edges. Faces beyond index `u32::MAX` are left out too.
+    ///
+    /// Runs on the current rayon pool; the tree is the same on any number of threads
+    /// (see the module docs).
     pub fn build(positions: &[DVec3], faces: &[[u32; 3]]) -> Bvh {
-        let mut items: Vec<Item> = faces
-            .iter()
-            .enumerate()
-            .take(u32::MAX as usize)
-            .filter_map(|(f, idx)| {
-                let c = corners(positions, idx)?;
-                let min = c[0].min(c[1]).min(c[2]);
-                let max = c[0].max(c[1]).max(c[2]);
-                Some(Item {
-                    min,
-                    max,
-                    face: f as u32,
-                })
-            })
-            .collect();
+        let faces = &faces[..faces.len().min(u32::MAX as usize)];
+        let mut items = items_of(positions, faces);
         if items.is_empty() {
             return Bvh::default();
         }
-        let mut nodes = Vec::with_capacity(2 * items.len().div_ceil(2));
-        nodes.push(Node {
-            min: DVec3::ZERO,
-            max: DVec3::ZERO,
-            first: 0,
-            count: 0,
-        });
-        // The ranges still to place: (node, start, end, depth, their bounds).
-        let mut work = vec![(0usize, 0usize, items.len(), 0usize, Bounds::of(&items))];
-        while let Some((node, start, end, depth, bounds)) = work.pop() {
-            let range = &mut items[start..end];
-            nodes[node].min = bounds.boxes.min;
-            nodes[node].max = bounds.boxes.max;
-            let Some((mid, [lb, rb])) = split(range, &bounds, depth) else {
-                nodes[node].first = start as u32;
-                nodes[node].count = range.len() as u32;
-                continue;
-            };
-            let left = nodes.len();
-            nodes[node].first = left as u32;
-            nodes[node].count = 0;
-            let blank = nodes[node];
-            nodes.push(blank);
-            nodes.push(blank);
-            work.push((left + 1, start + mid, end, depth + 1, rb));
-            work.push((left, start, start + mid, depth + 1, lb));
-        }
-        let tris = items
-            .iter()
-            .map(|it| corners(positions, &faces[it.face as usize]).unwrap_or([DVec3::ZERO; 3]))
+        // Minima and maxima are exact, so the chunks may be merged in any order.
+        let bounds = items
+            .par_chunks(PARALLEL_MIN)
+            .map(Bounds::of)
+            .reduce(|| Bounds::EMPTY, Bounds::merged);
+        let tree = subtree(&mut items, 0, &bounds, 0);
+        let mut nodes = Vec::with_capacity(tree.len());
+        nodes.push(Node::BLANK);
+        tree.flatten_into(&mut nodes, 0);
+        Bvh::finish(positions, faces, items, nodes)
+    }
+
+    /// The tree with `nodes` over `items` in leaf order: gathers their corners.
+    fn finish(positions: &[DVec3], faces: &[[u32; 3]], items: Vec<Item>, nodes: Vec<Node>) -> Bvh {
+        // The items go before the corners are gathered: the two are the largest arrays.
+        let face_ids: Vec<u32> = items.par_iter().map(|it| it.face).collect();
+        drop(items);
+        let tris = face_ids
+            .par_iter()
+            .map(|&f| corners(positions, &faces[f as usize]).unwrap_or([DVec3::ZERO; 3]))
             .collect();
-        let face_ids = items.iter().map(|it| it.face).collect();
         Bvh {
             nodes,
             tris,
@@ -288,6 +491,171 @@ impl Bvh {
             bary,
         })
     }
+
+    /// Gathers into `set` every triangle that can be nearest to some point within `radius`
+    /// of `center`, so that [`Bvh::closest_point_near`] answers the queries of such points
+    /// from those triangles alone, without walking the tree. Returns false, leaving `set`
+    /// unused, when more than `limit` triangles are needed (or the tree is empty, or the
+    /// ball not finite); the queries then walk the tree as [`Bvh::closest_point`] does.
+    ///
+    /// Why the set suffices: with `c` the centre, `T_c` its nearest triangle and `d_c`
+    /// their distance, a triangle `T` nearest to a point `p` with `|p − c| ≤ r` has
+    /// `d(c, T) ≤ d(p, T) + r ≤ d(p, T_c) + r ≤ d_c + 2r`. The set holds every triangle
+    /// within that distance of `c`, widened by a rounding allowance of [`NEAR_SLACK`]
+    /// times `d_c + 2r` plus the centre's largest coordinate magnitude.
+    pub fn gather_near(&self, center: DVec3, radius: f64, limit: usize, set: &mut NearSet) -> bool {
+        set.clear();
+        let Some(root) = self.nodes.first() else {
+            return false;
+        };
+        if !(center.is_finite() && radius.is_finite() && radius >= 0.0) {
+            return false;
+        }
+        let magnitude = center.abs().max_element();
+        let reach = |d: f64| (d + 2.0 * radius) * (1.0 + NEAR_SLACK) + NEAR_SLACK * magnitude;
+        let mut best_d2 = f64::INFINITY;
+        let mut bound2 = f64::INFINITY;
+        let mut stack = [(0u32, 0.0f64); STACK];
+        stack[0] = (0, root.distance_squared(center));
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (ni, box_d2) = stack[top];
+            if box_d2 > bound2 {
+                continue;
+            }
+            let node = &self.nodes[ni as usize];
+            if node.count > 0 {
+                let first = node.first as usize;
+                for (i, [a, b, c]) in self.tris[first..first + node.count as usize]
+                    .iter()
+                    .enumerate()
+                {
+                    let (q, _) = closest_point_on_triangle(center, *a, *b, *c);
+                    let d2 = (center - q).length_squared();
+                    if d2 < best_d2 {
+                        best_d2 = d2;
+                        let r = reach(d2.sqrt());
+                        bound2 = r * r;
+                    }
+                    if d2 <= bound2 {
+                        set.candidates.push(Candidate {
+                            distance: d2,
+                            tri: (first + i) as u32,
+                            min: DVec3::ZERO,
+                            max: DVec3::ZERO,
+                        });
+                    }
+                }
+                // Keep the list short while the bound shrinks; give up when even the
+                // current bound holds too many.
+                if set.candidates.len() > 2 * limit {
+                    set.candidates.retain(|c| c.distance <= bound2);
+                    if set.candidates.len() > limit {
+                        set.candidates.clear();
+                        return false;
+                    }
+                }
+                continue;
+            }
+            let l = node.first;
+            let (dl, dr) = (
+                self.nodes[l as usize].distance_squared(center),
+                self.nodes[l as usize + 1].distance_squared(center),
+            );
+            let (near, dn, far, df) = if dr < dl {
+                (l + 1, dr, l, dl)
+            } else {
+                (l, dl, l + 1, dr)
+            };
+            if df <= bound2 {
+                stack[top] = (far, df);
+                top += 1;
+            }
+            if dn <= bound2 {
+                stack[top] = (near, dn);
+                top += 1;
+            }
+        }
+        set.candidates.retain(|c| c.distance <= bound2);
+        if set.candidates.is_empty() || set.candidates.len() > limit {
+            set.candidates.clear();
+            return false;
+        }
+        for c in &mut set.candidates {
+            c.distance = c.distance.sqrt();
+            let [a, b, t] = self.tris[c.tri as usize];
+            c.min = min3(min3(a, b), t);
+            c.max = max3(max3(a, b), t);
+        }
+        set.candidates
+            .sort_unstable_by(|a, b| a.distance.total_cmp(&b.distance).then(a.tri.cmp(&b.tri)));
+        set.center = center;
+        set.radius = radius;
+        set.slack = NEAR_SLACK * (reach(best_d2.sqrt()) + magnitude);
+        set.ready = true;
+        true
+    }
+
+    /// The nearest point of the indexed surface to `p`, from the triangles gathered in
+    /// `set` when `p` lies in its ball (see [`Bvh::gather_near`]), else by walking the
+    /// tree. The distance is the one [`Bvh::closest_point`] gives; among equally near
+    /// faces the one nearer the ball's centre (then the first in the tree) is named.
+    pub fn closest_point_near(&self, set: &NearSet, p: DVec3) -> Option<Nearest> {
+        let dp = (p - set.center).length();
+        // As `set.covers(p)`, written so that NaN falls back too.
+        if !(set.ready && dp <= set.radius) {
+            return self.closest_point(p);
+        }
+        let mut best: Option<(usize, DVec3, [f64; 3])> = None;
+        let (mut best_d2, mut best_d) = (f64::INFINITY, f64::INFINITY);
+        // Squared distance beyond which a triangle's box rules it out.
+        let mut cut2 = f64::INFINITY;
+        for cand in &set.candidates {
+            // d(p, T) ≥ d(c, T) − |p − c|: no later candidate can be nearer.
+            if cand.distance - dp > best_d + set.slack {
+                break;
+            }
+            // The box's distance is a lower bound of the triangle's.
+            let gap = max3(max3(cand.min - p, p - cand.max), DVec3::ZERO);
+            if gap.length_squared() > cut2 {
+                continue;
+            }
+            let i = cand.tri as usize;
+            let [a, b, c] = self.tris[i];
+            let (q, w) = closest_point_on_triangle(p, a, b, c);
+            let d2 = (p - q).length_squared();
+            if d2 < best_d2 {
+                (best_d2, best_d) = (d2, d2.sqrt());
+                cut2 = (best_d + set.slack) * (best_d + set.slack);
+                best = Some((i, q, w));
+            }
+        }
+        match best {
+            Some((i, point, bary)) => Some(Nearest {
+                face: self.face_ids[i],
+                point,
+                distance_squared: best_d2,
+                bary,
+            }),
+            None => self.closest_point(p),
+        }
+    }
+}
+
+/// Lane-wise minimum. Unlike `f64::min` it does not look for NaN, which no box here holds
+/// (corners and query points are finite), so it compiles to one instruction a lane.
+#[inline(always)]
+fn min3(a: DVec3, b: DVec3) -> DVec3 {
+    let lo = |x: f64, y: f64| if x < y { x } else { y };
+    DVec3::new(lo(a.x, b.x), lo(a.y, b.y), lo(a.z, b.z))
+}
+
+/// Lane-wise maximum, as [`min3`].
+#[inline(always)]
+fn max3(a: DVec3, b: DVec3) -> DVec3 {
+    let hi = |x: f64, y: f64| if x > y { x } else { y };
+    DVec3::new(hi(a.x, b.x), hi(a.y, b.y), hi(a.z, b.z))
 }
 
 /// The three corners of a face, if every index is in range and every coordinate finite.
@@ -307,7 +675,7 @@ fn corners(positions: &[DVec3], idx: &[u32; 3]) -> Option<[DVec3; 3]> {
 /// Half the surface area of a box (the constant factor does not matter to the heuristic).
 #[inline]
 fn half_area(min: DVec3, max: DVec3) -> f64 {
-    let e = (max - min).max(DVec3::ZERO);
+    let e = max3(max - min, DVec3::ZERO);
     e.x * e.y + e.y * e.z + e.z * e.x
 }
 
@@ -327,9 +695,10 @@ fn split(items: &mut [Item], bounds: &Bounds, depth: usize) -> Option<(usize, [B
     } else {
         2
     };
-    if extent[axis] <= 0.0 || depth >= MAX_SAH_DEPTH {
-        // Coincident centroids, or too deep: split at the median along the widest axis
-        // (or, when the centroids coincide, the range in its current order in two).
+    if extent[axis] <= 0.0 || depth >= MAX_SAH_DEPTH || n <= MEDIAN_MAX {
+        // Coincident centroids, too deep or few triangles: split at the median along the
+        // widest axis (or, when the centroids coincide, the range in its current order in
+        // two).
         let mid = n / 2;
         if extent[axis] > 0.0 {
             items.select_nth_unstable_by(mid, |a, b| {
@@ -402,15 +771,15 @@ impl Bin {
 
     #[inline]
     fn add(&mut self, it: &Item) {
-        self.min = self.min.min(it.min);
-        self.max = self.max.max(it.max);
+        self.min = min3(self.min, it.min);
+        self.max = max3(self.max, it.max);
         self.count += 1;
     }
 
     #[inline]
     fn merge(&mut self, o: &Bin) {
-        self.min = self.min.min(o.min);
-        self.max = self.max.max(o.max);
+        self.min = min3(self.min, o.min);
+        self.max = max3(self.max, o.max);
         self.count += o.count;
     }
 }
@@ -539,6 +908,120 @@ mod tests {
         assert_eq!(a, b);
         let p = DVec3::new(0.3, 0.7, 0.4);
         assert_eq!(a.closest_point(p), b.closest_point(p));
+    }
+
+    /// The tree built in one piece by [`grow`], as a single-threaded build without the
+    /// parallel split would give it.
+    fn one_piece(positions: &[DVec3], faces: &[[u32; 3]]) -> Bvh {
+        let mut items = items_of(positions, faces);
+        let bounds = Bounds::of(&items);
+        let mut nodes = vec![Node::BLANK];
+        grow(&mut nodes, &mut items, 0, &bounds, 0);
+        Bvh::finish(positions, faces, items, nodes)
+    }
+
+    #[test]
+    fn parallel_build_gives_the_one_piece_tree_on_any_thread_count() {
+        let mut rng = Rng(17);
+        // Over 4·PARALLEL_MIN faces, so that two levels are built in parallel pieces.
+        let (pos, faces) = random_mesh(&mut rng, 190, 300);
+        assert!(faces.len() > 4 * PARALLEL_MIN);
+        let pool = |n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        };
+        let single = pool(1).install(|| Bvh::build(&pos, &faces));
+        let double = pool(2).install(|| Bvh::build(&pos, &faces));
+        let reference = one_piece(&pos, &faces);
+        assert_eq!(single, reference);
+        assert_eq!(double, reference);
+        for _ in 0..200 {
+            let p = rng.vec(-1.0, 2.0);
+            assert_eq!(
+                double.closest_point(p).unwrap().distance_squared,
+                brute_force(&pos, &faces, p)
+            );
+        }
+    }
+
+    /// A point uniformly in the ball of radius `r` around `c` (rejection sampling).
+    fn in_ball(rng: &mut Rng, c: DVec3, r: f64) -> DVec3 {
+        loop {
+            let d = rng.vec(-1.0, 1.0);
+            if d.length_squared() <= 1.0 {
+                return c + d * r;
+            }
+        }
+    }
+
+    #[test]
+    fn near_set_answers_equal_the_tree_walk() {
+        let mut rng = Rng(21);
+        let (pos, faces) = random_mesh(&mut rng, 24, 40);
+        let bvh = Bvh::build(&pos, &faces);
+        let mut set = NearSet::new();
+        let mut gathered = 0;
+        for round in 0..400 {
+            // Balls around faces (the samples of a face of another mesh) and near the
+            // surface; the second kind often holds too many triangles for the limit.
+            let (centre, radius) = if round % 2 == 0 {
+                let [a, b, c] =
+                    faces[rng.next_u64() as usize % faces.len()].map(|i| pos[i as usize]);
+                let centre = (a + b + c) / 3.0 + rng.vec(-0.005, 0.005);
+                (centre, (a - centre).length().max((b - centre).length()))
+            } else {
+                let centre = DVec3::new(rng.unit(), rng.unit(), rng.range(-0.05, 0.1));
+                (centre, rng.range(0.0, 0.02))
+            };
+            if bvh.gather_near(centre, radius, 64, &mut set) {
+                gathered += 1;
+                assert!(!set.is_empty() && set.len() <= 64);
+            } else {
+                assert!(set.is_empty());
+            }
+            let corner = centre + DVec3::X * radius;
+            for p in (0..20)
+                .map(|_| in_ball(&mut rng, centre, radius))
+                .chain([centre, corner])
+            {
+                let want = bvh.closest_point(p).unwrap();
+                let got = bvh.closest_point_near(&set, p).unwrap();
+                assert_eq!(got.distance_squared, want.distance_squared, "at {p}");
+                let [a, b, c] = faces[got.face as usize].map(|i| pos[i as usize]);
+                let w = got.bary;
+                assert!((a * w[0] + b * w[1] + c * w[2] - got.point).length() < 1e-12);
+            }
+            // A point outside the ball walks the tree instead.
+            let far = centre + DVec3::Y * (2.0 * radius + 0.1);
+            assert!(!set.covers(far));
+            assert_eq!(bvh.closest_point_near(&set, far), bvh.closest_point(far));
+        }
+        assert!(gathered > 350, "{gathered} of 400 balls gathered");
+    }
+
+    #[test]
+    fn gathering_gives_up_beyond_its_limit_and_on_bad_balls() {
+        let mut rng = Rng(23);
+        let (pos, faces) = random_mesh(&mut rng, 16, 0);
+        let bvh = Bvh::build(&pos, &faces);
+        let mut set = NearSet::new();
+        let centre = DVec3::new(0.5, 0.5, 0.0);
+        assert!(bvh.gather_near(centre, 0.3, 10_000, &mut set));
+        let all = set.len();
+        assert!(all > 8);
+        assert!(!bvh.gather_near(centre, 0.3, all - 1, &mut set));
+        assert!(set.is_empty() && !set.covers(centre));
+        let p = centre + DVec3::new(0.1, -0.05, 0.2);
+        assert_eq!(bvh.closest_point_near(&set, p), bvh.closest_point(p));
+        assert!(!bvh.gather_near(DVec3::splat(f64::NAN), 0.1, 64, &mut set));
+        assert!(!bvh.gather_near(centre, f64::INFINITY, 64, &mut set));
+        assert!(!bvh.gather_near(centre, -1.0, 64, &mut set));
+        assert!(!Bvh::default().gather_near(centre, 0.1, 64, &mut set));
+        assert!(Bvh::default().closest_point_near(&set, p).is_none());
+        set.clear();
+        assert!(set.is_empty());
     }
 
     #[test]

@@ -3,8 +3,12 @@
 //! * [`closest_point_on_triangle`]: the exact nearest point of one triangle, robust for
 //!   degenerate ones.
 //! * [`Bvh`]: a compact bounding-volume hierarchy over a mesh's triangles; built once
-//!   (deterministically) from positions and faces, then queried from any number of threads
-//!   (`Bvh` is `Send + Sync` and queries take `&self`).
+//!   (in parallel on the current rayon pool, the same tree on any thread count) from
+//!   positions and faces, then queried from any number of threads (`Bvh` is
+//!   `Send + Sync` and queries take `&self`).
+//! * [`NearSet`]: batched queries of points that lie close together (the samples of one
+//!   face of another mesh): one gathering of the triangles that can be nearest
+//!   ([`Bvh::gather_near`]) answers them all ([`Bvh::closest_point_near`]).
 //!
 //! ```
 //! use coarsen_spatial::Bvh;
@@ -23,5 +27,5 @@
 pub mod bvh;
 pub mod closest;
 
-pub use bvh::{Bvh, Nearest};
+pub use bvh::{Bvh, NearSet, Nearest};
 pub use closest::{closest_point_on_segment, closest_point_on_triangle};
