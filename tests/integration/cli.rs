@@ -70,7 +70,11 @@ fn usage_errors_exit_2() {
     assert_eq!(run_cli(EXE, &["frobnicate"]).status.code(), Some(2));
     let o = run_cli(EXE, &["run", "no-such-pipeline", "-o", "x.ply"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("shipped: ") && stderr(&o).contains("demo, "), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("shipped: ") && stderr(&o).contains("demo, "),
+        "{}",
+        stderr(&o)
+    );
     let o = run_cli(
         EXE,
         &["check", "demo", "--set", "simplify.qem.min_quality=2"],

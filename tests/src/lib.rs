@@ -6,18 +6,7 @@ use std::process::{Command, Output};
 /// The folder of real test meshes (`../shared/data` beside the checkout, or `$COARSEN_DATA`),
 /// or `None` — after printing why — when it is absent, so the calling test can return early.
 pub fn shared_data() -> Option<PathBuf> {
-    let dir = std::env::var_os("COARSEN_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
-    if dir.join("stanford-bunny.obj").is_file() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: shared test meshes not found at {} (set COARSEN_DATA)",
-            dir.display()
-        );
-        None
-    }
+    coarsen_testdata::dir()
 }
 
 /// The path of a shipped pipeline file.

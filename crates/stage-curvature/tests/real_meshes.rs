@@ -7,21 +7,9 @@ use coarsen_stage_curvature::{
     BoundaryMode, Curvature, CurvatureParams, GAUSSIAN, GaussianMode, HYBRID, MEAN, Method,
     VertexClass, estimate,
 };
-use std::path::PathBuf;
 
 fn load(name: &str) -> Option<Mesh> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(name);
-    if !path.exists() {
-        eprintln!("skipped: {} is absent", path.display());
-        return None;
-    }
-    Some(
-        coarsen_io::read_path(&path, &Default::default())
-            .unwrap()
-            .mesh,
-    )
+    coarsen_testdata::raw(name)
 }
 
 /// Every combination of the options.

@@ -5,21 +5,9 @@ use coarsen_collapse::LiveMesh;
 use coarsen_mesh::Mesh;
 use coarsen_stage::{Context, Stage, StageReport, Target};
 use coarsen_stage_qem::{QemParams, SimplifyQem};
-use std::path::PathBuf;
 
 fn load(name: &str) -> Option<Mesh> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(name);
-    if !path.exists() {
-        eprintln!("skipped: {} is absent", path.display());
-        return None;
-    }
-    Some(
-        coarsen_io::read_path(&path, &Default::default())
-            .unwrap()
-            .mesh,
-    )
+    coarsen_testdata::raw(name)
 }
 
 fn simplify(mesh: &Mesh, target: Target) -> (Mesh, StageReport) {

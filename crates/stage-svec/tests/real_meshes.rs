@@ -3,24 +3,12 @@
 
 use coarsen_collapse::LiveMesh;
 use coarsen_mesh::Mesh;
-use coarsen_mesh::hygiene::clean;
 use coarsen_metrics::{MetricsOptions, measure};
 use coarsen_stage::{Context, Stage, StageReport, Target};
 use coarsen_stage_svec::{SimplifySvec, SvecParams};
-use std::path::PathBuf;
 
 fn load(name: &str) -> Option<Mesh> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(name);
-    if !path.exists() {
-        eprintln!("skipped: {} is absent", path.display());
-        return None;
-    }
-    let mesh = coarsen_io::read_path(&path, &Default::default())
-        .unwrap()
-        .mesh;
-    Some(clean(mesh, &Default::default()).unwrap().0)
+    coarsen_testdata::cleaned(name)
 }
 
 fn simplify(mesh: &Mesh, target: Target, params: SvecParams) -> (Mesh, StageReport) {
