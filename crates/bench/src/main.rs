@@ -303,7 +303,7 @@ fn render(rows: &[(Case, usize)], outcomes: &[Outcome]) -> String {
     let _ = writeln!(
         s,
         "Figures as defined in `../shared/spec/metrics.md`; fidelity against the cleaned input (unreferenced \
-         vertices dropped), 10 samples per face of the larger mesh plus every vertex. *valid*: manifold, the \
+         vertices dropped), 10 samples per face on each mesh plus every used vertex. *valid*: manifold, the \
          input's components, boundary loops and genus kept, no flipped or degenerate faces. Times: each stage's \
          wall time, and the total including loading the OBJ (release build). Rows marked *published* are copied \
          from the papers or from metrics.md, not measured here.\n"

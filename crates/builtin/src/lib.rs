@@ -13,8 +13,14 @@ use coarsen_stage::{Registry, RegistryError, StageDescriptor};
 /// The descriptors of every built-in stage.
 pub fn builtin_stages() -> Vec<StageDescriptor> {
     vec![
+        coarsen_stage_curvature::descriptor(),
+        coarsen_stage_cvt::descriptor(),
+        coarsen_stage_dual::descriptor(),
         coarsen_stage_metrics::descriptor(),
         coarsen_stage_qem::descriptor(),
+        coarsen_stage_refine::descriptor(),
+        coarsen_stage_subdivide::descriptor(),
+        coarsen_stage_svec::descriptor(),
     ]
 }
 
@@ -29,9 +35,19 @@ pub fn registry() -> Result<Registry, RegistryError> {
 
 /// The pipelines shipped with coarsen: `(name, TOML text)`, from `pipelines/*.toml`.
 pub const PIPELINES: &[(&str, &str)] = &[
+    (
+        "curvature",
+        include_str!("../../../pipelines/curvature.toml"),
+    ),
     ("demo", include_str!("../../../pipelines/demo.toml")),
     ("metrics", include_str!("../../../pipelines/metrics.toml")),
     ("qem", include_str!("../../../pipelines/qem.toml")),
+    ("refine", include_str!("../../../pipelines/refine.toml")),
+    ("svec", include_str!("../../../pipelines/svec.toml")),
+    (
+        "uniform-cvt",
+        include_str!("../../../pipelines/uniform-cvt.toml"),
+    ),
 ];
 
 /// The text of the shipped pipeline called `name`.

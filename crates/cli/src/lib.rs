@@ -109,7 +109,7 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
-        /// Distance samples per face of the larger mesh, both directions together.
+        /// Distance samples per face, on each mesh (plus every used vertex).
         #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
         samples_per_face: u32,
     },

@@ -23,7 +23,11 @@ pub fn normalizing_exponent(mesh: &Mesh) -> i32 {
         return 0;
     }
     let e = m.log2().floor() as i32;
-    if e.abs() <= COMFORT_EXP { 0 } else { (-e).clamp(-1000, 1000) }
+    if e.abs() <= COMFORT_EXP {
+        0
+    } else {
+        (-e).clamp(-1000, 1000)
+    }
 }
 
 /// Multiplies every position by `2^k` (exactly, in at most two steps of normal powers of two).
@@ -45,7 +49,12 @@ mod tests {
 
     fn tiny_and_huge(s: f64) -> Mesh {
         Mesh::new(
-            vec![DVec3::ZERO, DVec3::new(s, 0.0, 0.0), DVec3::new(0.0, 3.0 * s, 0.0), DVec3::new(0.1 * s, -s, 7.0 * s)],
+            vec![
+                DVec3::ZERO,
+                DVec3::new(s, 0.0, 0.0),
+                DVec3::new(0.0, 3.0 * s, 0.0),
+                DVec3::new(0.1 * s, -s, 7.0 * s),
+            ],
             vec![[0, 1, 2], [0, 3, 1]],
         )
     }
@@ -58,9 +67,16 @@ mod tests {
             let k = normalizing_exponent(&m);
             assert_ne!(k, 0);
             scale_by_power_of_two(&mut m, k);
-            let biggest = m.positions.iter().flat_map(|p| p.to_array()).fold(0.0f64, |a, x| a.max(x.abs()));
+            let biggest = m
+                .positions
+                .iter()
+                .flat_map(|p| p.to_array())
+                .fold(0.0f64, |a, x| a.max(x.abs()));
             assert!((1.0..2.0).contains(&biggest), "{s}: {biggest}");
-            assert!(m.face_area(0) > 1e-3 && m.face_area(0).is_finite(), "areas no longer underflow or overflow");
+            assert!(
+                m.face_area(0) > 1e-3 && m.face_area(0).is_finite(),
+                "areas no longer underflow or overflow"
+            );
             scale_by_power_of_two(&mut m, -k);
             assert_eq!(m, original, "{s}");
         }

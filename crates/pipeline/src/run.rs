@@ -14,6 +14,9 @@ const STAGE_OUTPUT: sanity::SanityOptions = sanity::SanityOptions {
     degenerate_area_rel: 0.0,
 };
 
+/// A hook called after every stage with its record and its output mesh.
+pub type AfterStage<'a> = dyn Fn(&StageRecord, &Mesh) + 'a;
+
 /// How to run a pipeline.
 #[derive(Clone, Copy)]
 pub struct RunOptions<'a> {
@@ -22,7 +25,7 @@ pub struct RunOptions<'a> {
     /// Run the exhaustive `sanity_check` after every stage (default: in debug builds).
     pub sanity: bool,
     /// Called after every stage with its record and its output mesh (snapshots, reports).
-    pub after_stage: Option<&'a dyn Fn(&StageRecord, &Mesh)>,
+    pub after_stage: Option<&'a AfterStage<'a>>,
 }
 
 impl Default for RunOptions<'_> {

@@ -6,7 +6,7 @@ const STOPS: [[f32; 3]; 6] = [
     [0.253, 0.265, 0.530],
     [0.164, 0.471, 0.558],
     [0.134, 0.659, 0.518],
-    [0.478, 0.821, 0.318],
+    [0.478, 0.821, 0.3185],
     [0.993, 0.906, 0.144],
 ];
 
@@ -31,7 +31,7 @@ pub fn scalar_color(x: f64, lo: f64, hi: f64) -> [f32; 3] {
 /// A distinct colour for label `l`: hues a golden-ratio turn apart, alternating lightness.
 pub fn label_color(l: u32) -> [f32; 3] {
     let h = (l as f64 * 0.618_033_988_749_895).fract();
-    let (s, v) = if l % 2 == 0 {
+    let (s, v) = if l.is_multiple_of(2) {
         (0.65, 0.95)
     } else {
         (0.55, 0.75)

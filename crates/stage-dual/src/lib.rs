@@ -203,7 +203,7 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
         let w = mesh.face_area(f) / 3.0 + f64::MIN_POSITIVE;
         mesh.faces[f].iter().for_each(|&v| entries.push((c, v, w)));
     }
-    entries.sort_unstable_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    entries.sort_unstable_by_key(|e| (e.0, e.1));
     let mut o = VertexOrigins::with_capacity(n);
     let mut i = 0;
     for c in 0..n as u32 {

@@ -8,8 +8,8 @@ use coarsen_stage::{Context, Contract, Mesh, ParamIssue, Params, Stage, StageErr
 params! {
     /// Parameters of `metrics`.
     pub struct MetricsParams {
-        /// Distance samples per face of the larger mesh, both directions together (vertices
-        /// are sampled on top); the spec's minimum is 10.
+        /// Distance samples per face, on each mesh (plus every used vertex); the spec's
+        /// minimum, 10 × the larger face count in all, is always met.
         pub samples_per_face: u32 = 10,
         /// Measure fidelity against the original input (Hausdorff, mean, RMS, flips); false
         /// reports only the mesh's own quality and validity.
