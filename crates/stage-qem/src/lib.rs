@@ -43,7 +43,7 @@ use coarsen_collapse::{Goal, LiveMesh, Options, Outcome, QemOptions, QuadricMode
 use coarsen_stage::params::check_range;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
-    params,
+    TargetCount, params,
 };
 
 params! {
@@ -105,16 +105,10 @@ impl Stage for SimplifyQem {
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let p = &self.0;
-        let target = cx.require_target(Self::KIND)?;
-        target
-            .check()
-            .map_err(|m| StageError::Input(format!("`{}`: {m}", Self::KIND)))?;
-        let goal = match target {
-            Target::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
-            // A ratio counts the faces of the run's input, wherever the stage stands.
-            Target::Faces(_) | Target::Ratio(_) => {
-                Goal::Faces(usize::try_from(target.faces_for(cx.original)).unwrap_or(usize::MAX))
-            }
+        let (target, count) = cx.target_count(Self::KIND)?;
+        let goal = match count {
+            TargetCount::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
+            TargetCount::Faces(n) => Goal::Faces(usize::try_from(n).unwrap_or(usize::MAX)),
         };
         let mut live = LiveMesh::new(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;

@@ -64,6 +64,15 @@ impl Target {
     }
 }
 
+/// A run target as a count: exact vertices, or faces (face targets and ratios).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetCount {
+    /// Exactly this many vertices.
+    Vertices(u64),
+    /// This many faces.
+    Faces(u64),
+}
+
 /// Where a long-running stage reports progress; the CLI draws it, tests ignore it.
 pub trait Progress: Send + Sync {
     /// A step of `total` units begins (0 when the total is unknown).
@@ -136,6 +145,20 @@ impl<'a> Context<'a> {
             report,
             progress: &NoProgress,
         }
+    }
+
+    /// The run target, checked, and as a count: vertex targets stay vertex counts; face
+    /// targets and ratios become face counts (a ratio counts the run input's faces,
+    /// wherever the stage stands). Errors name the stage.
+    pub fn target_count(&self, kind: &str) -> Result<(Target, TargetCount), crate::StageError> {
+        let t = self.require_target(kind)?;
+        t.check()
+            .map_err(|m| crate::StageError::Input(format!("`{kind}`: {m}")))?;
+        let count = match t {
+            Target::Vertices(n) => TargetCount::Vertices(n),
+            Target::Faces(_) | Target::Ratio(_) => TargetCount::Faces(t.faces_for(self.original)),
+        };
+        Ok((t, count))
     }
 
     /// The run target, or an error naming the stage that needs one.

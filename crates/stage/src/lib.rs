@@ -64,7 +64,7 @@ pub mod error;
 pub mod params;
 pub mod registry;
 
-pub use context::{Context, NoProgress, Progress, StageReport, Target};
+pub use context::{Context, NoProgress, Progress, StageReport, Target, TargetCount};
 pub use contract::{AttrRef, Contract, Needs};
 pub use error::StageError;
 pub use params::{FieldDoc, ParamIssue, Params};
