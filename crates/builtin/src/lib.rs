@@ -17,6 +17,7 @@ pub fn builtin_stages() -> Vec<StageDescriptor> {
         coarsen_stage_cvt::descriptor(),
         coarsen_stage_dual::descriptor(),
         coarsen_stage_metrics::descriptor(),
+        coarsen_stage_postprocess::descriptor(),
         coarsen_stage_qem::descriptor(),
         coarsen_stage_refine::descriptor(),
         coarsen_stage_subdivide::descriptor(),
@@ -35,6 +36,14 @@ pub fn registry() -> Result<Registry, RegistryError> {
 
 /// The pipelines shipped with coarsen: `(name, TOML text)`, from `pipelines/*.toml`.
 pub const PIPELINES: &[(&str, &str)] = &[
+    (
+        "adaptive-cvt",
+        include_str!("../../../pipelines/adaptive-cvt.toml"),
+    ),
+    (
+        "adaptive-cvt-r05",
+        include_str!("../../../pipelines/adaptive-cvt-r05.toml"),
+    ),
     (
         "curvature",
         include_str!("../../../pipelines/curvature.toml"),

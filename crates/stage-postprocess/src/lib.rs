@@ -1,0 +1,200 @@
+//! The `postprocess` stage (paper 1, "Post-process"): the coarse mesh M_c is uniformly
+//! subdivided 1-to-4 `times` times, clustered again into n = |V(M_c)| regions with the CVT
+//! clusterer, triangulated with the dual again, and — with `project` — every vertex is pulled
+//! onto the nearest point of the run's input surface, so the resampling does not drift from
+//! the original. It reuses the `subdivide`/refine split, `cluster.cvt` and `dual` crates; it
+//! copies none of them.
+
+use coarsen_mesh::{Topology, sanity};
+use coarsen_spatial::Bvh;
+use coarsen_stage::{
+    Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
+};
+use coarsen_stage_cvt::{CvtParams, EnergyKind};
+use coarsen_stage_dual::Placement;
+
+params! {
+    /// Parameters of `postprocess`.
+    pub struct PostprocessParams {
+        /// Uniform 1-to-4 subdivisions of the coarse mesh before re-clustering (paper 1: 3).
+        pub times: u32 = 3,
+        /// Energy of the re-clustering: "shu2009" or "valette2004".
+        pub energy: EnergyKind = EnergyKind::Shu2009,
+        /// Exponent r of "shu2009" (paper 1 uses the main clustering's r).
+        pub r: f64 = 2.0,
+        /// Seed of the re-clustering's initial regions.
+        pub seed: u64 = 1,
+        /// At most this many clustering passes.
+        pub max_passes: u32 = 200,
+        /// Where each cluster's vertex goes: "closest-vertex", "centroid", "projected" or "quadric".
+        pub placement: Placement = Placement::Projected,
+        /// Pull every output vertex onto the nearest point of the run's input surface.
+        pub project: bool = true,
+        /// Subdivide fewer times rather than pass this many faces.
+        pub max_faces: u64 = 8_000_000,
+    }
+}
+
+impl Params for PostprocessParams {
+    fn validate(&self) -> Vec<ParamIssue> {
+        let mut v = Vec::new();
+        coarsen_stage::params::check_range(&mut v, "times", self.times, 0, 6);
+        coarsen_stage::params::check_range(&mut v, "r", self.r, 0.0, 16.0);
+        coarsen_stage::params::check_range(&mut v, "max_passes", self.max_passes, 1, 100_000);
+        coarsen_stage::params::check_range(&mut v, "max_faces", self.max_faces, 1, 1 << 31);
+        v
+    }
+}
+
+/// The `postprocess` stage.
+pub struct Postprocess(PostprocessParams);
+
+impl Stage for Postprocess {
+    type Params = PostprocessParams;
+    const KIND: &'static str = "postprocess";
+    const SUMMARY: &'static str = "Paper 1's post-process: subdivide, re-cluster into as many regions as vertices, dual again, project onto the input.";
+
+    fn new(params: PostprocessParams) -> Self {
+        Postprocess(params)
+    }
+
+    fn contract(&self) -> Contract {
+        Contract {
+            clears: vec![Domain::Face],
+            needs: Needs {
+                manifold: true,
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+
+    fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let p = &self.0;
+        let n = mesh.n_vertices();
+        // 1. Subdivide, within the face guard.
+        let mut fine = mesh;
+        let mut done = 0;
+        for _ in 0..p.times {
+            if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
+                cx.report.warn(format!(
+                    "subdivided {done} of {} times: another would pass max_faces = {}",
+                    p.times, p.max_faces
+                ));
+                break;
+            }
+            let all = vec![true; fine.n_faces()];
+            fine = coarsen_stage_refine::split_once(&fine, &all)
+                .map_err(|e| StageError::Input(e.to_string()))?
+                .0;
+            done += 1;
+        }
+        // 2. Re-cluster into n regions.
+        let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
+        let cvt = CvtParams {
+            energy: p.energy,
+            r: p.r,
+            seed: p.seed,
+            max_passes: p.max_passes,
+            ..Default::default()
+        };
+        let progress = cx.progress;
+        progress.begin(Self::KIND, u64::from(p.max_passes));
+        let clustering =
+            coarsen_stage_cvt::cluster(&fine, &topo, n, &cvt, None, |pass, moves, energy| {
+                progress.advance(
+                    u64::from(pass),
+                    &format!("{moves} moves, energy {energy:.4e}"),
+                );
+            })
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        progress.end();
+        drop(topo);
+        // 3. Dual again.
+        let mut labels = clustering.labels;
+        let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, 40, 8)
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let mut out = dual.mesh;
+        // 4. Pull onto the input surface, keeping any move that would flip a face back out.
+        let mut projected = 0usize;
+        if p.project && cx.original.n_faces() > 0 {
+            let bvh = Bvh::build(&cx.original.positions, &cx.original.faces);
+            let before = out.clone();
+            for v in out.positions.iter_mut() {
+                if let Some(hit) = bvh.closest_point(*v) {
+                    *v = hit.point;
+                    projected += 1;
+                }
+            }
+            let flipped = (0..out.n_faces())
+                .filter(|&f| out.face_normal(f).dot(before.face_normal(f)) <= 0.0)
+                .count();
+            if flipped > 0 || sanity::sanity_check(&out).is_err() {
+                cx.report.warn(format!(
+                    "projection onto the input would flip or degenerate {flipped} faces: vertices left where the dual put them"
+                ));
+                out = before;
+                projected = 0;
+            }
+        }
+        cx.report.figure("subdivisions", done);
+        cx.report.figure("fine_faces", fine.n_faces());
+        cx.report.figure("passes", clustering.log.moves.len());
+        cx.report.figure("repairs", dual.stats.repairs);
+        cx.report.figure("projected_vertices", projected);
+        Ok(out)
+    }
+}
+
+coarsen_stage::export_stage!(Postprocess);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_stage::StageReport;
+
+    #[test]
+    fn postprocess_keeps_the_vertex_count_and_topology_and_improves_shapes() {
+        let original = coarsen_shapes::torus(2.0, 0.6, 60, 30).unwrap();
+        // A poor coarse mesh: long thin triangles (many segments around, few across).
+        let coarse = coarsen_shapes::torus(2.0, 0.6, 90, 6).unwrap();
+        let mut report = StageReport::default();
+        let p = PostprocessParams {
+            times: 2,
+            ..Default::default()
+        };
+        let out = Postprocess::new(p)
+            .run(coarse.clone(), &mut Context::new(&original, &mut report))
+            .unwrap();
+        assert_eq!(out.n_vertices(), coarse.n_vertices());
+        let t = Topology::build(&out).summary(&out);
+        assert!(t.manifold && t.consistently_oriented, "{t:?}");
+        assert_eq!(t.genus_total, Some(1));
+        let min_angle = |m: &Mesh| {
+            (0..m.n_faces())
+                .map(|f| {
+                    let [a, b, c] = m.corners(f);
+                    coarsen_geom_min_angle(a, b, c)
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        assert!(
+            min_angle(&out) > min_angle(&coarse),
+            "{} vs {}",
+            min_angle(&out),
+            min_angle(&coarse)
+        );
+        assert!(report.get("projected_vertices").is_some());
+    }
+
+    fn coarsen_geom_min_angle(
+        a: coarsen_mesh::DVec3,
+        b: coarsen_mesh::DVec3,
+        c: coarsen_mesh::DVec3,
+    ) -> f64 {
+        let ang = |u: coarsen_mesh::DVec3, v: coarsen_mesh::DVec3| u.angle_between(v);
+        ang(b - a, c - a)
+            .min(ang(c - b, a - b))
+            .min(ang(a - c, b - c))
+    }
+}
