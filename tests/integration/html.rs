@@ -36,26 +36,37 @@ fn headless(browser: &str, profile: &Path) -> Command {
     c
 }
 
+/// The report of paper 1's pipeline on the bunny (the demo pipeline on the demo mesh when
+/// the shared meshes are absent).
 #[test]
 fn html_report_is_self_contained_and_opens_in_a_headless_browser() {
     let dir = tempfile::tempdir().unwrap();
     let html = dir.path().join("report.html");
     let snaps = dir.path().join("snaps");
     let out = dir.path().join("out.ply");
-    let o = run_cli(
-        EXE,
-        &[
-            "run",
-            "demo",
-            "-o",
-            out.to_str().unwrap(),
-            "--html",
-            html.to_str().unwrap(),
-            "--snapshots",
-            snaps.to_str().unwrap(),
-            "-q",
-        ],
-    );
+    let bunny = coarsen_tests::shared_data().map(|d| d.join("stanford-bunny.obj"));
+    let mut args = vec!["run".to_string()];
+    match &bunny {
+        Some(b) => args.extend([
+            "adaptive-cvt".into(),
+            b.display().to_string(),
+            "--vertices".into(),
+            "3000".into(),
+        ]),
+        None => args.push("demo".into()),
+    }
+    for a in [
+        "-o",
+        out.to_str().unwrap(),
+        "--html",
+        html.to_str().unwrap(),
+        "--snapshots",
+        snaps.to_str().unwrap(),
+        "-q",
+    ] {
+        args.push(a.to_string());
+    }
+    let o = run_cli(EXE, &args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(o.status.success(), "{}", stderr(&o));
     let text = fs::read_to_string(&html).unwrap();
     // Everything inline: no stylesheet, script or image fetched from anywhere.
