@@ -54,8 +54,11 @@ impl Stage for MetricsStage {
             },
         };
         let original = self.0.fidelity.then_some(cx.original);
-        let report =
-            measure(original, &mesh, &opts).map_err(|e| StageError::Input(e.to_string()))?;
+        // One spinner: the sampling is a single parallel sweep.
+        cx.progress.begin("metrics: sampling distances", 0);
+        let report = measure(original, &mesh, &opts);
+        cx.progress.end();
+        let report = report.map_err(|e| StageError::Input(e.to_string()))?;
         cx.report.figure("quality", &report.quality);
         if let Some(f) = &report.fidelity {
             cx.report.figure("fidelity", f);

@@ -451,6 +451,15 @@ pub fn split_once(
 /// Refines `mesh` by red-green passes driven by the vertex scalar `params.field` until the
 /// stopping rule holds (see the crate docs). Returns the refined mesh and what was done.
 pub fn refine(mesh: Mesh, params: &RefineParams) -> Result<(Mesh, Outcome), RefineError> {
+    refine_with(mesh, params, &mut |_| {})
+}
+
+/// [`refine`], calling `on_pass` after every pass (for progress display).
+pub fn refine_with(
+    mesh: Mesh,
+    params: &RefineParams,
+    on_pass: &mut dyn FnMut(&PassRecord),
+) -> Result<(Mesh, Outcome), RefineError> {
     let p = params;
     let field = check_input(&mesh, &p.field)?;
     let threshold = min_split_area(&mesh);
@@ -516,6 +525,9 @@ pub fn refine(mesh: Mesh, params: &RefineParams) -> Result<(Mesh, Outcome), Refi
             vertices: next.n_vertices(),
             lambda: next_state.density.lambda(),
         });
+        if let Some(record) = passes.last() {
+            on_pass(record);
+        }
         mesh = next;
         state = next_state;
     };
@@ -569,7 +581,17 @@ impl Stage for RefineRedGreen {
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let (faces_in, vertices_in) = (mesh.n_faces(), mesh.n_vertices());
-        let (out, outcome) = refine(mesh, &self.0).map_err(|e| match e {
+        let progress = cx.progress;
+        progress.begin(Self::KIND, u64::from(self.0.max_passes));
+        let mut on_pass = |r: &PassRecord| {
+            progress.advance(
+                u64::from(r.pass),
+                &format!("λ {:.2}, {} faces", r.lambda.unwrap_or(f64::NAN), r.faces),
+            );
+        };
+        let result = refine_with(mesh, &self.0, &mut on_pass);
+        progress.end();
+        let (out, outcome) = result.map_err(|e| match e {
             RefineError::Internal(m) => StageError::Internal(format!("`{}`: {m}", Self::KIND)),
             e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
         })?;
