@@ -1,6 +1,6 @@
 //! The `coarsen` command: exit codes, outputs, reports, and never a partial output file.
 
-use coarsen_tests::{pipeline_file, run_cli, stderr, stdout};
+use coarsen_tests::{pipeline_file, run_cli, run_pipeline, stderr, stdout, write_mesh};
 use std::fs;
 
 const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
@@ -94,16 +94,7 @@ fn a_failed_run_exits_1_and_leaves_an_existing_output_untouched() {
     fs::write(&input, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
     let out = dir.path().join("out.ply");
     fs::write(&out, b"precious").unwrap();
-    let o = run_cli(
-        EXE,
-        &[
-            "run",
-            "demo",
-            input.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ],
-    );
+    let o = run_pipeline(EXE, "demo", &input, &out, &[]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
     assert!(e.contains("broken.obj:4"), "{e}");
@@ -116,23 +107,9 @@ fn a_failed_run_exits_1_and_leaves_an_existing_output_untouched() {
 fn the_input_is_never_overwritten() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("sphere.ply");
-    coarsen_io::write_path(
-        &coarsen_shapes::icosphere(1.0, 2).unwrap(),
-        &input,
-        &Default::default(),
-    )
-    .unwrap();
+    write_mesh(&coarsen_shapes::icosphere(1.0, 2).unwrap(), &input);
     let before = fs::read(&input).unwrap();
-    let o = run_cli(
-        EXE,
-        &[
-            "run",
-            "demo",
-            input.to_str().unwrap(),
-            "-o",
-            input.to_str().unwrap(),
-        ],
-    );
+    let o = run_pipeline(EXE, "demo", &input, &input, &[]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).contains("refusing to overwrite the input"),
@@ -146,12 +123,7 @@ fn the_input_is_never_overwritten() {
 fn command_line_target_and_set_reach_the_stages() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("sphere.off");
-    coarsen_io::write_path(
-        &coarsen_shapes::icosphere(1.0, 3).unwrap(),
-        &input,
-        &Default::default(),
-    )
-    .unwrap();
+    write_mesh(&coarsen_shapes::icosphere(1.0, 3).unwrap(), &input);
     let out = dir.path().join("small.obj");
     let report = dir.path().join("r.json");
     let qem = pipeline_file("qem");
@@ -209,7 +181,7 @@ fn convert_and_info_on_a_procedural_mesh() {
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("torus.stl");
     let torus = coarsen_shapes::torus(2.0, 0.5, 24, 12).unwrap();
-    coarsen_io::write_path(&torus, &a, &Default::default()).unwrap();
+    write_mesh(&torus, &a);
     let b = dir.path().join("torus.ply");
     // STL is a soup on disk; --clean welds it back into a closed torus.
     let o = run_cli(
@@ -235,18 +207,14 @@ fn batch_processes_a_folder_keeps_going_past_failures_resumes_and_shards() {
     let dir = tempfile::tempdir().unwrap();
     let inputs = dir.path().join("in");
     fs::create_dir_all(inputs.join("sub")).unwrap();
-    coarsen_io::write_path(
+    write_mesh(
         &coarsen_shapes::icosphere(1.0, 3).unwrap(),
         &inputs.join("a.obj"),
-        &Default::default(),
-    )
-    .unwrap();
-    coarsen_io::write_path(
+    );
+    write_mesh(
         &coarsen_shapes::torus(2.0, 0.5, 32, 16).unwrap(),
         &inputs.join("sub/b.ply"),
-        &Default::default(),
-    )
-    .unwrap();
+    );
     fs::write(inputs.join("broken.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n").unwrap();
     fs::write(inputs.join("notes.txt"), "not a mesh").unwrap();
     let out = dir.path().join("out");
@@ -327,18 +295,8 @@ fn render_writes_a_png_of_one_mesh_or_two_side_by_side() {
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("a.ply");
     let b = dir.path().join("b.ply");
-    coarsen_io::write_path(
-        &coarsen_shapes::icosphere(1.0, 3).unwrap(),
-        &a,
-        &Default::default(),
-    )
-    .unwrap();
-    coarsen_io::write_path(
-        &coarsen_shapes::icosphere(1.0, 1).unwrap(),
-        &b,
-        &Default::default(),
-    )
-    .unwrap();
+    write_mesh(&coarsen_shapes::icosphere(1.0, 3).unwrap(), &a);
+    write_mesh(&coarsen_shapes::icosphere(1.0, 1).unwrap(), &b);
     let png = dir.path().join("pair.png");
     let o = run_cli(
         EXE,

@@ -1,7 +1,7 @@
 //! Malformed input files: a clear error naming the file (and line or element), exit code 1,
 //! no panic and no output file.
 
-use coarsen_tests::{run_cli, stderr};
+use coarsen_tests::{run_cli, run_pipeline, stderr, write_mesh};
 
 const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
 
@@ -119,20 +119,9 @@ fn extreme_coordinates_coarsen_like_ordinary_ones_and_come_back_in_their_units()
         let input = dir.path().join("ico.obj");
         let mut ico = coarsen_shapes::icosphere(1.0, 0).unwrap();
         ico.positions.iter_mut().for_each(|p| *p *= scale);
-        coarsen_io::write_path(&ico, &input, &Default::default()).unwrap();
+        write_mesh(&ico, &input);
         let out = dir.path().join("out.obj");
-        let o = run_cli(
-            EXE,
-            &[
-                "run",
-                "qem",
-                input.to_str().unwrap(),
-                "-o",
-                out.to_str().unwrap(),
-                "--vertices",
-                "6",
-            ],
-        );
+        let o = run_pipeline(EXE, "qem", &input, &out, &["--vertices", "6"]);
         assert!(o.status.success(), "{scale}: {}", stderr(&o));
         let mesh = coarsen_io::read_path(&out, &Default::default())
             .unwrap()
@@ -162,18 +151,7 @@ fn a_mesh_with_only_degenerate_faces_is_a_clear_error() {
     )
     .unwrap();
     let out = dir.path().join("out.ply");
-    let o = run_cli(
-        EXE,
-        &[
-            "run",
-            "qem",
-            input.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--ratio",
-            "0.5",
-        ],
-    );
+    let o = run_pipeline(EXE, "qem", &input, &out, &["--ratio", "0.5"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).contains("flat.obj: no face left after clean-up"),

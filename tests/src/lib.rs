@@ -25,6 +25,25 @@ pub fn run_cli(exe: &str, args: &[&str]) -> Output {
         .expect("the CLI binary runs")
 }
 
+/// Runs `coarsen run PIPELINE INPUT -o OUTPUT EXTRA…` with the CLI binary `exe`.
+pub fn run_pipeline(
+    exe: &str,
+    pipeline: &str,
+    input: &Path,
+    output: &Path,
+    extra: &[&str],
+) -> Output {
+    let (input, output) = (input.display().to_string(), output.display().to_string());
+    let mut args = vec!["run", pipeline, input.as_str(), "-o", output.as_str()];
+    args.extend_from_slice(extra);
+    run_cli(exe, &args)
+}
+
+/// Writes `mesh` to `path` (format by extension), for a test's input files.
+pub fn write_mesh(mesh: &coarsen_mesh::Mesh, path: &Path) {
+    coarsen_io::write_path(mesh, path, &Default::default()).expect("the test mesh is written");
+}
+
 /// Standard error of a finished command, as text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

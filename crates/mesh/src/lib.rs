@@ -30,6 +30,9 @@ pub mod sanity;
 pub mod scale;
 pub mod topology;
 
+#[cfg(test)]
+mod fixtures;
+
 pub use attribute::{AttrKind, AttrValues, Attributes, Domain};
 pub use carry::{CarryReport, FaceOrigins, VertexOrigins};
 pub use coarsen_geom::{Aabb, DVec2, DVec3};
@@ -214,13 +217,7 @@ impl Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn tetrahedron() -> Mesh {
-        Mesh::new(
-            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
-            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
-        )
-    }
+    use crate::fixtures::tetrahedron;
 
     #[test]
     fn tetrahedron_volume_and_area() {

@@ -326,24 +326,8 @@ fn check_oriented(topo: &Topology) -> Result<(), SanityError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fixtures::{bowtie, tetrahedron};
     use crate::{AttrValues, DVec3};
-
-    /// A closed tetrahedron, outward oriented.
-    ///
-    /// ```text
-    ///        3
-    ///       /|\
-    ///      / | \
-    ///     0--|--1     base 0-2-1 seen from below
-    ///      \ | /
-    ///        2
-    /// ```
-    fn tetrahedron() -> Mesh {
-        Mesh::new(
-            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
-            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
-        )
-    }
 
     #[test]
     fn clean_tetrahedron_passes_every_check() {
@@ -491,21 +475,7 @@ mod tests {
 
     #[test]
     fn bowtie_vertex_fails_when_manifold_is_required() {
-        //  2       4
-        //  | \   / |
-        //  |   0   |      two triangles meeting at 0 only
-        //  | /   \ |
-        //  1       3
-        let m = Mesh::new(
-            vec![
-                DVec3::ZERO,
-                DVec3::new(-1.0, -1.0, 0.0),
-                DVec3::new(-1.0, 1.0, 0.0),
-                DVec3::new(1.0, -1.0, 0.0),
-                DVec3::new(1.0, 1.0, 0.0),
-            ],
-            vec![[0, 2, 1], [0, 3, 4]],
-        );
+        let m = bowtie();
         assert_eq!(sanity_check(&m), Ok(()));
         let opts = SanityOptions {
             require_manifold: true,

@@ -1367,6 +1367,7 @@ impl Topology {
 pub(crate) mod tests {
     use super::*;
     use crate::DVec3;
+    use crate::fixtures::{bowtie, tetrahedron};
     use std::collections::BTreeMap;
     use std::path::PathBuf;
 
@@ -1410,13 +1411,6 @@ pub(crate) mod tests {
             }
         }
         Mesh::new(positions, faces)
-    }
-
-    fn tetrahedron() -> Mesh {
-        Mesh::new(
-            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
-            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
-        )
     }
 
     /// An `n × m` grid of quads on a torus, each split into two triangles.
@@ -1611,21 +1605,7 @@ pub(crate) mod tests {
 
     #[test]
     fn bowtie_vertex_is_non_manifold_and_loops_stay_per_fan() {
-        //  2       4
-        //  | \   / |
-        //  |   0   |      two triangles touching at vertex 0 only
-        //  | /   \ |
-        //  1       3
-        let m = Mesh::new(
-            vec![
-                DVec3::ZERO,
-                DVec3::new(-1.0, -1.0, 0.0),
-                DVec3::new(-1.0, 1.0, 0.0),
-                DVec3::new(1.0, -1.0, 0.0),
-                DVec3::new(1.0, 1.0, 0.0),
-            ],
-            vec![[0, 2, 1], [0, 3, 4]],
-        );
+        let m = bowtie();
         let t = Topology::build(&m);
         check_consistency(&m, &t);
         assert_eq!(t.non_manifold_vertices(), vec![0]);

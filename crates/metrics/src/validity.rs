@@ -167,6 +167,18 @@ mod tests {
     use super::*;
     use crate::test_meshes::icosphere;
 
+    /// An equilateral triangle of side ≈ 0.17 centred at `centre`, counter-clockwise about `n`.
+    fn small_triangle_facing(centre: DVec3, n: DVec3) -> Mesh {
+        let (u, v) = (DVec3::Y, n.cross(DVec3::Y));
+        let s = 3f64.sqrt() / 2.0;
+        let corners = vec![
+            centre + u * 0.1,
+            centre + (u * -0.5 + v * s) * 0.1,
+            centre + (u * -0.5 - v * s) * 0.1,
+        ];
+        Mesh::new(corners, vec![[0, 1, 2]])
+    }
+
     #[test]
     fn closed_sphere_is_a_valid_genus_zero_manifold() {
         let m = icosphere(2);
@@ -226,15 +238,7 @@ mod tests {
             vec![[0, 2, 1], [0, 1, 3]],
         );
         let n = DVec3::new(-3.0, 0.0, 1.0).normalize();
-        let (u, v) = (DVec3::Y, n.cross(DVec3::Y));
-        let centre = DVec3::new(0.0, 0.0, 1.0);
-        let s = 3f64.sqrt() / 2.0;
-        let corners = vec![
-            centre + u * 0.1,
-            centre + (u * -0.5 + v * s) * 0.1,
-            centre + (u * -0.5 - v * s) * 0.1,
-        ];
-        let mut output = Mesh::new(corners, vec![[0, 1, 2]]);
+        let mut output = small_triangle_facing(DVec3::new(0.0, 0.0, 1.0), n);
         assert!(output.face_normal(0).dot(n) > 0.999);
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
         output.faces[0].swap(1, 2);
@@ -261,15 +265,7 @@ mod tests {
         assert!(input.face_normal(0).x > 0.99);
         let n = DVec3::new(-3.0, 0.0, 1.0).normalize();
         assert!(n.dot(input.face_normal(0)) < 0.0);
-        let (u, v) = (DVec3::Y, n.cross(DVec3::Y));
-        let centre = DVec3::new(0.0, 0.0, 11.0);
-        let s = 3f64.sqrt() / 2.0;
-        let corners = vec![
-            centre + u * 0.1,
-            centre + (u * -0.5 + v * s) * 0.1,
-            centre + (u * -0.5 - v * s) * 0.1,
-        ];
-        let mut output = Mesh::new(corners, vec![[0, 1, 2]]);
+        let mut output = small_triangle_facing(DVec3::new(0.0, 0.0, 11.0), n);
         assert!(output.face_normal(0).dot(n) > 0.999);
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
         output.faces[0].swap(1, 2);

@@ -348,6 +348,37 @@ fn grow(nodes: &mut Vec<Node>, items: &mut [Item], start: usize, bounds: &Bounds
 }
 
 impl Bvh {
+    /// Pushes the two children of an inner node (the first at `l`) that lie within `bound2`
+    /// of `p`, the farther first so that the nearer is visited next; returns the new top.
+    #[inline]
+    fn push_children(
+        &self,
+        l: u32,
+        p: DVec3,
+        bound2: f64,
+        stack: &mut [(u32, f64)],
+        mut top: usize,
+    ) -> usize {
+        let (dl, dr) = (
+            self.nodes[l as usize].distance_squared(p),
+            self.nodes[l as usize + 1].distance_squared(p),
+        );
+        let (near, dn, far, df) = if dr < dl {
+            (l + 1, dr, l, dl)
+        } else {
+            (l, dl, l + 1, dr)
+        };
+        if df <= bound2 {
+            stack[top] = (far, df);
+            top += 1;
+        }
+        if dn <= bound2 {
+            stack[top] = (near, dn);
+            top += 1;
+        }
+        top
+    }
+
     /// Builds the tree over `faces` (vertex indices into `positions`).
     ///
     /// Faces that cannot be measured — an index out of range, or a corner with a
@@ -464,25 +495,7 @@ impl Bvh {
                 }
                 continue;
             }
-            let l = node.first;
-            let (dl, dr) = (
-                self.nodes[l as usize].distance_squared(p),
-                self.nodes[l as usize + 1].distance_squared(p),
-            );
-            // Push the farther child first so the nearer one is visited next.
-            let (near, dn, far, df) = if dr < dl {
-                (l + 1, dr, l, dl)
-            } else {
-                (l, dl, l + 1, dr)
-            };
-            if df <= best_d2 {
-                stack[top] = (far, df);
-                top += 1;
-            }
-            if dn <= best_d2 {
-                stack[top] = (near, dn);
-                top += 1;
-            }
+            top = self.push_children(node.first, p, best_d2, &mut stack, top);
         }
         best.map(|(i, point, bary)| Nearest {
             face: self.face_ids[i],
@@ -558,24 +571,7 @@ impl Bvh {
                 }
                 continue;
             }
-            let l = node.first;
-            let (dl, dr) = (
-                self.nodes[l as usize].distance_squared(center),
-                self.nodes[l as usize + 1].distance_squared(center),
-            );
-            let (near, dn, far, df) = if dr < dl {
-                (l + 1, dr, l, dl)
-            } else {
-                (l, dl, l + 1, dr)
-            };
-            if df <= bound2 {
-                stack[top] = (far, df);
-                top += 1;
-            }
-            if dn <= bound2 {
-                stack[top] = (near, dn);
-                top += 1;
-            }
+            top = self.push_children(node.first, center, bound2, &mut stack, top);
         }
         set.candidates.retain(|c| c.distance <= bound2);
         if set.candidates.is_empty() || set.candidates.len() > limit {
