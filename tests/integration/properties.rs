@@ -75,25 +75,63 @@ fn bytes(m: &Mesh) -> Vec<u8> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+    #![proptest_config(config())]
 
     #[test]
     fn coarsening_keeps_validity_topology_and_the_exact_target(kind in 0u8..5, seed in any::<u64>(), frac in 0.08f64..0.6) {
-        let input = shape(kind, seed);
-        let topo_in = Topology::build(&input).summary(&input);
-        let target = ((input.n_vertices() as f64 * frac) as u64).max(40);
-        for name in COARSENERS {
-            let Some((out, report)) = run(name, &input, target) else { continue };
-            prop_assert!(sanity_check_with(&out, &SanityOptions::strict()).is_ok(), "{name}: {:?}", sanity_check_with(&out, &SanityOptions::strict()));
-            prop_assert!(out.positions.iter().all(|p| p.is_finite()), "{name}: NaN");
-            prop_assert_eq!(out.n_vertices() as u64, target, "{}: {}", name, report);
-            let t = Topology::build(&out).summary(&out);
-            prop_assert!(t.manifold, "{name}");
-            prop_assert_eq!(t.n_components, topo_in.n_components, "{}", name);
-            prop_assert_eq!(t.n_boundary_loops, topo_in.n_boundary_loops, "{}", name);
-            prop_assert_eq!(&t.genus, &topo_in.genus, "{}", name);
-        }
+        check_case(kind, seed, frac)?;
     }
+}
+
+/// Coarsens one random shape with every shipped coarsener and checks the invariants.
+fn check_case(kind: u8, seed: u64, frac: f64) -> Result<(), TestCaseError> {
+    let input = shape(kind, seed);
+    let topo_in = Topology::build(&input).summary(&input);
+    let target = ((input.n_vertices() as f64 * frac) as u64).max(40);
+    for name in COARSENERS {
+        let Some((out, report)) = run(name, &input, target) else {
+            continue;
+        };
+        prop_assert!(
+            sanity_check_with(&out, &SanityOptions::strict()).is_ok(),
+            "{name}: {:?}",
+            sanity_check_with(&out, &SanityOptions::strict())
+        );
+        prop_assert!(out.positions.iter().all(|p| p.is_finite()), "{name}: NaN");
+        prop_assert_eq!(out.n_vertices() as u64, target, "{}: {}", name, report);
+        let t = Topology::build(&out).summary(&out);
+        prop_assert!(t.manifold, "{name}");
+        prop_assert_eq!(t.n_components, topo_in.n_components, "{}", name);
+        prop_assert_eq!(t.n_boundary_loops, topo_in.n_boundary_loops, "{}", name);
+        // Components may come out in another order: compare genera as multisets.
+        prop_assert_eq!(sorted(&t.genus), sorted(&topo_in.genus), "{}", name);
+    }
+    Ok(())
+}
+
+fn sorted(genus: &[Option<i64>]) -> Vec<Option<i64>> {
+    let mut g = genus.to_vec();
+    g.sort();
+    g
+}
+
+/// Twelve cases from a fixed seed, so CI sees the same cases on every run; set
+/// `PROPTEST_RNG_SEED` (and `PROPTEST_CASES`) to explore others.
+fn config() -> ProptestConfig {
+    let mut c = ProptestConfig::default();
+    if matches!(c.rng_seed, proptest::test_runner::RngSeed::Random) {
+        c.rng_seed = proptest::test_runner::RngSeed::Fixed(0x00C0_A125_E000_0001);
+    }
+    if std::env::var_os("PROPTEST_CASES").is_none() {
+        c.cases = 12;
+    }
+    c
+}
+
+/// Found by CI: a sphere and a torus come out with their components in the other order.
+#[test]
+fn two_components_at_nine_percent_keep_their_genera() {
+    check_case(4, 15377377452388811766, 0.0902008168611812).unwrap();
 }
 
 #[test]
