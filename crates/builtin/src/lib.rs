@@ -54,6 +54,10 @@ pub const PIPELINES: &[(&str, &str)] = &[
     ("refine", include_str!("../../../pipelines/refine.toml")),
     ("svec", include_str!("../../../pipelines/svec.toml")),
     (
+        "svec-then-cvt",
+        include_str!("../../../pipelines/svec-then-cvt.toml"),
+    ),
+    (
         "uniform-cvt",
         include_str!("../../../pipelines/uniform-cvt.toml"),
     ),

@@ -1,7 +1,7 @@
 //! One function per subcommand.
 
 use crate::load::{self, Input};
-use crate::{BatchArgs, Failure, RunArgs, TargetArgs, batch, html, progress};
+use crate::{BatchArgs, Failure, LodArgs, RunArgs, TargetArgs, batch, html, progress};
 use anyhow::Context as _;
 use coarsen_io::{PlyEncoding, WriteOptions};
 use coarsen_mesh::Mesh;
@@ -79,6 +79,9 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     let overrides = overrides(&args.target, &args.sets)?;
     let pipeline = load_pipeline(&args.pipeline, &registry, &overrides)?;
     load::ensure_not_input(args.input.as_deref(), &args.output)?;
+    if let Some(record) = &args.progressive {
+        check_progressive(&pipeline, record, args.input.as_deref(), &args.output)?;
+    }
     let (input, name) = match &args.input {
         Some(path) => (load::load(path, args.weld)?, path.display().to_string()),
         None => (
@@ -103,20 +106,35 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         }
     };
     let original = args.html.is_some().then(|| input.mesh.clone());
+    let slot = std::sync::Mutex::new(None);
     let opts = RunOptions {
         sanity: args.sanity || RunOptions::default().sanity,
         progress: &bars,
         after_stage: recorder
             .as_ref()
             .map(|_| &observe as &dyn Fn(&StageRecord, &Mesh)),
+        progressive: args.progressive.as_ref().map(|_| &slot),
     };
     let (mesh, mut report) = pipeline
         .run(input.mesh, opts)
         .map_err(anyhow::Error::from)?;
     report.input = name;
     report.input_notes = input.notes;
+    let record = match &args.progressive {
+        Some(_) => Some(take_record(&pipeline, slot, &mesh)?),
+        None => None,
+    };
     let mesh = load::restore(mesh, input.scale_exponent);
+    let record = record.map(|mut r| {
+        // The record speaks the input's units and describes the mesh as written.
+        r.scale_by_power_of_two(-input.scale_exponent);
+        r.coarse = coarsen_collapse::fingerprint(&mesh);
+        r
+    });
     coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
+    if let (Some(path), Some(record)) = (&args.progressive, &record) {
+        coarsen_lod::write(path, record).context("writing the progressive record")?;
+    }
     if let Some(path) = &args.report {
         write_atomically(path, report.to_json().as_bytes())?;
     }
@@ -138,6 +156,111 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     if !quiet {
         print!("{}", report.summary());
         println!("wrote {}", args.output.display());
+        if let (Some(path), Some(record)) = (&args.progressive, &record) {
+            println!(
+                "wrote {} (levels 0 to {}: {} to {} vertices; `coarsen lod` rebuilds them)",
+                path.display(),
+                coarsen_lod::levels(record),
+                mesh.n_vertices(),
+                coarsen_lod::level_vertices(record, coarsen_lod::levels(record))
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Before any work: `--progressive` needs a stage that records its collapses, and a file
+/// of its own.
+fn check_progressive(
+    pipeline: &Pipeline,
+    record: &Path,
+    input: Option<&Path>,
+    output: &Path,
+) -> Result<(), Failure> {
+    if pipeline.recording_stage().is_none() {
+        let kinds: Vec<_> = pipeline.stages.iter().map(|s| s.kind).collect();
+        return Err(Failure::Usage(format!(
+            "--progressive needs a stage that records its collapses (simplify.qem, simplify.svec), \
+             but pipeline `{}` has none (stages: {})",
+            pipeline.name,
+            kinds.join(" → ")
+        )));
+    }
+    if record == output {
+        return Err(Failure::Usage(format!(
+            "--progressive and --output name the same file `{}`",
+            record.display()
+        )));
+    }
+    load::ensure_not_input(input, record)?;
+    Ok(())
+}
+
+/// The record the pipeline's last collapse stage handed back; an error when a later stage
+/// changed the mesh it describes.
+fn take_record(
+    pipeline: &Pipeline,
+    slot: std::sync::Mutex<Option<coarsen_stage::Handback>>,
+    out: &Mesh,
+) -> Result<coarsen_lod::Progressive, Failure> {
+    let (index, kind) = pipeline
+        .recording_stage()
+        .ok_or_else(|| anyhow::anyhow!("no stage records its collapses"))?;
+    let handed = slot.into_inner().unwrap_or_else(|e| e.into_inner());
+    let record = handed
+        .and_then(|b| b.downcast::<coarsen_lod::Progressive>().ok())
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "stage {} `{kind}` handed back no progressive record (a bug in coarsen)",
+                index + 1
+            )
+        })?;
+    if record.coarse != coarsen_collapse::fingerprint(out) {
+        let later: Vec<_> = pipeline.stages[index + 1..]
+            .iter()
+            .map(|s| format!("`{}`", s.kind))
+            .collect();
+        return Err(Failure::Runtime(anyhow::anyhow!(
+            "--progressive: the record of stage {} `{kind}` does not describe the run's output, \
+             because a later stage ({}) changed the mesh; end the pipeline with the collapse stage \
+             (nothing was written)",
+            index + 1,
+            later.join(", ")
+        )));
+    }
+    Ok(*record)
+}
+
+pub fn lod(args: LodArgs, quiet: bool) -> CmdResult {
+    load::ensure_not_input(Some(&args.coarse), &args.output)?;
+    load::ensure_not_input(Some(&args.record), &args.output)?;
+    let record_name = args.record.display().to_string();
+    let record = coarsen_lod::read(&args.record).with_context(|| record_name.clone())?;
+    let coarse = load::load_raw(&args.coarse)?.mesh;
+    let usage = |e: coarsen_lod::LodError| match e {
+        coarsen_lod::LodError::NoLevel { .. } | coarsen_lod::LodError::NoVertexCount { .. } => {
+            Failure::Usage(format!("{record_name}: {e}"))
+        }
+        e => Failure::Runtime(anyhow::Error::from(e).context(format!(
+            "rebuilding from {} and {record_name}",
+            args.coarse.display()
+        ))),
+    };
+    let level = match (args.level, args.vertices) {
+        (Some(k), _) => k,
+        (None, Some(n)) => coarsen_lod::level_with_vertices(&record, n).map_err(usage)?,
+        (None, None) => return Err(Failure::Usage("give --level or --vertices".into())),
+    };
+    let mesh = coarsen_lod::rebuild(&coarse, &record, level).map_err(usage)?;
+    coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
+    if !quiet {
+        println!(
+            "level {level} of {}: {} vertices, {} faces; wrote {}",
+            coarsen_lod::levels(&record),
+            mesh.n_vertices(),
+            mesh.n_faces(),
+            args.output.display()
+        );
     }
     Ok(())
 }

@@ -80,7 +80,14 @@
 //!   metrics' definition of a degenerate face), unless it already was degenerate;
 //! * **flip** — a kept face whose normal would turn by 90° or more, or by 60° or more from
 //!   its input face's normal (a bound on the drift over many collapses, which the per-collapse
-//!   test alone lets faces accumulate until they face away from the input);
+//!   test alone lets faces accumulate until they face away from the input), or would turn
+//!   to face away (over 90°) from the input surface merged into one of its corners (a face
+//!   of a noisy input that already did is left alone): each vertex
+//!   carries the summed area-weighted normal of the input faces around the input vertices
+//!   merged into it (O(1) per face), tested while that region is coherent (the sum at least
+//!   half the region's area). This keeps faces from cutting a sharp crease and leaning over
+//!   it. A face may still end nearest to *another* part of the input that faces the other
+//!   way (a thin part, two sheets close together); only a spatial query would see that;
 //! * **quality** (only with [`Options::min_quality`] > 0) — a kept face whose quality
 //!   (Frey–Borouchaki Q) would end below the minimum *and* below its current quality;
 //! * **boundary** and **locked** — counted when a candidate is ranked, per the table above.
@@ -92,12 +99,21 @@
 //! [`Goal::Faces`] is met to within one face: an interior edge collapse removes two faces,
 //! a boundary one removes one. When the goal cannot be reached, [`Outcome::stop`] says why.
 //!
+//! # Progressive record
+//!
+//! After [`LiveMesh::record_progressive`], each collapse also records what undoing it needs
+//! (the kept and removed vertices' positions before it, the faces it deleted with their
+//! corners, the faces it renamed), in flat arenas without per-collapse allocations;
+//! [`LiveMesh::take_progressive`] hands the [`Progressive`] record over. Off by default, it
+//! then costs one branch per collapse. `coarsen-lod` stores it and rebuilds levels from it.
+//!
 //! # Determinism
 //!
 //! No hash map, no threads, no randomness: the same input gives the same output bytes.
 
 mod faces;
 mod live;
+mod progressive;
 mod qem;
 mod queue;
 mod ring;
@@ -106,6 +122,7 @@ mod ring;
 mod fixtures;
 
 pub use live::{LiveMesh, MAX_FACES, Summary};
+pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel};
 
 use coarsen_geom::DVec3;
@@ -238,7 +255,8 @@ pub enum StopReason {
 pub struct Refusals {
     /// The result would not be a manifold, or would close a hole or lose a vertex.
     pub link: u64,
-    /// A kept face would turn by 90° or more.
+    /// A kept face would turn by 90° or more, drift 60° from its input face, or face away
+    /// from a corner's input region.
     pub flip: u64,
     /// A kept face would become degenerate.
     pub degenerate: u64,
@@ -304,8 +322,8 @@ impl Outcome {
     }
 }
 
-/// One collapse performed, in input vertex indices: enough to replay the sequence (and,
-/// later, to build a progressive mesh).
+/// One collapse performed, in input vertex indices: enough to replay the sequence (undoing
+/// it needs more: see [`Progressive`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CollapseRecord {
     /// The vertex that survived (it now sits at `position`).

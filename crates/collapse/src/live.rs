@@ -1,6 +1,7 @@
 //! The mesh being collapsed: flat arrays plus incremental vertex → faces lists.
 
 use crate::faces::FaceLists;
+use crate::progressive::{ChangedFace, DeletedFace, Progressive, Step, fingerprint};
 use crate::queue::{Entry, Queue};
 use crate::ring::{RingShape, ring_shape};
 use crate::{
@@ -22,6 +23,11 @@ const DEGENERATE_AREA: f64 = 1e-12;
 
 /// Cosine of the largest turn (60°) a face may make away from its input normal.
 const DRIFT_COS: f64 = 0.5;
+
+/// A vertex's merged input region counts for the flip test while the length of its summed
+/// area-weighted normal is at least this fraction of its area (the region's normals agree:
+/// it does not wrap around a thin part).
+const REGION_COHERENCE: f64 = 0.5;
 
 /// The most faces a [`LiveMesh`] takes: its vertex → faces arena (three corners per
 /// face, with room to grow) then fits `u32` offsets.
@@ -100,6 +106,15 @@ pub struct LiveMesh {
     /// Each input face's unit normal (zero when degenerate): no collapse may turn a face
     /// 60° or more away from it, so that faces cannot drift over many collapses.
     input_normal: Vec<DVec3>,
+    /// Per vertex, the sum of the input faces' cross products (area-weighted normals)
+    /// around every input vertex merged into it: no kept face may face away from the
+    /// input surface its corners stand for.
+    region_normal: Vec<DVec3>,
+    /// Per vertex, the sum of the lengths of the cross products summed in `region_normal`:
+    /// a region whose normals disagree (it wraps around a thin part) is not tested.
+    region_area: Vec<f64>,
+    /// The progressive record, when asked for ([`LiveMesh::record_progressive`]).
+    history: Option<Progressive>,
 }
 
 /// Work buffers of one run, reused by every collapse.
@@ -261,6 +276,21 @@ impl LiveMesh {
                 }
             })
             .collect();
+        let mut region_normal = vec![DVec3::ZERO; n];
+        let mut region_area = vec![0.0; n];
+        for (face, _) in mesh
+            .faces
+            .iter()
+            .zip(&face_state)
+            .filter(|(_, s)| **s == LIVE)
+        {
+            let [a, b, c] = face.map(|v| mesh.positions[v as usize]);
+            let cross = triangle::cross(a, b, c);
+            for &v in face {
+                region_normal[v as usize] += cross;
+                region_area[v as usize] += cross.length();
+            }
+        }
         Ok(LiveMesh {
             pos: mesh.positions.clone(),
             faces: mesh.faces.clone(),
@@ -276,7 +306,34 @@ impl LiveMesh {
             diagonal,
             min_cross,
             input_normal,
+            region_normal,
+            region_area,
+            history: None,
         })
+    }
+
+    /// Records from now on what undoing each collapse needs (see [`Progressive`]); off by
+    /// default. Calling it again keeps what was recorded.
+    pub fn record_progressive(&mut self) {
+        if self.history.is_none() {
+            self.history = Some(Progressive::new(
+                self.pos.len() as u32,
+                self.faces.len() as u32,
+            ));
+        }
+    }
+
+    /// The progressive record of every collapse since [`LiveMesh::record_progressive`]
+    /// (recording stops), with `coarse`'s [`fingerprint`]; `coarse` should be what
+    /// [`LiveMesh::to_mesh`] returned. `None` when nothing was recorded.
+    pub fn take_progressive(&mut self, coarse: &Mesh) -> Option<Progressive> {
+        let mut h = self.history.take()?;
+        h.isolated = (0..self.pos.len())
+            .filter(|&v| self.kind[v] == VertexKind::Isolated)
+            .map(|v| (v as Index, self.pos[v]))
+            .collect();
+        h.coarse = fingerprint(coarse);
+        Some(h)
     }
 
     /// Number of vertex indices (the input's vertex count, merged vertices included):
@@ -789,6 +846,8 @@ impl LiveMesh {
             (RingShape::Cycle, false) | (RingShape::Path, true) => {}
             _ => return Err(Refusal::Link),
         }
+        let merged_normal: DVec3 = verts.iter().map(|&v| self.region_normal[v as usize]).sum();
+        let merged_area: f64 = verts.iter().map(|&v| self.region_area[v as usize]).sum();
         for &(f, c) in &s.kept_faces {
             let old = self.faces[f as usize].map(|v| self.pos[v as usize]);
             let mut new = old;
@@ -806,6 +865,23 @@ impl LiveMesh {
                     || self.input_normal[f as usize].dot(n_new) <= DRIFT_COS * n_new.length()
                 {
                     return Err(Refusal::Flip);
+                }
+                // Nor may it turn to face away from the input surface merged into any
+                // corner (a face of a noisy input that already did is left alone).
+                let face = self.faces[f as usize];
+                for (k, &v) in face.iter().enumerate() {
+                    let own = self.region_normal[v as usize];
+                    let (region, area) = if k == c {
+                        (merged_normal, merged_area)
+                    } else {
+                        (own, self.region_area[v as usize])
+                    };
+                    if region.dot(n_new) < 0.0
+                        && own.dot(n_old) >= 0.0
+                        && region.length() >= REGION_COHERENCE * area
+                    {
+                        return Err(Refusal::Flip);
+                    }
                 }
             }
             if min_quality > 0.0 {
@@ -842,6 +918,23 @@ impl LiveMesh {
     /// are renamed; lists, counts, stamps and clusters follow.
     fn merge(&mut self, verts: &[Index], kept: Index, p: DVec3, s: &mut Scratch) {
         s.list.clear();
+        let mut step = Step {
+            kept,
+            removed: [NONE; 2],
+            deleted: 0,
+            changed: 0,
+        };
+        if let Some(h) = &mut self.history {
+            h.positions.push(self.pos[kept as usize]);
+            for (slot, &v) in step
+                .removed
+                .iter_mut()
+                .zip(verts.iter().filter(|&&v| v != kept))
+            {
+                *slot = v;
+                h.positions.push(self.pos[v as usize]);
+            }
+        }
         for &v in verts {
             s.around.clear();
             s.around.extend_from_slice(self.lists.get(v));
@@ -852,6 +945,13 @@ impl LiveMesh {
                 }
                 let face = self.faces[fi];
                 if face.iter().filter(|u| verts.contains(u)).count() >= 2 {
+                    if let Some(h) = &mut self.history {
+                        h.deleted.push(DeletedFace {
+                            face: f,
+                            corners: face,
+                        });
+                        step.deleted += 1;
+                    }
                     self.face_state[fi] = DEAD;
                     self.n_faces -= 1;
                     for &u in face.iter().filter(|u| !verts.contains(u)) {
@@ -859,9 +959,18 @@ impl LiveMesh {
                     }
                     continue;
                 }
+                if v != kept
+                    && let Some(h) = &mut self.history
+                {
+                    h.changed.push(ChangedFace { face: f, vertex: v });
+                    step.changed += 1;
+                }
                 self.faces[fi][corner_of(face, v)] = kept;
                 s.list.push(f);
             }
+        }
+        if let Some(h) = &mut self.history {
+            h.steps.push(step);
         }
         for &v in verts.iter().filter(|&&v| v != kept) {
             self.lists.clear(v);
@@ -878,6 +987,9 @@ impl LiveMesh {
                     .iter()
                     .all(|&v| self.kind[v as usize] == VertexKind::Interior)
         );
+        let region: DVec3 = verts.iter().map(|&v| self.region_normal[v as usize]).sum();
+        self.region_normal[kept as usize] = region;
+        self.region_area[kept as usize] = verts.iter().map(|&v| self.region_area[v as usize]).sum();
         self.lists.set(kept, &s.list);
         self.pos[kept as usize] = p;
         self.stamp[kept as usize] = self.stamp[kept as usize].wrapping_add(1);
@@ -1178,6 +1290,59 @@ mod tests {
                 assert!(dot > 0.0, "goal {goal}: face {f} turned over ({dot})");
             }
         }
+    }
+
+    #[test]
+    fn no_face_turns_against_the_input_near_it_on_sharp_creases() {
+        // Strips folded along a wavy crease through 100°–135°: faces at the crease can
+        // cut the corner, lean over and end facing away from the input surface beside
+        // them (the metrics' flip test), though each stays within 60° of its own input
+        // face. Without the region test, the 120° strip at 30 vertices has such a face.
+        // (Folds near 180° make two nearly parallel sheets, a thin part: there a face's
+        // centroid may lie nearest the other sheet, which no local test sees.)
+        let mut flipped = Vec::new();
+        for (i, degrees) in [100.0f64, 120.0, 135.0].into_iter().enumerate() {
+            let fold = degrees.to_radians();
+            let mut mesh = grid(40, 12, |_, _| 0.0);
+            for p in &mut mesh.positions {
+                let crease = 0.5 + 0.04 * (9.0 * p.y + i as f64).sin();
+                if p.x > crease {
+                    let d = p.x - crease;
+                    *p = DVec3::new(crease + d * fold.cos(), p.y, d * fold.sin());
+                }
+            }
+            for goal in [200, 80, 30] {
+                let (out, _) = qem(&mesh, Goal::Vertices(goal));
+                let v = coarsen_metrics::validity(Some(&mesh), &out).unwrap();
+                flipped.push((degrees, goal, v.n_flipped.unwrap_or(0)));
+            }
+        }
+        assert!(flipped.iter().all(|f| f.2 == 0), "{flipped:?}");
+    }
+
+    #[test]
+    fn faces_of_a_noisy_input_that_already_face_away_do_not_block_collapses() {
+        // A flat grid shaken by up to 0.8 cell in every direction: about a sixth of its
+        // faces fold over. They face away from their corners' regions from the start,
+        // which the region test must not hold against every collapse around them.
+        let mut state = 5u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut mesh = grid(50, 50, |_, _| 0.0);
+        for p in &mut mesh.positions {
+            *p += DVec3::new(next(), next(), next()) * (1.6 / 50.0);
+        }
+        let folded = (0..mesh.n_faces())
+            .filter(|&f| mesh.face_normal(f).z < 0.0)
+            .count();
+        assert!(folded * 10 > mesh.n_faces(), "{folded} folded faces");
+        let (out, outcome) = qem(&mesh, Goal::Vertices(300));
+        assert_eq!(outcome.stop, StopReason::Reached, "{:?}", outcome.refused);
+        assert_eq!(out.n_vertices(), 300);
     }
 
     #[test]
@@ -1615,6 +1780,38 @@ mod tests {
             r.sve
         );
         assert_eq!(outcome.sve, r.sve);
+    }
+
+    #[test]
+    fn recording_the_progressive_record_changes_nothing_and_matches_the_output() {
+        let mesh = torus(3.0, 1.0, 20, 10);
+        let (plain, plain_outcome) = qem(&mesh, Goal::Vertices(30));
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        live.record_progressive();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let outcome = live.collapse(&mut model, &Options::new(Goal::Vertices(30)), &mut |_| {});
+        let (out, _) = live.to_mesh(&mesh).unwrap();
+        assert_eq!((&out, &outcome), (&plain, &plain_outcome));
+        let p = live.take_progressive(&out).unwrap();
+        assert!(live.take_progressive(&out).is_none(), "taken once");
+        assert_eq!(p.steps.len(), outcome.collapses);
+        assert_eq!(p.coarse, crate::fingerprint(&out));
+        assert_eq!(
+            (p.coarse_vertices(), p.coarse_faces()),
+            (out.n_vertices(), out.n_faces())
+        );
+        for (s, r) in p.steps.iter().zip(&outcome.log) {
+            assert_eq!((s.kept, s.removed), (r.kept, r.removed));
+            // An interior edge collapse deletes the edge's two faces.
+            assert_eq!(s.deleted, 2);
+        }
+        // The first step's positions are the input's.
+        let s = p.steps[0];
+        assert_eq!(p.positions[0], mesh.positions[s.kept as usize]);
+        assert_eq!(p.positions[1], mesh.positions[s.removed[0] as usize]);
+        // Not asked for: nothing recorded.
+        let mut quiet = LiveMesh::new(&mesh).unwrap();
+        assert!(quiet.take_progressive(&out).is_none());
     }
 
     #[test]

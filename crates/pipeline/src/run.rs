@@ -2,7 +2,8 @@
 
 use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, Topology, sanity};
-use coarsen_stage::{Context, NoProgress, Progress, StageError, StageReport};
+use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport};
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// What every stage's output must satisfy: valid indices, finite values, no face repeating
@@ -26,6 +27,9 @@ pub struct RunOptions<'a> {
     pub sanity: bool,
     /// Called after every stage with its record and its output mesh (snapshots, reports).
     pub after_stage: Option<&'a AfterStage<'a>>,
+    /// Where the last stage that records its collapses leaves its progressive record
+    /// (see [`Pipeline::recording_stage`]); `None` records nothing. Default `None`.
+    pub progressive: Option<&'a Mutex<Option<Handback>>>,
 }
 
 impl Default for RunOptions<'_> {
@@ -34,6 +38,7 @@ impl Default for RunOptions<'_> {
             progress: &NoProgress,
             sanity: cfg!(debug_assertions),
             after_stage: None,
+            progressive: None,
         }
     }
 }
@@ -80,6 +85,17 @@ pub enum RunError {
 }
 
 impl Pipeline {
+    /// The last stage that records its collapses (its 0-based position and kind): the one
+    /// whose progressive record a run with [`RunOptions::progressive`] hands back.
+    pub fn recording_stage(&self) -> Option<(usize, &'static str)> {
+        self.stages
+            .iter()
+            .enumerate()
+            .rev()
+            .find(|(_, s)| s.stage.records_collapses())
+            .map(|(i, s)| (i, s.kind))
+    }
+
     /// Runs every stage in order on `input`.
     ///
     /// `input` is also kept as the original for stages that measure against it or
@@ -119,11 +135,15 @@ impl Pipeline {
             );
             let mut stage_report = StageReport::default();
             let t = Instant::now();
+            let mut slot = opts
+                .progressive
+                .map(|m| m.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
             let mut cx = Context {
                 original: &original,
                 target: self.target,
                 report: &mut stage_report,
                 progress: opts.progress,
+                progressive: slot.as_deref_mut(),
             };
             mesh = s
                 .stage
@@ -133,6 +153,7 @@ impl Pipeline {
                     kind: s.kind,
                     source,
                 })?;
+            drop(slot);
             let seconds = t.elapsed().as_secs_f64();
             tracing::info!(
                 stage = index,

@@ -61,6 +61,7 @@ impl Stage for DropHigh {
     type Params = DropParams;
     const KIND: &'static str = "test.drop-high";
     const SUMMARY: &'static str = "Drops faces above zero.";
+    const RECORDS_COLLAPSES: bool = true;
     fn new(p: DropParams) -> Self {
         DropHigh(p)
     }
@@ -81,8 +82,13 @@ impl Stage for DropHigh {
             .scalar(&self.0.field)
             .ok_or_else(|| StageError::Internal("attribute missing".into()))?
             .to_vec();
+        let before = mesh.n_faces();
         mesh.faces
             .retain(|f| f.iter().map(|&v| h[v as usize]).sum::<f64>() <= 0.0);
+        // Its "record": how many faces went.
+        if let Some(slot) = cx.progressive.as_mut() {
+            **slot = Some(Box::new(before - mesh.n_faces()));
+        }
         if mesh.faces.is_empty() {
             return Err(StageError::Input("every face was dropped".into()));
         }
@@ -311,4 +317,24 @@ fn a_failing_stage_names_itself() {
     let p = parse(GOOD, &Overrides::default()).unwrap();
     let e = p.run(m, RunOptions::default()).unwrap_err().to_string();
     assert_eq!(e, "stage 2 `test.drop-high` failed: every face was dropped");
+}
+
+#[test]
+fn the_last_recording_stage_hands_its_record_back_when_asked() {
+    let p = parse(GOOD, &Overrides::default()).unwrap();
+    assert_eq!(p.recording_stage(), Some((1, "test.drop-high")));
+    let slot = std::sync::Mutex::new(None);
+    let opts = RunOptions {
+        progressive: Some(&slot),
+        ..Default::default()
+    };
+    p.run(square(), opts).unwrap();
+    let record = slot.into_inner().unwrap().expect("handed back");
+    assert_eq!(record.downcast::<usize>().ok().map(|b| *b), Some(1));
+    let marks_only = parse(
+        "[pipeline]\nname = \"m\"\ndescription = \"m\"\n[[stage]]\nkind = \"test.mark\"\n",
+        &Overrides::default(),
+    )
+    .unwrap();
+    assert_eq!(marks_only.recording_stage(), None);
 }

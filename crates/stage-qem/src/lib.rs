@@ -89,6 +89,8 @@ impl Stage for SimplifyQem {
     const SUMMARY: &'static str =
         "Garland–Heckbert quadric edge collapse down to the run target (the QEM baseline).";
 
+    const RECORDS_COLLAPSES: bool = true;
+
     fn new(params: QemParams) -> Self {
         SimplifyQem(params)
     }
@@ -112,6 +114,9 @@ impl Stage for SimplifyQem {
         };
         let mut live = LiveMesh::new(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        if cx.progressive.is_some() {
+            live.record_progressive();
+        }
         let before = live.summary();
         let mut model = QuadricModel::new(
             &live,
@@ -139,6 +144,11 @@ impl Stage for SimplifyQem {
         let (out, carry) = live
             .to_mesh(&mesh)
             .map_err(|e| StageError::Internal(e.to_string()))?;
+        if let Some(slot) = cx.progressive.as_mut() {
+            **slot = live
+                .take_progressive(&out)
+                .map(|p| Box::new(p) as coarsen_stage::Handback);
+        }
         report(cx.report, &target, p, &outcome, &before, &after);
         for w in carry.warnings() {
             cx.report.warn(w);
@@ -210,6 +220,27 @@ mod tests {
         cx.target = target;
         let out = SimplifyQem::new(params).run(mesh.clone(), &mut cx);
         (out, report)
+    }
+
+    #[test]
+    fn hands_back_its_progressive_record_only_when_asked() {
+        let mesh = icosphere(1.0, 2).unwrap();
+        let mut report = StageReport::default();
+        let mut slot = None;
+        let mut cx = Context::new(&mesh, &mut report);
+        cx.target = Some(Target::Vertices(50));
+        cx.progressive = Some(&mut slot);
+        let out = SimplifyQem::new(QemParams::default())
+            .run(mesh.clone(), &mut cx)
+            .unwrap();
+        let record = slot
+            .expect("a record")
+            .downcast::<coarsen_collapse::Progressive>()
+            .expect("the engine's record");
+        assert_eq!(record.steps.len(), mesh.n_vertices() - 50);
+        assert_eq!(record.coarse, coarsen_collapse::fingerprint(&out));
+        let (plain, _) = run(&mesh, Some(Target::Vertices(50)), QemParams::default());
+        assert_eq!(plain.unwrap(), out, "recording changes nothing");
     }
 
     #[test]

@@ -66,6 +66,7 @@
 //! | `volume_constraint` | `false` | weight the quadrics by φ (see above) |
 //! | `max_error` | `0` (none) | stop before the first collapse costing more |
 //! | `min_quality` | `0` (off) | refuse collapses leaving a triangle below this quality and below its previous quality |
+//! | `target_scale` | `1` | stop at this multiple of the target's count, for a later stage to finish (`svec-then-cvt`) |
 //!
 //! The report gives `collapses` (`triangle_collapses` + `edge_collapses`),
 //! `feature_collapses`, `feature_threshold`, `refused` by reason, `sve` (metrics.md: the
@@ -115,6 +116,9 @@ params! {
         /// Refuse collapses that leave a triangle below this Frey–Borouchaki quality (and
         /// below its quality before); 0 turns the guard off.
         pub min_quality: f64 = 0.0,
+        /// Stop at this multiple of the run target's vertex or face count (e.g. 4 leaves
+        /// four times as many for a later stage to take to the target); 1 reaches it.
+        pub target_scale: f64 = 1.0,
     }
 }
 
@@ -131,6 +135,7 @@ impl Params for SvecParams {
         );
         check_range(&mut issues, "max_error", self.max_error, 0.0, f64::MAX);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
+        check_range(&mut issues, "target_scale", self.target_scale, 1.0, 1e6);
         issues
     }
 }
@@ -152,6 +157,8 @@ impl Stage for SimplifySvec {
     const KIND: &'static str = "simplify.svec";
     const SUMMARY: &'static str = "Triangle constriction by squared volume error with shape, normal and curvature factors (paper 2, SVEC) down to the run target.";
 
+    const RECORDS_COLLAPSES: bool = true;
+
     fn new(params: SvecParams) -> Self {
         SimplifySvec(params)
     }
@@ -169,12 +176,20 @@ impl Stage for SimplifySvec {
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let p = &self.0;
         let (target, count) = cx.target_count(Self::KIND)?;
+        let scaled = |n: u64| {
+            let n = (n as f64 * p.target_scale).round();
+            // A saturating conversion: huge products mean "no collapse at all".
+            n as usize
+        };
         let goal = match count {
-            TargetCount::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
-            TargetCount::Faces(n) => Goal::Faces(usize::try_from(n).unwrap_or(usize::MAX)),
+            TargetCount::Vertices(n) => Goal::Vertices(scaled(n)),
+            TargetCount::Faces(n) => Goal::Faces(scaled(n)),
         };
         let mut live = LiveMesh::new(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        if cx.progressive.is_some() {
+            live.record_progressive();
+        }
         let before = live.summary();
         let progress = cx.progress;
         let to_remove = match goal {
@@ -190,6 +205,11 @@ impl Stage for SimplifySvec {
         let (out, carry) = live
             .to_mesh(&mesh)
             .map_err(|e| StageError::Internal(e.to_string()))?;
+        if let Some(slot) = cx.progressive.as_mut() {
+            **slot = live
+                .take_progressive(&out)
+                .map(|p| Box::new(p) as coarsen_stage::Handback);
+        }
         report(cx.report, &target, p, &totals, &before, &after);
         for w in carry.warnings() {
             cx.report.warn(w);
@@ -291,12 +311,12 @@ fn report(
     r.figure("boundary_loops_in", before.boundary_loops);
     r.figure("boundary_loops", after.boundary_loops);
 
-    if let Some(w) = o.shortfall(
-        &target.to_string(),
-        p.max_error,
-        after.vertices,
-        after.faces,
-    ) {
+    let target = if p.target_scale == 1.0 {
+        target.to_string()
+    } else {
+        format!("{} × {target}", p.target_scale)
+    };
+    if let Some(w) = o.shortfall(&target, p.max_error, after.vertices, after.faces) {
         r.warn(w);
     }
     if t.edge_collapses > 2 {

@@ -89,6 +89,7 @@ fn needs_a_target_and_checks_its_parameters() {
         volume_constraint: false,
         max_error: -2.0,
         min_quality: 3.0,
+        target_scale: 0.5,
     };
     let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
     assert_eq!(
@@ -97,7 +98,8 @@ fn needs_a_target_and_checks_its_parameters() {
             "feature_sigma",
             "feature_threshold",
             "max_error",
-            "min_quality"
+            "min_quality",
+            "target_scale"
         ]
     );
     assert!(SvecParams::default().validate().is_empty());
@@ -334,4 +336,51 @@ fn unreachable_target_is_a_warning_not_an_error() {
         "{:?}",
         report.warnings
     );
+}
+
+#[test]
+fn hands_back_one_record_of_both_phases_only_when_asked() {
+    // A vertex target of odd distance: triangle collapses, then an edge collapse finish.
+    let mesh = torus(3.0, 1.0, 20, 10).unwrap();
+    let goal = Target::Vertices(51);
+    let mut report = StageReport::default();
+    let mut slot = None;
+    let mut cx = Context::new(&mesh, &mut report);
+    cx.target = Some(goal);
+    cx.progressive = Some(&mut slot);
+    let out = SimplifySvec::new(SvecParams::default())
+        .run(mesh.clone(), &mut cx)
+        .unwrap();
+    let record = slot
+        .expect("a record")
+        .downcast::<coarsen_collapse::Progressive>()
+        .expect("the engine's record");
+    let collapses = report.get("collapses").and_then(|v| v.as_u64()).unwrap();
+    assert!(
+        report
+            .get("edge_collapses")
+            .and_then(|v| v.as_u64())
+            .unwrap()
+            > 0
+    );
+    assert_eq!(record.steps.len() as u64, collapses);
+    assert!(record.steps.iter().any(|s| s.n_removed() == 2));
+    assert!(record.steps.iter().any(|s| s.n_removed() == 1));
+    assert_eq!(record.coarse, coarsen_collapse::fingerprint(&out));
+    assert_eq!(record.coarse_vertices(), 51);
+    let (plain, _) = run(&mesh, Some(goal), SvecParams::default());
+    assert_eq!(plain.unwrap(), out, "recording changes nothing");
+}
+
+#[test]
+fn target_scale_stops_at_a_multiple_of_the_target() {
+    let mesh = icosphere(1.0, 3).unwrap();
+    let params = SvecParams {
+        target_scale: 3.0,
+        ..SvecParams::default()
+    };
+    let (out, _) = run(&mesh, Some(Target::Vertices(50)), params.clone());
+    assert_eq!(out.unwrap().n_vertices(), 150);
+    let (out, _) = run(&mesh, Some(Target::Faces(100)), params);
+    assert!((299..=300).contains(&out.unwrap().n_faces()));
 }

@@ -124,6 +124,11 @@ impl StageReport {
     }
 }
 
+/// What a collapse stage hands back through [`Context::progressive`]: its progressive
+/// record, type-erased so that this API names no engine (the built-in simplifiers hand back
+/// a `coarsen_collapse::Progressive`).
+pub type Handback = Box<dyn std::any::Any + Send>;
+
 /// The run as a stage sees it.
 pub struct Context<'a> {
     /// The mesh the run started from (after load-time clean-up); always available.
@@ -134,6 +139,10 @@ pub struct Context<'a> {
     pub report: &'a mut StageReport,
     /// Progress sink for long loops.
     pub progress: &'a dyn Progress,
+    /// When the run asks for a progressive record (`coarsen run --progressive`), where a
+    /// stage that records its collapses ([`crate::Stage::RECORDS_COLLAPSES`]) puts it,
+    /// replacing an earlier stage's; `None` otherwise (then nothing is recorded).
+    pub progressive: Option<&'a mut Option<Handback>>,
 }
 
 impl<'a> Context<'a> {
@@ -144,6 +153,7 @@ impl<'a> Context<'a> {
             target: None,
             report,
             progress: &NoProgress,
+            progressive: None,
         }
     }
 

@@ -64,7 +64,7 @@ pub mod error;
 pub mod params;
 pub mod registry;
 
-pub use context::{Context, NoProgress, Progress, StageReport, Target, TargetCount};
+pub use context::{Context, Handback, NoProgress, Progress, StageReport, Target, TargetCount};
 pub use contract::{AttrRef, Contract, Needs};
 pub use error::StageError;
 pub use params::{FieldDoc, ParamIssue, Params};
@@ -87,6 +87,9 @@ pub trait Stage: Send + Sync + Sized + 'static {
     const KIND: &'static str;
     /// One line saying what the stage does.
     const SUMMARY: &'static str;
+    /// True for a stage that collapses and hands its progressive record back through
+    /// [`Context::progressive`] when asked.
+    const RECORDS_COLLAPSES: bool = false;
     /// Builds the stage from parameters that passed [`Params::validate`].
     fn new(params: Self::Params) -> Self;
     /// What the stage reads, writes and needs; checked before any mesh is loaded.

@@ -15,6 +15,10 @@ pub trait DynStage: Send + Sync {
     fn params(&self) -> toml::Table;
     /// Runs the stage.
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError>;
+    /// True when the stage hands back a progressive record ([`Stage::RECORDS_COLLAPSES`]).
+    fn records_collapses(&self) -> bool {
+        false
+    }
 }
 
 struct Built<S: Stage> {
@@ -34,6 +38,9 @@ impl<S: Stage> DynStage for Built<S> {
     }
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         self.stage.run(mesh, cx)
+    }
+    fn records_collapses(&self) -> bool {
+        S::RECORDS_COLLAPSES
     }
 }
 
