@@ -8,6 +8,7 @@ fuzz_target!(|data: &[u8]| {
     let opts = ReadOptions {
         max_faces: Some(1 << 20),
         max_vertices: Some(1 << 20),
+        max_file_bytes: None,
     };
     if let Ok(loaded) = read_bytes(data, Format::Off, "fuzz.off", &opts) {
         // What a reader returns is a valid mesh.

@@ -2,7 +2,9 @@
 
 mod cli;
 mod data;
+mod hostile;
 mod html;
+mod lod;
 mod malformed;
 mod pipelines;
 mod plugin;

@@ -25,6 +25,10 @@ struct Cli {
     /// Log what happens on standard error: -v info, -vv debug, -vvv trace.
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     verbose: u8,
+    /// Refuse input files with more triangles than this (also more than 3·N vertices, or
+    /// more than 256·N bytes), before their content is read.
+    #[arg(long, global = true, value_name = "N", default_value_t = load::DEFAULT_MAX_FACES)]
+    max_faces: u64,
 }
 
 #[derive(Subcommand, Debug)]
@@ -100,6 +104,9 @@ enum Command {
         #[arg(long, default_value = "800x800", value_parser = parse_size)]
         size: (u32, u32),
     },
+    /// Rebuild a level of detail from a coarse mesh and its progressive record (`run
+    /// --progressive`) by undoing collapses: level 0 is the coarse mesh, the last level the input.
+    Lod(LodArgs),
     /// Compare a mesh with the input it came from: shape quality, fidelity, validity.
     Metrics {
         /// The original mesh.
@@ -176,6 +183,30 @@ struct RunArgs {
     /// Camera of the pictures: front, side, top or iso.
     #[arg(long, default_value = "front")]
     view: coarsen_render::View,
+    /// Write the progressive record of the pipeline's last collapse stage to this file
+    /// (for `coarsen lod`); the output must be that stage's mesh.
+    #[arg(long, value_name = "FILE")]
+    progressive: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+struct LodArgs {
+    /// The coarse mesh `coarsen run --progressive` wrote (PLY, OBJ or OFF).
+    coarse: PathBuf,
+    /// The progressive record written with it.
+    record: PathBuf,
+    /// The level: how many collapses to undo (0 = the coarse mesh).
+    #[arg(long, group = "which", required = true)]
+    level: Option<usize>,
+    /// The level with this many vertices.
+    #[arg(long, group = "which", required = true)]
+    vertices: Option<usize>,
+    /// Where to write the level (.ply, .obj, .off, .stl).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Write ASCII PLY instead of binary.
+    #[arg(long)]
+    ascii: bool,
 }
 
 #[derive(Args, Debug)]
@@ -247,6 +278,7 @@ pub fn main() -> ExitCode {
         }
     };
     let quiet = cli.quiet;
+    load::set_max_faces(cli.max_faces);
     progress::init_logs(cli.verbose);
     let result = match cli.command {
         Command::Run(args) => commands::run(args, quiet),
@@ -288,6 +320,7 @@ pub fn main() -> ExitCode {
             };
             commands::render(&meshes, &output, &opts)
         }
+        Command::Lod(args) => commands::lod(args, quiet),
         Command::Metrics {
             input,
             output,

@@ -1,9 +1,54 @@
 //! Loading meshes for the commands: read the file, then the reported load-time clean-up.
 
 use anyhow::{Context as _, Result};
-use coarsen_io::{Format, ReadOptions};
+use coarsen_io::{ErrorKind, Format, IoError, ReadOptions};
 use coarsen_mesh::{Mesh, hygiene, scale};
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The default of `--max-faces`: input files with more triangles are refused.
+pub const DEFAULT_MAX_FACES: u64 = 50_000_000;
+
+/// File bytes allowed per face of `--max-faces` (a text OBJ with texture coordinates and
+/// normals needs about 100); files longer than that are refused before they are read.
+pub const BYTES_PER_FACE: u64 = 256;
+
+/// Files up to this length are never refused for their size alone.
+const MIN_FILE_LIMIT: u64 = 1 << 20;
+
+/// The `--max-faces` in force (set once from the command line).
+static MAX_FACES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_FACES);
+
+/// Sets the `--max-faces` limit of every later load.
+pub fn set_max_faces(n: u64) {
+    MAX_FACES.store(n, Ordering::Relaxed);
+}
+
+/// The reader limits that `--max-faces N` implies: at most N triangles, 3·N vertices
+/// (every face with corners of its own) and `max(256·N bytes, 1 MiB)` of file.
+pub fn read_options(max_faces: u64) -> ReadOptions {
+    let n = usize::try_from(max_faces).unwrap_or(usize::MAX);
+    ReadOptions {
+        max_faces: Some(n),
+        max_vertices: Some(n.saturating_mul(3)),
+        max_file_bytes: Some(max_faces.saturating_mul(BYTES_PER_FACE).max(MIN_FILE_LIMIT)),
+    }
+}
+
+/// Reads `path` under the `--max-faces` limits; an error from a limit says how to raise it.
+fn read(path: &Path) -> Result<coarsen_io::Loaded> {
+    let max_faces = MAX_FACES.load(Ordering::Relaxed);
+    coarsen_io::read_path(path, &read_options(max_faces)).map_err(|e: IoError| {
+        if matches!(
+            e.kind,
+            ErrorKind::OverLimit { .. } | ErrorKind::FileTooLarge { .. }
+        ) {
+            anyhow::anyhow!("{e}; --max-faces {max_faces} is in force: raise it to read this file")
+        } else {
+            e.into()
+        }
+    })
+}
 
 /// A loaded, cleaned mesh and what loading said about it.
 pub struct Input {
@@ -26,7 +71,7 @@ pub fn restore(mut mesh: Mesh, scale_exponent: i32) -> Mesh {
 /// Reads `path` and applies load-time clean-up (welding when `weld` or for STL). A mesh
 /// with no face left is an error.
 pub fn load(path: &Path, weld: bool) -> Result<Input> {
-    let loaded = coarsen_io::read_path(path, &ReadOptions::default())?;
+    let loaded = read(path)?;
     let mut notes = loaded.notes;
     let mut mesh = loaded.mesh;
     let k = scale::normalizing_exponent(&mesh);
@@ -64,7 +109,7 @@ pub fn load(path: &Path, weld: bool) -> Result<Input> {
 
 /// Reads `path` exactly as the file has it.
 pub fn load_raw(path: &Path) -> Result<Input> {
-    let loaded = coarsen_io::read_path(path, &ReadOptions::default())?;
+    let loaded = read(path)?;
     Ok(Input {
         mesh: loaded.mesh,
         notes: loaded.notes,
@@ -81,4 +126,21 @@ pub fn ensure_not_input(input: Option<&Path>, output: &Path) -> Result<()> {
         anyhow::bail!("refusing to overwrite the input file {}", input.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn max_faces_sets_every_reader_limit() {
+        let o = read_options(1000);
+        assert_eq!(o.max_faces, Some(1000));
+        assert_eq!(o.max_vertices, Some(3000));
+        assert_eq!(o.max_file_bytes, Some(1 << 20));
+        let o = read_options(DEFAULT_MAX_FACES);
+        assert_eq!(o.max_file_bytes, Some(12_800_000_000));
+        let o = read_options(u64::MAX);
+        assert_eq!(o.max_file_bytes, Some(u64::MAX));
+    }
 }

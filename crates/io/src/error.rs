@@ -206,6 +206,16 @@ pub enum ErrorKind {
         /// The bytes left after the header.
         remaining: u64,
     },
+    /// A file longer than [`crate::ReadOptions::max_file_bytes`].
+    #[error(
+        "the file has {len} bytes, more than the limit of {limit} (ReadOptions::max_file_bytes)"
+    )]
+    FileTooLarge {
+        /// The file's length.
+        len: u64,
+        /// The limit.
+        limit: u64,
+    },
     /// More elements than a [`crate::ReadOptions`] limit allows.
     #[error("more than {limit} {what} (the limit set by ReadOptions::{option})")]
     OverLimit {

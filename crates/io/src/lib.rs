@@ -128,7 +128,13 @@ pub struct ReadOptions {
     /// Refuse files with more vertices than this. Default `None`: no limit beyond 32-bit
     /// indices.
     pub max_vertices: Option<usize>,
+    /// [`read_path`] refuses files longer than this many bytes before reading them.
+    /// Default `None`: no limit.
+    pub max_file_bytes: Option<u64>,
 }
+
+/// How many bytes of a file [`read_path`] checks before reading the rest.
+pub const SNIFF_BYTES: usize = 64 * 1024;
 
 /// The encoding of a written PLY file.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -173,12 +179,70 @@ pub struct Loaded {
 }
 
 /// Reads the mesh file at `path`; the format comes from the extension.
+///
+/// Before the file is read into memory, its length is checked against
+/// [`ReadOptions::max_file_bytes`] and its first [`SNIFF_BYTES`] bytes against what the
+/// format requires (see [`check_start`]), so that a huge file that is not a mesh, or whose
+/// header exceeds the limits, is refused at once.
 pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Loaded, IoError> {
+    use std::io::Read;
     let name = path.display().to_string();
     let format =
         Format::from_path(path).ok_or_else(|| IoError::file(&name, ErrorKind::UnknownFormat))?;
-    let bytes = std::fs::read(path).map_err(|e| IoError::file(&name, e.into()))?;
+    let os = |e: std::io::Error| IoError::file(&name, e.into());
+    let mut file = std::fs::File::open(path).map_err(os)?;
+    let len = file.metadata().map_err(os)?.len();
+    if let Some(limit) = opts.max_file_bytes
+        && len > limit
+    {
+        return Err(IoError::file(&name, ErrorKind::FileTooLarge { len, limit }));
+    }
+    let mut bytes = Vec::new();
+    (&mut file)
+        .take(SNIFF_BYTES as u64)
+        .read_to_end(&mut bytes)
+        .map_err(os)?;
+    if bytes.is_empty() {
+        return Err(IoError::file(&name, ErrorKind::Empty));
+    }
+    check_start(&bytes, len, format, &name, opts)?;
+    // The length is a hint only (the file may change): read to its real end.
+    bytes.reserve(
+        usize::try_from(len)
+            .unwrap_or(0)
+            .saturating_sub(bytes.len()),
+    );
+    file.read_to_end(&mut bytes).map_err(os)?;
     read_bytes(&bytes, format, &name, opts)
+}
+
+/// Checks the first bytes of a file of `len` bytes in `format` (at most [`SNIFF_BYTES`]
+/// of them are looked at) for what can be refused without reading the rest: a text format
+/// (OBJ, OFF) holding a NUL byte, a PLY file without its magic or whose header's counts
+/// exceed the limits, an STL file that is neither ASCII nor a binary file of the length its
+/// triangle count requires, or whose count exceeds the limit.
+pub fn check_start(
+    start: &[u8],
+    len: u64,
+    format: Format,
+    name: &str,
+    opts: &ReadOptions,
+) -> Result<(), IoError> {
+    let start = &start[..start.len().min(SNIFF_BYTES)];
+    match format {
+        Format::Obj | Format::Off => match start.iter().position(|&b| b == 0) {
+            Some(at) => Err(IoError::file(
+                name,
+                ErrorKind::NotFormat {
+                    format,
+                    detail: format!("byte {at} is NUL: binary data, not text"),
+                },
+            )),
+            None => Ok(()),
+        },
+        Format::Ply => ply::check_start(start, name, opts),
+        Format::Stl => stl::check_start(start, len, name, opts).map(|_| ()),
+    }
 }
 
 /// Reads a mesh from the bytes of a file in `format`; `name` is the file name used in
@@ -192,6 +256,7 @@ pub fn read_bytes(
     if bytes.is_empty() {
         return Err(IoError::file(name, ErrorKind::Empty));
     }
+    check_start(bytes, bytes.len() as u64, format, name, opts)?;
     let (mesh, notes) = match format {
         Format::Obj => obj::read(bytes, name, opts)?,
         Format::Ply => ply::read(bytes, name, opts)?,
@@ -444,6 +509,121 @@ mod tests {
         write_path(&tetrahedron(), &path, &WriteOptions::default()).unwrap();
         let mode = std::fs::metadata(&path).unwrap().permissions().mode();
         assert_eq!(mode & 0o777, 0o644);
+    }
+
+    #[test]
+    fn a_huge_sparse_file_is_refused_from_its_first_bytes_in_every_format() {
+        let dir = tempfile::tempdir().unwrap();
+        for f in Format::ALL {
+            let path = dir.path().join(format!("sparse.{}", f.extension()));
+            let file = std::fs::File::create(&path).unwrap();
+            file.set_len(2 << 30).unwrap(); // 2 GiB of zeros, no disk used
+            let t = std::time::Instant::now();
+            let e = read_path(&path, &ReadOptions::default()).unwrap_err();
+            // Refused from the first 64 KiB: far quicker than reading 2 GiB would be.
+            assert!(t.elapsed().as_secs_f64() < 2.0, "{f}: {:?}", t.elapsed());
+            assert!(matches!(e.kind, ErrorKind::NotFormat { .. }), "{f}: {e}");
+            assert!(
+                e.to_string().starts_with(&path.display().to_string()),
+                "{e}"
+            );
+        }
+        let stl = dir.path().join("sparse.stl");
+        let e = read_path(&stl, &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.ends_with("binary STL needs 84 + 50 × 0 = 84 bytes for its 0 triangles but the file has 2147483648)"), "{e}");
+        let obj = dir.path().join("sparse.obj");
+        let e = read_path(&obj, &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.ends_with("not an OBJ file (byte 0 is NUL: binary data, not text)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn max_file_bytes_refuses_a_long_file_before_reading_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.off");
+        write_path(&tetrahedron(), &path, &WriteOptions::default()).unwrap();
+        let len = std::fs::metadata(&path).unwrap().len();
+        let opts = |limit| ReadOptions {
+            max_file_bytes: Some(limit),
+            ..Default::default()
+        };
+        assert!(read_path(&path, &opts(len)).is_ok());
+        let e = read_path(&path, &opts(len - 1)).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: the file has {len} bytes, more than the limit of {} (ReadOptions::max_file_bytes)",
+                path.display(),
+                len - 1
+            )
+        );
+    }
+
+    #[test]
+    fn header_counts_over_the_limits_are_refused_from_the_first_bytes() {
+        let opts = ReadOptions {
+            max_faces: Some(10),
+            max_vertices: Some(10),
+            ..Default::default()
+        };
+        // Only the first bytes are given, with the length of a file of 10^9 triangles.
+        let mut stl = vec![0u8; 80];
+        stl.extend_from_slice(&1_000_000_000u32.to_le_bytes());
+        let len = 84 + 50 * 1_000_000_000u64;
+        let e = check_start(&stl, len, Format::Stl, "big.stl", &opts).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "big.stl: more than 10 faces (the limit set by ReadOptions::max_faces)"
+        );
+        let ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 11\nproperty float x\nend_header\n";
+        let e = check_start(ply, 1 << 40, Format::Ply, "big.ply", &opts).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "big.ply: more than 10 vertices (the limit set by ReadOptions::max_vertices)"
+        );
+        let ply = b"ply\nformat ascii 1.0\nelement face 11\nproperty list uchar int vertex_indices\nend_header\n";
+        let e = check_start(ply, 1 << 40, Format::Ply, "big.ply", &opts).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "big.ply: more than 10 faces (the limit set by ReadOptions::max_faces)"
+        );
+        // A header cut by the end of the first bytes is left to the full read.
+        assert!(
+            check_start(
+                b"ply\nformat ascii 1.0\nelem",
+                1 << 40,
+                Format::Ply,
+                "x.ply",
+                &opts
+            )
+            .is_ok()
+        );
+    }
+
+    #[test]
+    fn text_formats_with_a_nul_byte_are_refused_in_read_bytes_too() {
+        let e = read_bytes(
+            b"v 0 0 0\n\0",
+            Format::Obj,
+            "x.obj",
+            &ReadOptions::default(),
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.obj: not an OBJ file (byte 8 is NUL: binary data, not text)"
+        );
+        let e = read_bytes(b"OFF\0", Format::Off, "x.off", &ReadOptions::default()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.off: not an OFF file (byte 3 is NUL: binary data, not text)"
+        );
     }
 
     #[test]

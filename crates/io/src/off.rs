@@ -130,6 +130,16 @@ pub(crate) fn read(
             ErrorKind::over_limit_vertices(limit),
         ));
     }
+    // Every polygon gives at least one triangle.
+    if let Some(limit) = opts.max_faces
+        && nf > limit as u64
+    {
+        return Err(IoError::line(
+            name,
+            count_line,
+            ErrorKind::over_limit_faces(limit),
+        ));
+    }
     if nv > u64::from(u32::MAX) {
         let kind = ErrorKind::TooMany {
             count: nv,
@@ -319,6 +329,31 @@ mod tests {
 
     fn err(src: &str) -> String {
         load(src).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_face_count_over_max_faces_is_refused_at_the_header() {
+        let opts = ReadOptions {
+            max_faces: Some(2),
+            ..Default::default()
+        };
+        let src = "OFF\n3 3 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n3 0 1 2\n";
+        let e = read(src.as_bytes(), "t.off", &opts)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "t.off:2: more than 2 faces (the limit set by ReadOptions::max_faces)"
+        );
+        // Polygons count by their triangles while reading.
+        let src = "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n3 0 1 2\n";
+        let e = read(src.as_bytes(), "t.off", &opts)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "t.off:8: face 1: more than 2 faces (the limit set by ReadOptions::max_faces)"
+        );
     }
 
     #[test]

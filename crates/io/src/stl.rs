@@ -22,54 +22,83 @@ use std::borrow::Cow;
 use std::io::{self, Cursor, Write};
 use stl_io::{Normal, Triangle, TriangleIterator, Vertex};
 
+/// How an STL file is encoded, as told by its first bytes and its length.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Detected {
+    /// Binary: the length is exactly `84 + 50·n` for the count `n` at byte 80; `solid`
+    /// tells whether the header begins with that keyword anyway.
+    Binary { solid: bool },
+    /// ASCII, the keyword `solid` starting at this offset.
+    Ascii { at: usize },
+}
+
+/// Tells binary from ASCII STL from the first bytes (`start`, at least 84 of them when the
+/// file has that many) and the file's length `len`; refuses a file that is neither, and a
+/// binary file whose triangle count exceeds [`ReadOptions::max_faces`] — before anything
+/// else is read.
+pub(crate) fn check_start(
+    start: &[u8],
+    len: u64,
+    name: &str,
+    opts: &ReadOptions,
+) -> Result<Detected, IoError> {
+    let stored_count = start
+        .get(80..84)
+        .and_then(|b| b.try_into().ok())
+        .map(|b: [u8; 4]| u64::from(u32::from_le_bytes(b)));
+    let binary = stored_count.is_some_and(|n| 84 + 50 * n == len);
+    let keyword = solid_keyword(start);
+    if let (true, Some(n), Some(limit)) = (binary, stored_count, opts.max_faces)
+        && n > limit as u64
+    {
+        return Err(IoError::file(name, ErrorKind::over_limit_faces(limit)));
+    }
+    match (binary, keyword) {
+        (true, k) => return Ok(Detected::Binary { solid: k.is_some() }),
+        (false, Some(at)) => return Ok(Detected::Ascii { at }),
+        (false, None) => {}
+    }
+    let detail = match stored_count {
+        Some(n) => format!(
+            "no `solid` keyword for ASCII, and binary STL needs 84 + 50 × {n} = {} \
+             bytes for its {n} triangles but the file has {len}",
+            84 + 50 * n,
+        ),
+        None => format!(
+            "no `solid` keyword for ASCII, and {len} bytes are too few for binary STL's \
+             84-byte header",
+        ),
+    };
+    Err(IoError::file(
+        name,
+        ErrorKind::NotFormat {
+            format: Format::Stl,
+            detail,
+        },
+    ))
+}
+
 /// Reads an STL file's bytes; `name` is used in errors.
 pub(crate) fn read(
     bytes: &[u8],
     name: &str,
     opts: &ReadOptions,
 ) -> Result<(Mesh, Vec<String>), IoError> {
-    let stored_count = bytes
-        .get(80..84)
-        .and_then(|b| b.try_into().ok())
-        .map(|b: [u8; 4]| u64::from(u32::from_le_bytes(b)));
-    let binary = stored_count.is_some_and(|n| 84 + 50 * n == bytes.len() as u64);
-    let keyword = solid_keyword(bytes);
+    let detected = check_start(bytes, bytes.len() as u64, name, opts)?;
     // stl_io tells ASCII from binary by a first line starting with "solid ", so hand it
     // bytes where that test gives the answer found here.
-    let input: Cow<[u8]> = match (binary, keyword) {
-        (true, Some(_)) => {
+    let input: Cow<[u8]> = match detected {
+        Detected::Binary { solid: true } => {
             let mut patched = bytes.to_vec();
             patched[..5].copy_from_slice(b"SOLID");
             Cow::Owned(patched)
         }
-        (true, None) => Cow::Borrowed(bytes),
-        (false, Some(at)) if bytes[at..].starts_with(b"solid ") && at == 0 => Cow::Borrowed(bytes),
-        (false, Some(at)) => {
+        Detected::Binary { solid: false } => Cow::Borrowed(bytes),
+        Detected::Ascii { at: 0 } if bytes.starts_with(b"solid ") => Cow::Borrowed(bytes),
+        Detected::Ascii { at } => {
             let mut patched = b"solid ".to_vec();
             patched.extend_from_slice(&bytes[at + 5..]);
             Cow::Owned(patched)
-        }
-        (false, None) => {
-            let detail = match stored_count {
-                Some(n) => format!(
-                    "no `solid` keyword for ASCII, and binary STL needs 84 + 50 × {n} = {} \
-                     bytes for its {n} triangles but the file has {}",
-                    84 + 50 * n,
-                    bytes.len()
-                ),
-                None => format!(
-                    "no `solid` keyword for ASCII, and {} bytes are too few for binary STL's \
-                     84-byte header",
-                    bytes.len()
-                ),
-            };
-            return Err(IoError::file(
-                name,
-                ErrorKind::NotFormat {
-                    format: Format::Stl,
-                    detail,
-                },
-            ));
         }
     };
     let mut cursor = Cursor::new(input.as_ref());

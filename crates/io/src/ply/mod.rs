@@ -35,7 +35,7 @@
 mod read;
 mod write;
 
-pub(crate) use read::read;
+pub(crate) use read::{check_start, read};
 pub(crate) use write::write;
 
 use coarsen_mesh::AttrKind;

@@ -340,6 +340,41 @@ struct Reader<'o> {
     notes: Vec<String>,
 }
 
+/// The "not a PLY file" error.
+fn no_magic(name: &str) -> IoError {
+    IoError::file(
+        name,
+        ErrorKind::NotFormat {
+            format: Format::Ply,
+            detail: "no \"ply\" magic".into(),
+        },
+    )
+}
+
+/// Refuses, from the first bytes of a file alone, a PLY file without its magic or whose
+/// header (when it ends within `start`) declares more vertices or faces than the limits.
+pub(crate) fn check_start(start: &[u8], name: &str, opts: &ReadOptions) -> Result<(), IoError> {
+    let header = match parse_header(start) {
+        Ok(h) => h,
+        Err((_, HeaderProblem::NoMagic)) => return Err(no_magic(name)),
+        // The header may go on past `start`: the full read reports its problems.
+        Err(_) => return Ok(()),
+    };
+    for el in &header.elements {
+        let (limit, kind): (Option<usize>, fn(usize) -> ErrorKind) = match el.name.as_str() {
+            "vertex" => (opts.max_vertices, ErrorKind::over_limit_vertices),
+            "face" => (opts.max_faces, ErrorKind::over_limit_faces),
+            _ => continue,
+        };
+        if let Some(limit) = limit
+            && el.count > limit as u64
+        {
+            return Err(IoError::file(name, kind(limit)));
+        }
+    }
+    Ok(())
+}
+
 /// Reads a PLY file's bytes; `name` is used in errors.
 pub(crate) fn read(
     bytes: &[u8],
@@ -347,13 +382,7 @@ pub(crate) fn read(
     opts: &ReadOptions,
 ) -> Result<(Mesh, Vec<String>), IoError> {
     let header = parse_header(bytes).map_err(|(line, problem)| match problem {
-        HeaderProblem::NoMagic => IoError::file(
-            name,
-            ErrorKind::NotFormat {
-                format: Format::Ply,
-                detail: "no \"ply\" magic".into(),
-            },
-        ),
+        HeaderProblem::NoMagic => no_magic(name),
         HeaderProblem::Syntax(m) => IoError::line(name, line, ErrorKind::Syntax(m)),
         HeaderProblem::Unsupported(m) => IoError::line(name, line, ErrorKind::Unsupported(m)),
     })?;
@@ -1446,6 +1475,7 @@ mod tests {
         let opts = ReadOptions {
             max_faces: Some(2),
             max_vertices: Some(3),
+            ..Default::default()
         };
         let e = read(&square(false, "binary_little_endian"), "x.ply", &opts).unwrap_err();
         assert_eq!(
@@ -1454,7 +1484,7 @@ mod tests {
         );
         let opts = ReadOptions {
             max_faces: Some(2),
-            max_vertices: None,
+            ..Default::default()
         };
         let e = read(&square(false, "binary_little_endian"), "x.ply", &opts).unwrap_err();
         assert_eq!(

@@ -1,0 +1,442 @@
+//! Hostile but readable inputs through the CLI (issue 8's corpus, generated here): each has
+//! its documented outcome (`docs/robustness.md`) — a clear error with exit code 1 and no
+//! output file, or a run whose repairs and refusals are reported.
+
+use coarsen_mesh::{DVec3, Mesh, Topology};
+use coarsen_tests::{run_cli, run_pipeline, stderr, stdout, write_mesh};
+use serde_json::Value;
+use std::path::Path;
+
+const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
+
+/// The regular octahedron: 6 vertices, 8 faces, closed, genus 0.
+fn octahedron() -> Mesh {
+    let v = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    Mesh::new(
+        v.iter().map(|&p| DVec3::from_array(p)).collect(),
+        vec![
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 3, 4],
+            [3, 0, 4],
+            [2, 0, 5],
+            [1, 2, 5],
+            [3, 1, 5],
+            [0, 3, 5],
+        ],
+    )
+}
+
+fn mesh(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Mesh {
+    Mesh::new(
+        positions.iter().map(|&p| DVec3::from_array(p)).collect(),
+        faces.to_vec(),
+    )
+}
+
+/// What a successful run said: the report, and the output mesh as read back.
+struct Ran {
+    report: Value,
+    output: Mesh,
+}
+
+impl Ran {
+    /// Every warning of every stage.
+    fn warnings(&self) -> Vec<String> {
+        self.report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|s| s["warnings"].as_array().unwrap().iter())
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    }
+
+    /// The load-time notes.
+    fn notes(&self) -> Vec<String> {
+        self.report["input_notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_str().unwrap().to_string())
+            .collect()
+    }
+
+    fn counts(&self) -> (usize, usize) {
+        (self.output.n_vertices(), self.output.n_faces())
+    }
+}
+
+/// Writes `input` as `name` in a temporary folder and runs `pipeline` on it with `extra`
+/// arguments; the run must succeed without a panic.
+fn run_ok(input: &Mesh, name: &str, pipeline: &str, extra: &[&str]) -> Ran {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    write_mesh(input, &path);
+    run_file_ok(&path, pipeline, extra)
+}
+
+fn run_file_ok(path: &Path, pipeline: &str, extra: &[&str]) -> Ran {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.ply");
+    let report = dir.path().join("report.json");
+    let mut args = extra.to_vec();
+    args.extend(["--report", report.to_str().unwrap()]);
+    let o = run_pipeline(EXE, pipeline, path, &out, &args);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{pipeline} {extra:?}: {e}");
+    assert!(!e.contains("panicked"), "{e}");
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let output = coarsen_io::read_path(&out, &Default::default())
+        .unwrap()
+        .mesh;
+    coarsen_mesh::sanity_check_with(
+        &output,
+        &coarsen_mesh::SanityOptions {
+            degenerate_area_rel: 0.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    Ran { report, output }
+}
+
+/// `coarsen info --json` of `input` written as `name`: the topology object.
+fn info_topology(input: &Mesh, name: &str) -> Value {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    write_mesh(input, &path);
+    let o = run_cli(EXE, &["info", "--json", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_str(&stdout(&o)).unwrap();
+    v["topology"].clone()
+}
+
+#[test]
+fn a_single_triangle_runs_and_is_kept() {
+    let tri = mesh(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]);
+    let ran = run_ok(&tri, "tri.obj", "qem", &["--ratio", "0.5"]);
+    assert_eq!(ran.counts(), (3, 1));
+    // Asked for fewer vertices than a triangle has: kept, and the report says why.
+    let ran = run_ok(&tri, "tri.obj", "qem", &["--vertices", "1"]);
+    assert_eq!(ran.counts(), (3, 1));
+    let w = ran.warnings();
+    assert!(
+        w.iter()
+            .any(|w| w.starts_with("target (1 vertices) not reached")),
+        "{w:?}"
+    );
+}
+
+#[test]
+fn a_bow_tie_vertex_is_reported_and_locked() {
+    let bowtie = mesh(
+        &[
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, -1.0, 0.0],
+        ],
+        &[[0, 1, 2], [0, 3, 4]],
+    );
+    let t = info_topology(&bowtie, "bowtie.obj");
+    assert_eq!(t["n_bowtie_vertices"], 1);
+    assert_eq!(t["manifold"], false);
+    let ran = run_ok(&bowtie, "bowtie.obj", "qem", &["--ratio", "0.5"]);
+    assert_eq!(ran.counts(), (5, 2));
+    let w = ran.warnings();
+    assert!(
+        w.iter()
+            .any(|w| w.starts_with("1 non-manifold vertices") && w.contains("locked")),
+        "{w:?}"
+    );
+}
+
+#[test]
+fn an_edge_with_three_faces_is_reported_and_its_vertices_locked() {
+    let fin = mesh(
+        &[
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ],
+        &[[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+    );
+    let t = info_topology(&fin, "fin.obj");
+    assert_eq!(t["n_non_manifold_edges"], 1);
+    assert_eq!(t["manifold"], false);
+    let ran = run_ok(&fin, "fin.obj", "qem", &["--ratio", "0.5"]);
+    assert_eq!(ran.counts(), (5, 3));
+    let w = ran.warnings();
+    assert!(
+        w.iter()
+            .any(|w| w.starts_with("2 non-manifold vertices") && w.contains("locked")),
+        "{w:?}"
+    );
+}
+
+#[test]
+fn inconsistent_orientation_is_reported_and_the_run_keeps_it_valid() {
+    let mut flipped = octahedron();
+    flipped.faces[0].swap(1, 2); // one face against its three neighbours
+    let t = info_topology(&flipped, "flip.obj");
+    assert_eq!(t["consistently_oriented"], false);
+    assert_eq!(t["n_flipped_edges"], 3);
+    let ran = run_ok(&flipped, "flip.obj", "qem", &["--faces", "4"]);
+    // Runs to a valid mesh (checked in `run_file_ok`), never below a tetrahedron.
+    assert!(ran.output.n_faces() >= 4 && ran.output.n_faces() <= 8);
+}
+
+#[test]
+fn duplicate_faces_are_dropped_and_counted() {
+    let mut m = octahedron();
+    m.faces.push(m.faces[0]);
+    let [a, b, c] = m.faces[1];
+    m.faces.push([b, c, a]); // the same face, rotated
+    let ran = run_ok(&m, "dup.obj", "qem", &["--faces", "4"]);
+    let notes = ran.notes();
+    assert!(
+        notes.contains(&"drop duplicate faces: 2".to_string()),
+        "{notes:?}"
+    );
+    assert_eq!(ran.report["input_faces"], 8);
+    assert_eq!(ran.counts(), (4, 4));
+}
+
+#[test]
+fn isolated_vertices_are_dropped_and_counted() {
+    let mut m = octahedron();
+    m.positions.push(DVec3::splat(5.0));
+    m.positions.push(DVec3::splat(6.0));
+    let ran = run_ok(&m, "iso.obj", "qem", &["--faces", "4"]);
+    let notes = ran.notes();
+    assert!(
+        notes.contains(&"drop unreferenced vertices: 2".to_string()),
+        "{notes:?}"
+    );
+    assert_eq!(ran.report["input_vertices"], 6);
+    assert_eq!(ran.counts(), (4, 4));
+}
+
+/// The octahedron as a soup: every face with three vertices of its own.
+fn octahedron_soup() -> Mesh {
+    let o = octahedron();
+    let positions = o
+        .faces
+        .iter()
+        .flat_map(|f| f.map(|v| o.positions[v as usize]))
+        .collect();
+    let faces = (0..o.n_faces() as u32)
+        .map(|f| [3 * f, 3 * f + 1, 3 * f + 2])
+        .collect();
+    Mesh::new(positions, faces)
+}
+
+#[test]
+fn a_triangle_soup_is_kept_as_it_is_unless_welded() {
+    let soup = octahedron_soup();
+    // Indexed formats keep the file's vertices: eight separate triangles, none of which
+    // can lose an edge; the report says every collapse was refused.
+    let ran = run_ok(&soup, "soup.obj", "qem", &["--ratio", "0.5"]);
+    assert_eq!(ran.counts(), (24, 8));
+    let w = ran.warnings();
+    assert!(
+        w.iter()
+            .any(|w| w.contains("every remaining collapse is refused")),
+        "{w:?}"
+    );
+    // `--weld` (always on for STL) joins the corners first.
+    let ran = run_ok(&soup, "soup.obj", "qem", &["--ratio", "0.5", "--weld"]);
+    assert!(
+        ran.notes()
+            .contains(&"weld coincident positions: 18 vertices merged".to_string()),
+        "{:?}",
+        ran.notes()
+    );
+    assert_eq!(ran.counts(), (4, 4));
+    let ran = run_ok(&soup, "soup.stl", "qem", &["--ratio", "0.5"]);
+    assert_eq!(ran.counts(), (4, 4));
+}
+
+#[test]
+fn a_thousand_components_each_keep_their_topology() {
+    let o = octahedron();
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for c in 0..1000u32 {
+        let shift = DVec3::new(
+            f64::from(c % 10),
+            f64::from(c / 10 % 10),
+            f64::from(c / 100),
+        ) * 3.0;
+        let base = positions.len() as u32;
+        positions.extend(o.positions.iter().map(|p| *p + shift));
+        faces.extend(o.faces.iter().map(|f| f.map(|v| v + base)));
+    }
+    let many = Mesh::new(positions, faces);
+    for pipeline in ["qem", "svec"] {
+        let ran = run_ok(&many, "many.ply", pipeline, &["--ratio", "0.5"]);
+        assert_eq!(ran.counts(), (4000, 4000), "{pipeline}");
+        let s = Topology::build(&ran.output).summary(&ran.output);
+        assert_eq!(s.n_components, 1000, "{pipeline}");
+        assert!(s.manifold && s.consistently_oriented, "{pipeline}");
+        assert_eq!(s.n_boundary_edges, 0, "{pipeline}");
+        assert!(s.genus.iter().all(|g| *g == Some(0)), "{pipeline}");
+    }
+}
+
+#[test]
+fn a_target_larger_than_the_input_leaves_the_cleaned_input() {
+    let m = octahedron();
+    for extra in [["--faces", "1000"], ["--vertices", "1000"]] {
+        let ran = run_ok(&m, "oct.off", "qem", &extra);
+        assert_eq!(ran.counts(), (6, 8), "{extra:?}");
+        assert_eq!(ran.output.faces.len(), m.faces.len());
+    }
+}
+
+#[test]
+fn targets_of_zero_to_three_vertices_stop_at_the_smallest_closed_mesh_and_say_so() {
+    for pipeline in ["qem", "svec"] {
+        for target in ["0", "1", "2", "3"] {
+            let ran = run_ok(&octahedron(), "oct.ply", pipeline, &["--vertices", target]);
+            // A tetrahedron is the smallest closed surface: no collapse goes below it.
+            assert_eq!(ran.counts(), (4, 4), "{pipeline} {target}");
+            let w = ran.warnings();
+            assert!(
+                w.iter().any(|w| w.starts_with(&format!(
+                    "target ({target} vertices) not reached: stopped at 4 vertices and 4 faces"
+                ))),
+                "{pipeline} {target}: {w:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_two_gigabyte_sparse_file_is_refused_at_once_in_every_format() {
+    let dir = tempfile::tempdir().unwrap();
+    for ext in ["obj", "ply", "stl", "off"] {
+        let input = dir.path().join(format!("huge.{ext}"));
+        let file = std::fs::File::create(&input).unwrap();
+        file.set_len(2 << 30).unwrap(); // 2 GiB of zeros, no disk blocks
+        let out = dir.path().join("out.ply");
+        let t = std::time::Instant::now();
+        let o = run_pipeline(EXE, "qem", &input, &out, &["--ratio", "0.5"]);
+        // Refused from its first bytes: far quicker than reading 2 GiB.
+        assert!(t.elapsed().as_secs_f64() < 5.0, "{ext}: {:?}", t.elapsed());
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{ext}: {e}");
+        assert!(e.contains(&format!("huge.{ext}: not a")), "{ext}: {e}");
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn max_faces_refuses_a_bigger_file_before_reading_it_and_names_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.ply");
+    for ext in ["obj", "ply", "stl", "off"] {
+        let input = dir.path().join(format!("oct.{ext}"));
+        write_mesh(&octahedron(), &input);
+        let o = run_cli(
+            EXE,
+            &[
+                "--max-faces",
+                "7",
+                "run",
+                "qem",
+                input.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--faces",
+                "4",
+            ],
+        );
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{ext}: {e}");
+        assert!(
+            e.contains("more than 7 faces") && e.contains("--max-faces 7 is in force"),
+            "{ext}: {e}"
+        );
+        assert!(!out.exists());
+        // At the limit, it runs (the option goes after the command too).
+        let o = run_pipeline(
+            EXE,
+            "qem",
+            &input,
+            &out,
+            &["--max-faces", "8", "--faces", "4"],
+        );
+        assert!(o.status.success(), "{ext}: {}", stderr(&o));
+        std::fs::remove_file(&out).unwrap();
+    }
+    // A file longer than 256 bytes a face (and 1 MiB) is refused by its length alone.
+    let long = dir.path().join("long.obj");
+    let mut text = octahedron_obj_text();
+    text.push_str(&"# padding\n".repeat(120_000));
+    std::fs::write(&long, text).unwrap();
+    let o = run_cli(EXE, &["info", long.to_str().unwrap(), "--max-faces", "100"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("more than the limit of 1048576"), "{e}");
+    let o = run_cli(EXE, &["info", long.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// The octahedron as OBJ text.
+fn octahedron_obj_text() -> String {
+    let mut bytes = Vec::new();
+    coarsen_io::write_to(
+        &octahedron(),
+        coarsen_io::Format::Obj,
+        &mut bytes,
+        &Default::default(),
+    )
+    .unwrap();
+    String::from_utf8(bytes).unwrap()
+}
+
+#[test]
+fn the_input_is_never_overwritten_under_another_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("oct.ply");
+    write_mesh(&octahedron(), &input);
+    let before = std::fs::read(&input).unwrap();
+    // The same file through `..`, and through a symbolic link.
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    let mut aliases = vec![sub.join("..").join("oct.ply")];
+    #[cfg(unix)]
+    {
+        let link = dir.path().join("link.ply");
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        aliases.push(link);
+    }
+    for alias in &aliases {
+        let o = run_pipeline(EXE, "qem", &input, alias, &["--faces", "4"]);
+        assert_eq!(o.status.code(), Some(1), "{}", alias.display());
+        assert!(
+            stderr(&o).contains("refusing to overwrite the input"),
+            "{}",
+            stderr(&o)
+        );
+        let o = run_cli(
+            EXE,
+            &["convert", input.to_str().unwrap(), alias.to_str().unwrap()],
+        );
+        assert_eq!(o.status.code(), Some(1), "{}", alias.display());
+        assert!(stderr(&o).contains("refusing to overwrite the input"));
+        assert_eq!(std::fs::read(&input).unwrap(), before);
+    }
+}
