@@ -63,6 +63,12 @@ impl Sums {
         }
     }
 
+    /// The mass centroid, or the origin for a massless cluster.
+    #[inline]
+    pub fn centroid_or_zero(&self) -> DVec3 {
+        self.centroid().unwrap_or(DVec3::ZERO)
+    }
+
     /// The mass centroid z = Σ w·y / Σ w, if the cluster has mass.
     pub fn centroid(&self) -> Option<DVec3> {
         (self.mass > 0.0).then(|| self.first / self.mass)

@@ -108,6 +108,8 @@ pub struct Clusterer<'a> {
     face_sums: Vec<Sums>,
     labels: Vec<u32>,
     sums: Vec<Sums>,
+    /// Stop when a pass lowers the energy by less than this fraction of it.
+    tolerance: f64,
 }
 
 impl<'a> Clusterer<'a> {
@@ -173,7 +175,14 @@ impl<'a> Clusterer<'a> {
             face_sums,
             labels: vec![NONE; nf],
             sums: Vec::new(),
+            tolerance: 0.0,
         })
+    }
+
+    /// Makes [`Clusterer::minimize`] stop after a pass that lowers the energy by less than
+    /// `tolerance` times its value (0, the default, stops only when nothing moves).
+    pub fn set_tolerance(&mut self, tolerance: f64) {
+        self.tolerance = tolerance;
     }
 
     /// The face across edge `i` (corner i → i+1) of face `f`, or `NONE`.
@@ -233,8 +242,11 @@ impl<'a> Clusterer<'a> {
     }
 
     /// Picks `n` seed faces (at least one per component, the rest in proportion to each
-    /// component's mass) with a [`SplitMix64`] from `seed`, and grows them breadth-first
-    /// until every face belongs to a cluster.
+    /// component's mass) and grows them breadth-first until every face belongs to a
+    /// cluster. Within a component the faces are ordered along a Morton (Z-order) curve of
+    /// their centroids and the seeds are stratified by mass along it — one in each of the
+    /// component's equal-mass stretches, at a point jittered by a [`SplitMix64`] from
+    /// `seed` — so the seeds start evenly spread and the minimisation has little to move.
     pub fn seed(&mut self, n: usize, seed: u64) -> Result<(), ClusterError> {
         let nf = self.faces.len();
         if n > nf {
@@ -250,40 +262,64 @@ impl<'a> Clusterer<'a> {
                 components: nc,
             });
         }
-        // Faces of each component, in face order (CSR).
-        let mut off = vec![0u32; nc + 1];
+        // Faces of each component along the Morton curve (CSR by component).
+        let mut order: Vec<(u32, u64, u32)> = (0..nf)
+            .map(|f| {
+                (
+                    comp[f],
+                    morton(self.face_sums[f].centroid_or_zero()),
+                    f as u32,
+                )
+            })
+            .collect();
+        order.sort_unstable();
+        let mut off = vec![0usize; nc + 1];
         comp.iter().for_each(|&c| off[c as usize + 1] += 1);
         for i in 0..nc {
             off[i + 1] += off[i];
         }
-        let mut pos = off.clone();
-        let mut members = vec![0u32; nf];
-        for (f, &c) in comp.iter().enumerate() {
-            members[pos[c as usize] as usize] = f as u32;
-            pos[c as usize] += 1;
-        }
+        let members: Vec<u32> = order.iter().map(|o| o.2).collect();
+        drop(order);
+        let mass_of = |f: u32| self.face_sums[f as usize].mass.max(0.0);
         let mass: Vec<f64> = (0..nc)
             .map(|c| {
-                members[off[c] as usize..off[c + 1] as usize]
+                members[off[c]..off[c + 1]]
                     .iter()
-                    .map(|&f| self.face_sums[f as usize].mass.max(0.0))
+                    .map(|&f| mass_of(f))
                     .sum()
             })
             .collect();
-        let quota = allocate(n, &mass, |c| (off[c + 1] - off[c]) as usize);
+        let quota = allocate(n, &mass, |c| off[c + 1] - off[c]);
         let mut rng = SplitMix64::new(seed);
         let mut labels = vec![NONE; nf];
         let mut queue = VecDeque::with_capacity(nf);
         let mut next = 0u32;
         for c in 0..nc {
-            let part = &mut members[off[c] as usize..off[c + 1] as usize];
-            // Partial Fisher–Yates: the first `quota[c]` entries become the seeds.
-            for i in 0..quota[c] {
-                let j = i + rng.below(part.len() - i);
-                part.swap(i, j);
-                labels[part[i] as usize] = next;
-                queue.push_back(part[i]);
-                next += 1;
+            let part = &members[off[c]..off[c + 1]];
+            let q = quota[c];
+            let total = mass[c];
+            // Walk the curve once; seed k goes to the face where the running mass passes
+            // (k + u)·total/q, or to the next free face when a heavy face spans strata.
+            let mut run = 0.0;
+            let mut k = 0usize;
+            let goal = |k: usize, rng: &mut SplitMix64| {
+                let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+                (k as f64 + u) * total / q as f64
+            };
+            let mut at = goal(0, &mut rng);
+            for (i, &f) in part.iter().enumerate() {
+                run += mass_of(f);
+                // Faces left must still cover the seeds left.
+                let must = part.len() - i <= q - k;
+                if k < q && (run > at || must || total <= 0.0) {
+                    labels[f as usize] = next;
+                    queue.push_back(f);
+                    next += 1;
+                    k += 1;
+                    if k < q {
+                        at = goal(k, &mut rng);
+                    }
+                }
             }
         }
         while let Some(f) = queue.pop_front() {
@@ -432,13 +468,16 @@ impl<'a> Clusterer<'a> {
         let mut last_mod = vec![0u32; self.sums.len()];
         let mut pass = 1u32;
         let mut moves = 0u64;
+        let mut previous = log.initial_energy;
         while let Some(e) = queue.pop_front() {
             if e == NONE {
                 let energy = self.total_energy();
                 log.moves.push(moves);
                 log.energy.push(energy);
                 on_pass(pass, moves, energy);
-                if moves == 0 || pass >= max_passes || queue.is_empty() {
+                let settled = previous - energy <= self.tolerance * energy.abs();
+                previous = energy;
+                if moves == 0 || pass >= max_passes || queue.is_empty() || settled {
                     break;
                 }
                 pass += 1;
@@ -513,6 +552,21 @@ impl<'a> Clusterer<'a> {
         }
         pieces.iter().map(|&p| p == 1).collect()
     }
+}
+
+/// The Morton (Z-order) key of a point of the normalised box [-1, 1]³, 21 bits per axis.
+fn morton(p: DVec3) -> u64 {
+    let spread = |x: f64| -> u64 {
+        let mut v = (((x.clamp(-1.0, 1.0) + 1.0) * 0.5) * ((1u64 << 21) - 1) as f64) as u64;
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        v = (v | v << 2) & 0x1249_2492_4924_9249;
+        v
+    };
+    spread(p.x) | spread(p.y) << 1 | spread(p.z) << 2
 }
 
 /// Splits `n` among components: one each, the rest in proportion to `mass` (largest

@@ -93,6 +93,8 @@ params! {
         pub seed: u64 = 1,
         /// Most passes of the minimisation.
         pub max_passes: u32 = 200,
+        /// Stop after a pass that lowers the energy by less than this fraction (0: only when nothing moves).
+        pub tolerance: f64 = 0.0,
     }
 }
 
@@ -101,6 +103,7 @@ impl Params for CvtParams {
         let mut issues = Vec::new();
         check_range(&mut issues, "r", self.r, 0.0, 16.0);
         check_range(&mut issues, "clusters", self.clusters, 0, u32::MAX as u64);
+        check_range(&mut issues, "tolerance", self.tolerance, 0.0, 1.0);
         if !self.density.is_empty() && self.energy != EnergyKind::Valette2004 {
             issues.push(ParamIssue::new(
                 "density",
@@ -144,6 +147,37 @@ pub fn cluster(
     let energy = make_energy(params.energy, params.r);
     let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
     c.seed(n, params.seed)?;
+    c.set_tolerance(params.tolerance);
+    let log = c.minimize(params.max_passes, None, on_pass);
+    Ok(Clustering {
+        labels: c.into_labels(),
+        n,
+        log,
+    })
+}
+
+/// Like [`cluster`], but starting from the clustering `labels` (`0..n`, every cluster
+/// non-empty and connected — e.g. a previous clustering carried to a finer mesh) instead
+/// of fresh seeds. Falls back to fresh seeds when `labels` is not such a clustering.
+pub fn cluster_from(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: Vec<u32>,
+    n: usize,
+    params: &CvtParams,
+    density: Option<&[f64]>,
+    on_pass: impl FnMut(u32, u64, f64),
+) -> Result<Clustering, ClusterError> {
+    let energy = make_energy(params.energy, params.r);
+    let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
+    let usable = labels.len() == mesh.n_faces()
+        && c.set_labels(labels, n).is_ok()
+        && c.cluster_sums().iter().all(|s| s.count > 0.5)
+        && c.connected_clusters().iter().all(|&k| k);
+    if !usable {
+        c.seed(n, params.seed)?;
+    }
+    c.set_tolerance(params.tolerance);
     let log = c.minimize(params.max_passes, None, on_pass);
     Ok(Clustering {
         labels: c.into_labels(),

@@ -8,7 +8,8 @@
 use coarsen_mesh::{Topology, sanity};
 use coarsen_spatial::Bvh;
 use coarsen_stage::{
-    Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
+    AttrValues, Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError,
+    params,
 };
 use coarsen_stage_cvt::{CvtParams, EnergyKind};
 use coarsen_stage_dual::Placement;
@@ -30,6 +31,8 @@ params! {
         pub placement: Placement = Placement::Projected,
         /// Pull every output vertex onto the nearest point of the run's input surface.
         pub project: bool = true,
+        /// Stop re-clustering after a pass that lowers the energy by less than this fraction.
+        pub tolerance: f64 = 0.0,
         /// Subdivide fewer times rather than pass this many faces.
         pub max_faces: u64 = 8_000_000,
     }
@@ -72,8 +75,13 @@ impl Stage for Postprocess {
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let p = &self.0;
         let n = mesh.n_vertices();
-        // 1. Subdivide, within the face guard.
+        // 1. Subdivide, within the face guard; every fine face keeps its coarse face.
+        let coarse = mesh.clone();
         let mut fine = mesh;
+        fine.face_attrs.insert(
+            COARSE_FACE,
+            AttrValues::Label((0..coarse.n_faces() as u32).collect()),
+        );
         let mut done = 0;
         for _ in 0..p.times {
             if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
@@ -89,30 +97,41 @@ impl Stage for Postprocess {
                 .0;
             done += 1;
         }
-        // 2. Re-cluster into n regions.
+        // 2. Re-cluster into n regions, starting from the dual cells of the coarse vertices.
+        let start = dual_cells(&coarse, &fine, done);
+        fine.face_attrs.remove(COARSE_FACE);
         let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
         let cvt = CvtParams {
             energy: p.energy,
             r: p.r,
             seed: p.seed,
             max_passes: p.max_passes,
+            tolerance: p.tolerance,
             ..Default::default()
         };
         let progress = cx.progress;
         progress.begin(Self::KIND, u64::from(p.max_passes));
-        let clustering =
-            coarsen_stage_cvt::cluster(&fine, &topo, n, &cvt, None, |pass, moves, energy| {
+        let clustering = coarsen_stage_cvt::cluster_from(
+            &fine,
+            &topo,
+            start,
+            n,
+            &cvt,
+            None,
+            |pass, moves, energy| {
                 progress.advance(
                     u64::from(pass),
                     &format!("{moves} moves, energy {energy:.4e}"),
                 );
-            })
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+            },
+        )
+        .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         progress.end();
         drop(topo);
         // 3. Dual again.
         let mut labels = clustering.labels;
-        let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, 40, 8)
+        let surface = (p.project && cx.original.n_faces() > 0).then_some(cx.original);
+        let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, surface, 40, 8)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         let mut out = dual.mesh;
         // 4. Pull onto the input surface, keeping any move that would flip a face back out.
@@ -140,10 +159,45 @@ impl Stage for Postprocess {
         cx.report.figure("subdivisions", done);
         cx.report.figure("fine_faces", fine.n_faces());
         cx.report.figure("passes", clustering.log.moves.len());
+        cx.report
+            .figure("initial_energy", clustering.log.initial_energy);
+        cx.report.figure("moves_per_pass", &clustering.log.moves);
+        cx.report.figure("energy_per_pass", &clustering.log.energy);
         cx.report.figure("repairs", dual.stats.repairs);
         cx.report.figure("projected_vertices", projected);
         Ok(out)
     }
+}
+
+/// Face label naming each fine face's coarse face while the stage runs.
+const COARSE_FACE: &str = "postprocess.coarse_face";
+
+/// The clustering of `fine` (a 1-to-4 subdivision of `coarse`, `times` deep, whose faces
+/// carry [`COARSE_FACE`]) into the dual cells of the coarse vertices: each fine face goes to
+/// the corner of its coarse face nearest in barycentric terms (ties to the lower index).
+/// Without subdivision every coarse vertex would not get a face: then it returns nothing,
+/// and the clusterer seeds afresh.
+fn dual_cells(coarse: &Mesh, fine: &Mesh, times: u32) -> Vec<u32> {
+    let Some(parent) = fine.face_attrs.label(COARSE_FACE) else {
+        return Vec::new();
+    };
+    if times == 0 {
+        return Vec::new();
+    }
+    (0..fine.n_faces())
+        .map(|t| {
+            let f = coarse.faces[parent[t] as usize];
+            let [a, b, c] = f.map(|v| coarse.positions[v as usize]);
+            let w = coarsen_geom::triangle::barycentric(fine.face_centroid(t), a, b, c);
+            let mut best = 0;
+            for i in 1..3 {
+                if w[i] > w[best] || (w[i] == w[best] && f[i] < f[best]) {
+                    best = i;
+                }
+            }
+            f[best]
+        })
+        .collect()
 }
 
 coarsen_stage::export_stage!(Postprocess);
