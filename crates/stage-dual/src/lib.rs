@@ -338,7 +338,8 @@ fn place(
         }
         let c = labels[ef[0] as usize] as usize;
         let [a, b] = topo.edge(e).map(|v| mesh.positions[v as usize]);
-        let (p, d) = closest_point_on_segment(pos[c], a, b);
+        let p = closest_point_on_segment(pos[c], a, b).0;
+        let d = p.distance_squared(pos[c]);
         if best[c].is_none_or(|(bd, _)| d < bd) {
             best[c] = Some((d, p));
         }
