@@ -106,10 +106,14 @@ impl Energy for Shu2009 {
         if s.count <= 0.0 {
             return 0.0;
         }
-        let scale = if self.r == 0.0 {
-            1.0
-        } else {
-            s.count.powf(self.r)
+        // The common exponents without `powf`, which would dominate the move tests.
+        let m = s.count;
+        let scale = match self.r {
+            0.0 => 1.0,
+            0.5 => m.sqrt(),
+            1.0 => m,
+            2.0 => m * m,
+            r => m.powf(r),
         };
         scale * s.spread()
     }

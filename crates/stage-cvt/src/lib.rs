@@ -16,20 +16,23 @@
 //! | `density` | `""` | vertex scalar used as density ρ by `valette2004` (none when empty) |
 //! | `seed` | `1` | seed of the SplitMix64 that picks the seed faces |
 //! | `max_passes` | `200` | most passes of the minimisation |
+//! | `tolerance` | `0` | stop after a pass lowering the energy by less than this fraction |
 //!
 //! 1. **Seeds**: every connected component gets one seed face, the rest are shared in
-//!    proportion to the components' masses; the seed faces are drawn by SplitMix64 and
-//!    grown breadth-first (in a fixed order) until every face belongs to a cluster.
-//! 2. **Minimisation** (the ACVD loop): a queue of edges between different clusters with an
-//!    end-of-pass marker; an edge is tested only when one of its two clusters changed in
-//!    the current or previous pass. For an edge between faces a ∈ Vᵢ and b ∈ Vₖ the
-//!    energy with a moved to Vₖ and with b moved to Vᵢ is compared (O(1) from the
-//!    clusters' running sums) and the best improving move kept. A move is refused when it
-//!    would empty the donor cluster, split it or pinch it (paper 1's "cluster separation
-//!    detection": the donor's faces must form at most one arc around each corner of the
-//!    moved face), or when the receiving cluster would close a loop or touch itself at a
-//!    corner.
-//! 3. Stops after a pass without moves or after `max_passes`.
+//!    proportion to the components' masses; within a component the faces are ordered along
+//!    a Morton curve of their centroids and one seed is drawn in each equal-mass stretch
+//!    (jittered by SplitMix64 from `seed`), then grown breadth-first until every face
+//!    belongs to a cluster.
+//! 2. **Minimisation** (the ACVD loop, over faces): each pass sweeps the faces on cluster
+//!    borders in index order; a face is tested only when its cluster or a neighbouring one
+//!    changed in the current or previous pass. Its move to each neighbouring cluster is
+//!    priced in O(1) from the clusters' running sums and the best improving one kept. A
+//!    move is refused when it would empty the donor cluster, split it or pinch it (paper
+//!    1's "cluster separation detection": the donor's faces must form at most one arc
+//!    around each corner of the moved face), or when the receiving cluster would close a
+//!    loop or touch itself at a corner. A move activates the face's neighbours.
+//! 3. Stops after a pass without moves, after `max_passes`, or after a pass that lowers the
+//!    energy by less than `tolerance` times its value.
 //!
 //! Output: the face label `cluster` (`0..n`); every cluster is non-empty and connected.
 //! The report gives `clusters`, `passes`, `moves`, `moves_per_pass`, `energy_per_pass`

