@@ -1,18 +1,23 @@
 //! The `relax` stage (beyond the papers): a few sweeps of tangential relaxation that lift
 //! the worst triangles of a coarse mesh without changing its connectivity.
 //!
-//! In each sweep every vertex, in index order, is offered one move: an interior vertex
+//! In each sweep every vertex, in index order, is offered a few moves: an interior vertex
 //! towards the area-weighted centroid of its ring of faces, within its tangent plane
-//! (`step` of the way), then onto the nearest point of the run's input surface when
-//! `project` is on; a boundary vertex towards the middle of its two boundary neighbours,
-//! then onto the nearest point of the input's boundary edges (it stays put when the input
-//! has none). The move is kept only when the smallest angle of the vertex's faces grows,
+//! (`step`, half and a quarter of the way), then onto the nearest point of the run's input
+//! surface when `project` is on; a boundary vertex towards the middle (or the thirds) of
+//! the segment between its two boundary neighbours, then onto the nearest point of the
+//! input's boundary edges. The best move is kept only when the smallest angle of the vertex's faces grows,
 //! none of them turns by more than `max_turn_deg`, and (when projecting) none faces away
 //! from the input normal nearest its centroid — so the mesh's minimum angle never drops, no
 //! face flips, and every vertex stays on the input surface. Deterministic (one thread,
 //! fixed order).
 //!
-//! The report gives `moved` (moves kept, per sweep) and `min_angle_before` /
+//! With `flips`, each sweep first flips the interior edges whose two faces get a larger
+//! smallest angle that way (same guards: no new edge duplicating one, no face turned by
+//! more than `max_turn_deg`, none facing away from the input); the vertex count and the
+//! topology stay.
+//!
+//! The report gives `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep) and `min_angle_before` /
 //! `min_angle_after` in degrees.
 
 use coarsen_geom::{DVec3, triangle};
@@ -33,6 +38,8 @@ params! {
         pub project: bool = true,
         /// A move is refused if it turns a face normal by more than this many degrees.
         pub max_turn_deg: f64 = 30.0,
+        /// Also flip interior edges where that raises the smallest angle of their two faces.
+        pub flips: bool = true,
     }
 }
 
@@ -51,6 +58,8 @@ impl Params for RelaxParams {
 pub struct Relaxed {
     /// Moves kept in each sweep.
     pub moved: Vec<usize>,
+    /// Edges flipped in each sweep.
+    pub flipped: Vec<usize>,
     /// Smallest angle of the mesh before, in degrees.
     pub min_angle_before: f64,
     /// Smallest angle of the mesh after, in degrees.
@@ -140,6 +149,77 @@ impl<'a> Surface<'a> {
     }
 }
 
+/// One sweep of edge flips over `mesh` (in edge order, each face flipped at most once):
+/// the interior edge a–b of faces abc and bad becomes c–d when the smallest angle of the
+/// two faces grows, c–d is not an edge yet, neither new face turns by more than `cos_turn`
+/// from the face it replaces, and both agree with `surface`. Returns the flips made.
+fn flip_sweep(mesh: &mut Mesh, surface: Option<&Surface<'_>>, cos_turn: f64) -> usize {
+    let Ok(topo) = Topology::try_build(mesh) else {
+        return 0;
+    };
+    let mut touched = vec![false; mesh.n_faces()];
+    let mut added: std::collections::HashSet<[u32; 2]> = std::collections::HashSet::new();
+    let key = |a: u32, b: u32| if a < b { [a, b] } else { [b, a] };
+    let mut flips = 0;
+    for e in 0..topo.n_edges() as u32 {
+        let ef = topo.edge_faces(e);
+        if ef.len() != 2 || touched[ef[0] as usize] || touched[ef[1] as usize] {
+            continue;
+        }
+        let [a, b] = topo.edge(e);
+        // f1 holds a → b, f2 holds b → a.
+        let rot = |f: u32, x: u32, y: u32| -> Option<u32> {
+            let t = mesh.faces[f as usize];
+            (0..3)
+                .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
+                .map(|i| t[(i + 2) % 3])
+        };
+        let (c, d) = match (rot(ef[0], a, b), rot(ef[1], b, a)) {
+            (Some(c), Some(d)) => (c, d),
+            _ => match (rot(ef[1], a, b), rot(ef[0], b, a)) {
+                (Some(c), Some(d)) => (c, d),
+                _ => continue,
+            },
+        };
+        if c == d || topo.find_edge(c, d).is_some() || added.contains(&key(c, d)) {
+            continue;
+        }
+        let p = |v: u32| mesh.positions[v as usize];
+        let old = [[a, b, c], [b, a, d]];
+        let new = [[a, d, c], [d, b, c]];
+        let worst = |fs: &[[u32; 3]; 2]| {
+            fs.iter()
+                .map(|f| triangle::min_angle(p(f[0]), p(f[1]), p(f[2])))
+                .fold(f64::INFINITY, f64::min)
+        };
+        if worst(&new) <= worst(&old) {
+            continue;
+        }
+        let n_old = [0, 1].map(|i| triangle::normal(p(old[i][0]), p(old[i][1]), p(old[i][2])));
+        let ok = new.iter().all(|f| {
+            let n = triangle::normal(p(f[0]), p(f[1]), p(f[2]));
+            n_old.iter().all(|o| n.dot(*o) >= cos_turn)
+                && surface.is_none_or(|s| s.agrees(p(f[0]), p(f[1]), p(f[2])))
+        });
+        if !ok {
+            continue;
+        }
+        let (f1, f2) = (ef[0] as usize, ef[1] as usize);
+        let (g1, g2) = if rot(ef[0], a, b) == Some(c) {
+            (f1, f2)
+        } else {
+            (f2, f1)
+        };
+        mesh.faces[g1] = new[0];
+        mesh.faces[g2] = new[1];
+        touched[f1] = true;
+        touched[f2] = true;
+        added.insert(key(c, d));
+        flips += 1;
+    }
+    flips
+}
+
 /// Relaxes the vertices of `mesh` in place (see the crate docs), keeping them on `surface`
 /// when given.
 pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParams) -> Relaxed {
@@ -170,7 +250,18 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     }
     let cos_turn = params.max_turn_deg.to_radians().cos();
     let mut normals = Vec::new();
+    let mut topo = topo;
     for _ in 0..params.sweeps {
+        if params.flips {
+            let flipped = flip_sweep(mesh, surface, cos_turn);
+            out.flipped.push(flipped);
+            if flipped > 0 {
+                match Topology::try_build(mesh) {
+                    Ok(t) => topo = t,
+                    Err(_) => break,
+                }
+            }
+        }
         let mut moved = 0;
         for v in 0..mesh.n_vertices() as u32 {
             let fan = topo.vertex_faces(v);
@@ -188,18 +279,20 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                 normal += triangle::cross(a, b, c);
                 normals.push(triangle::normal(a, b, c));
             }
-            let q = if topo.is_boundary_vertex(v) {
+            // Candidate positions, best first: the full move, then partial ones (on the
+            // boundary: a third and two thirds of the way between the two neighbours).
+            let mut cands = [DVec3::NAN; 3];
+            if topo.is_boundary_vertex(v) {
                 let [u, w] = match ends[v as usize][..] {
                     [u, w] => [u, w].map(|i| mesh.positions[i as usize]),
                     _ => continue,
                 };
-                let target = p + params.step * (0.5 * (u + w) - p);
-                match surface.filter(|_| params.project) {
-                    Some(s) => match s.project_boundary(target) {
-                        Some(q) => q,
-                        None => continue,
-                    },
-                    None => target,
+                for (c, s) in cands.iter_mut().zip([0.5, 1.0 / 3.0, 2.0 / 3.0]) {
+                    let target = p + params.step * (u.lerp(w, s) - p);
+                    *c = match surface.filter(|_| params.project) {
+                        Some(sf) => sf.project_boundary(target).unwrap_or(DVec3::NAN),
+                        None => target,
+                    };
                 }
             } else {
                 let normal = normal.normalize_or_zero();
@@ -207,22 +300,19 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                     continue;
                 }
                 let d = sum / area - p;
-                let q = p + params.step * (d - d.dot(normal) * normal);
-                match surface.filter(|_| params.project) {
-                    Some(s) => s.project(q).unwrap_or(q),
-                    None => q,
+                let d = d - d.dot(normal) * normal;
+                for (c, s) in cands.iter_mut().zip([1.0, 0.5, 0.25]) {
+                    let q = p + s * params.step * d;
+                    *c = match surface.filter(|_| params.project) {
+                        Some(sf) => sf.project(q).unwrap_or(q),
+                        None => q,
+                    };
                 }
-            };
-            if !q.is_finite() || q == p {
-                continue;
             }
             let Some(before) = fan_min_angle(mesh, fan, v, p, &normals, -1.0) else {
                 continue;
             };
-            let Some(after) = fan_min_angle(mesh, fan, v, q, &normals, cos_turn) else {
-                continue;
-            };
-            let agrees = || {
+            let agrees = |q: DVec3| {
                 surface.is_none_or(|s| {
                     fan.iter().all(|&f| {
                         let [a, b, c] = mesh.faces[f as usize].map(|w| {
@@ -236,13 +326,25 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                     })
                 })
             };
-            if after > before && agrees() {
+            let mut best: Option<(f64, DVec3)> = None;
+            for q in cands {
+                if !q.is_finite() || q == p {
+                    continue;
+                }
+                if let Some(after) = fan_min_angle(mesh, fan, v, q, &normals, cos_turn)
+                    && after > best.map_or(before, |b| b.0)
+                    && agrees(q)
+                {
+                    best = Some((after, q));
+                }
+            }
+            if let Some((_, q)) = best {
                 mesh.positions[v as usize] = q;
                 moved += 1;
             }
         }
         out.moved.push(moved);
-        if moved == 0 {
+        if moved == 0 && out.flipped.last().is_none_or(|&f| f == 0) {
             break;
         }
     }
@@ -277,6 +379,7 @@ impl Stage for Relax {
             (self.0.project && cx.original.n_faces() > 0).then(|| Surface::new(cx.original));
         let r = relax(&mut mesh, surface.as_ref(), &self.0);
         cx.report.figure("moved", &r.moved);
+        cx.report.figure("flipped", &r.flipped);
         cx.report.figure("min_angle_before", r.min_angle_before);
         cx.report.figure("min_angle_after", r.min_angle_after);
         Ok(mesh)
@@ -310,13 +413,18 @@ mod tests {
         }
         let before = m.clone();
         let mut report = StageReport::default();
-        let out = Relax::new(RelaxParams::default())
+        // Moves only, so the faces stay comparable one by one.
+        let params = RelaxParams {
+            flips: false,
+            ..RelaxParams::default()
+        };
+        let out = Relax::new(params)
             .run(m, &mut Context::new(&original, &mut report))
             .unwrap();
         let a0 = report.get("min_angle_before").unwrap().as_f64().unwrap();
         let a1 = report.get("min_angle_after").unwrap().as_f64().unwrap();
         assert!(a1 > a0 + 1.0, "{a0} → {a1}");
-        assert_eq!(out.faces, before.faces);
+        assert!(out.faces == before.faces, "faces changed");
         for p in &out.positions {
             // On the input polyhedron: within its chord error of the unit sphere.
             assert!((p.length() - 1.0).abs() < 0.01, "{p}");
@@ -326,6 +434,32 @@ mod tests {
                 out.face_normal(f).dot(before.face_normal(f)) > 0.5,
                 "face {f}"
             );
+        }
+    }
+
+    /// A flat rhombus split along its long diagonal gets the short one.
+    #[test]
+    fn a_long_diagonal_is_flipped_to_the_short_one() {
+        let positions = vec![
+            DVec3::new(-1.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.3, 0.0),
+            DVec3::new(0.0, -0.3, 0.0),
+        ];
+        let mut m = Mesh::new(positions, vec![[0, 1, 2], [1, 0, 3]]);
+        let params = RelaxParams {
+            step: 0.0,
+            sweeps: 1,
+            ..RelaxParams::default()
+        };
+        let r = relax(&mut m, None, &params);
+        assert_eq!(r.flipped, vec![1]);
+        assert!(r.min_angle_after > r.min_angle_before + 10.0, "{r:?}");
+        let t = Topology::build(&m);
+        assert!(t.find_edge(2, 3).is_some() && t.find_edge(0, 1).is_none());
+        assert!(t.is_consistently_oriented());
+        for f in 0..2 {
+            assert!(m.face_normal(f).z > 0.0);
         }
     }
 
