@@ -31,10 +31,9 @@ params! {
         pub placement: Placement = Placement::Projected,
         /// Pull every output vertex onto the nearest point of the run's input surface.
         pub project: bool = true,
-        /// Stop re-clustering after a pass that lowers the energy by less than this fraction
-        /// (the start is already close: on the bunny 1e-4 gives the same triangles in 40 % of
-        /// the passes).
-        pub tolerance: f64 = 1e-4,
+        /// Stop the finest level's re-clustering after a pass that lowers the energy by less
+        /// than this fraction (coarser levels: a tenth of it).
+        pub tolerance: f64 = 1e-3,
         /// Subdivide fewer times rather than pass this many faces.
         pub max_faces: u64 = 8_000_000,
     }
@@ -78,61 +77,91 @@ impl Stage for Postprocess {
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let p = &self.0;
         let n = mesh.n_vertices();
-        // 1. Subdivide, within the face guard; every fine face keeps its coarse face.
+        // 1–2. Subdivide and re-cluster into n regions, level by level: the first level
+        // starts from the dual cells of the coarse vertices, each finer one from the
+        // clustering of the level before carried to the child faces, so the global
+        // arrangement settles where faces are few and the fine levels only polish borders.
         let coarse = mesh.clone();
         let mut fine = mesh;
         fine.face_attrs.insert(
             COARSE_FACE,
             AttrValues::Label((0..coarse.n_faces() as u32).collect()),
         );
-        let mut done = 0;
-        for _ in 0..p.times {
-            if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
-                cx.report.warn(format!(
-                    "subdivided {done} of {} times: another would pass max_faces = {}",
-                    p.times, p.max_faces
-                ));
-                break;
-            }
-            let all = vec![true; fine.n_faces()];
-            fine = coarsen_stage_refine::split_once(&fine, &all)
-                .map_err(|e| StageError::Input(e.to_string()))?
-                .0;
-            done += 1;
-        }
-        // 2. Re-cluster into n regions, starting from the dual cells of the coarse vertices.
-        let start = dual_cells(&coarse, &fine, done);
-        fine.face_attrs.remove(COARSE_FACE);
-        let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
-        let cvt = CvtParams {
+        let mut cvt = CvtParams {
             energy: p.energy,
             r: p.r,
             seed: p.seed,
             max_passes: p.max_passes,
-            tolerance: p.tolerance,
             ..Default::default()
         };
         let progress = cx.progress;
-        progress.begin(Self::KIND, u64::from(p.max_passes));
-        let clustering = coarsen_stage_cvt::cluster_from(
-            &fine,
-            &topo,
-            start,
-            n,
-            &cvt,
-            None,
-            |pass, moves, energy| {
-                progress.advance(
-                    u64::from(pass),
-                    &format!("{moves} moves, energy {energy:.4e}"),
-                );
-            },
-        )
-        .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        progress.end();
-        drop(topo);
+        let mut done = 0;
+        let mut passes = Vec::new();
+        let mut log = None;
+        for _ in 0..p.times.max(1) {
+            if done < p.times {
+                if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
+                    cx.report.warn(format!(
+                        "subdivided {done} of {} times: another would pass max_faces = {}",
+                        p.times, p.max_faces
+                    ));
+                    if done > 0 {
+                        break;
+                    }
+                } else {
+                    let all = vec![true; fine.n_faces()];
+                    fine = coarsen_stage_refine::split_once(&fine, &all)
+                        .map_err(|e| StageError::Input(e.to_string()))?
+                        .0;
+                    done += 1;
+                }
+            }
+            let start = match fine.face_attrs.remove(CLUSTER) {
+                Some(AttrValues::Label(l)) => l,
+                _ => dual_cells(&coarse, &fine, done),
+            };
+            let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
+            // Coarse levels settle the arrangement (ten times tighter; they are cheap); the
+            // finest only polishes, and stops at `tolerance`.
+            cvt.tolerance = if done >= p.times {
+                p.tolerance
+            } else {
+                0.1 * p.tolerance
+            };
+            progress.begin(Self::KIND, u64::from(p.max_passes));
+            let clustering = coarsen_stage_cvt::cluster_from(
+                &fine,
+                &topo,
+                start,
+                n,
+                &cvt,
+                None,
+                |pass, moves, energy| {
+                    progress.advance(
+                        u64::from(pass),
+                        &format!("level {done}: {moves} moves, energy {energy:.4e}"),
+                    );
+                },
+            )
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+            progress.end();
+            passes.push(clustering.log.moves.len());
+            fine.face_attrs
+                .insert(CLUSTER, AttrValues::Label(clustering.labels));
+            log = Some(clustering.log);
+            if done == p.times || done == 0 {
+                break;
+            }
+        }
+        fine.face_attrs.remove(COARSE_FACE);
+        let Some(AttrValues::Label(mut labels)) = fine.face_attrs.remove(CLUSTER) else {
+            return Err(StageError::Internal(format!(
+                "`{}`: the clustering was lost",
+                Self::KIND
+            )));
+        };
+        let log = log.unwrap_or_default();
         // 3. Dual again.
-        let mut labels = clustering.labels;
         let surface = (p.project && cx.original.n_faces() > 0).then_some(cx.original);
         let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, surface, 40, 8)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
@@ -161,11 +190,11 @@ impl Stage for Postprocess {
         }
         cx.report.figure("subdivisions", done);
         cx.report.figure("fine_faces", fine.n_faces());
-        cx.report.figure("passes", clustering.log.moves.len());
-        cx.report
-            .figure("initial_energy", clustering.log.initial_energy);
-        cx.report.figure("moves_per_pass", &clustering.log.moves);
-        cx.report.figure("energy_per_pass", &clustering.log.energy);
+        cx.report.figure("passes_per_level", &passes);
+        cx.report.figure("passes", log.moves.len());
+        cx.report.figure("initial_energy", log.initial_energy);
+        cx.report.figure("moves_per_pass", &log.moves);
+        cx.report.figure("energy_per_pass", &log.energy);
         cx.report.figure("repairs", dual.stats.repairs);
         cx.report.figure("projected_vertices", projected);
         Ok(out)
@@ -174,6 +203,9 @@ impl Stage for Postprocess {
 
 /// Face label naming each fine face's coarse face while the stage runs.
 const COARSE_FACE: &str = "postprocess.coarse_face";
+
+/// Face label carrying the clustering of one level to the next while the stage runs.
+const CLUSTER: &str = "postprocess.cluster";
 
 /// The clustering of `fine` (a 1-to-4 subdivision of `coarse`, `times` deep, whose faces
 /// carry [`COARSE_FACE`]) into the dual cells of the coarse vertices: each fine face goes to

@@ -326,19 +326,18 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                     })
                 })
             };
-            let mut best: Option<(f64, DVec3)> = None;
-            for q in cands {
-                if !q.is_finite() || q == p {
-                    continue;
-                }
-                if let Some(after) = fan_min_angle(mesh, fan, v, q, &normals, cos_turn)
-                    && after > best.map_or(before, |b| b.0)
-                    && agrees(q)
-                {
-                    best = Some((after, q));
-                }
-            }
-            if let Some((_, q)) = best {
+            // Rank the improving candidates; the (costlier) input-normal test goes in order.
+            let mut ranked: Vec<(f64, DVec3)> = cands
+                .iter()
+                .filter(|q| q.is_finite() && **q != p)
+                .filter_map(|&q| {
+                    fan_min_angle(mesh, fan, v, q, &normals, cos_turn)
+                        .filter(|&after| after > before)
+                        .map(|after| (after, q))
+                })
+                .collect();
+            ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+            if let Some(&(_, q)) = ranked.iter().find(|(_, q)| agrees(*q)) {
                 mesh.positions[v as usize] = q;
                 moved += 1;
             }
