@@ -159,22 +159,13 @@ pub fn dual(
     // on a curved part), gets its clusters' vertices moved to the projected centroids, the
     // most central choice (the report's `degenerate_fixes`).
     let diag2 = mesh.bbox().diagonal().powi(2);
-    let onto = surface.unwrap_or(mesh);
-    let bvh = Bvh::build(&onto.positions, &onto.faces);
+    let facing = coarsen_metrics::Facing::new(surface.unwrap_or(mesh));
     let bad_faces = |positions: &[DVec3]| -> Vec<u32> {
         let mut v: Vec<u32> = faces
             .iter()
             .filter(|f| {
                 let [a, b, c] = f.map(|i| positions[i as usize]);
-                let flipped = || {
-                    bvh.closest_point(coarsen_geom::triangle::centroid(a, b, c))
-                        .is_some_and(|h| {
-                            coarsen_geom::triangle::cross(a, b, c)
-                                .dot(onto.face_normal(h.face as usize))
-                                < 0.0
-                        })
-                };
-                coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2 || flipped()
+                coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2 || facing.faces_away(a, b, c)
             })
             .flatten()
             .copied()

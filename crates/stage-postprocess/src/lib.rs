@@ -6,7 +6,6 @@
 //! copies none of them.
 
 use coarsen_mesh::{Topology, sanity};
-use coarsen_spatial::Bvh;
 use coarsen_stage::{
     AttrValues, Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError,
     params,
@@ -166,24 +165,45 @@ impl Stage for Postprocess {
         let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, surface, 40, 8)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         let mut out = dual.mesh;
-        // 4. Pull onto the input surface, keeping any move that would flip a face back out.
+        // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
+        // over, flatten it or make it face away from the input goes back where the dual put
+        // it (a few rounds, as undoing one move can expose a neighbour's).
         let mut projected = 0usize;
         if p.project && cx.original.n_faces() > 0 {
-            let bvh = Bvh::build(&cx.original.positions, &cx.original.faces);
+            let facing = coarsen_metrics::Facing::new(cx.original);
             let before = out.clone();
-            for v in out.positions.iter_mut() {
-                if let Some(hit) = bvh.closest_point(*v) {
-                    *v = hit.point;
-                    projected += 1;
+            let mut moved = vec![false; out.n_vertices()];
+            for (v, pos) in out.positions.iter_mut().enumerate() {
+                if let Some(hit) = facing.bvh().closest_point(*pos) {
+                    moved[v] = hit.point != *pos;
+                    *pos = hit.point;
                 }
             }
-            let flipped = (0..out.n_faces())
-                .filter(|&f| out.face_normal(f).dot(before.face_normal(f)) <= 0.0)
-                .count();
-            if flipped > 0 || sanity::sanity_check(&out).is_err() {
-                cx.report.warn(format!(
-                    "projection onto the input would flip or degenerate {flipped} faces: vertices left where the dual put them"
-                ));
+            let diag2 = cx.original.bbox().diagonal().powi(2);
+            for _ in 0..8 {
+                let mut undo: Vec<u32> = Vec::new();
+                for f in 0..out.n_faces() {
+                    let [a, b, c] = out.corners(f);
+                    let bad = out.face_normal(f).dot(before.face_normal(f)) <= 0.0
+                        || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
+                        || facing.faces_away(a, b, c);
+                    if bad {
+                        undo.extend(out.faces[f].iter().filter(|&&v| moved[v as usize]));
+                    }
+                }
+                if undo.is_empty() {
+                    break;
+                }
+                for v in undo {
+                    out.positions[v as usize] = before.positions[v as usize];
+                    moved[v as usize] = false;
+                }
+            }
+            projected = moved.iter().filter(|&&m| m).count();
+            if sanity::sanity_check(&out).is_err() {
+                cx.report.warn(
+                    "projection onto the input would degenerate faces: vertices left where the dual put them",
+                );
                 out = before;
                 projected = 0;
             }

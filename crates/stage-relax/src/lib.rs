@@ -22,7 +22,8 @@
 
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::Topology;
-use coarsen_spatial::{Bvh, closest_point_on_segment};
+use coarsen_metrics::Facing;
+use coarsen_spatial::closest_point_on_segment;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
 };
@@ -96,8 +97,7 @@ fn fan_min_angle(
 
 /// The surface vertices are kept on: the input mesh, its face index and its boundary edges.
 pub struct Surface<'a> {
-    mesh: &'a Mesh,
-    bvh: Bvh,
+    facing: Facing<'a>,
     boundary: Vec<[DVec3; 2]>,
 }
 
@@ -113,15 +113,14 @@ impl<'a> Surface<'a> {
             })
             .unwrap_or_default();
         Surface {
-            mesh,
-            bvh: Bvh::build(&mesh.positions, &mesh.faces),
+            facing: Facing::new(mesh),
             boundary,
         }
     }
 
     /// The nearest point of the surface.
     fn project(&self, p: DVec3) -> Option<DVec3> {
-        self.bvh.closest_point(p).map(|h| h.point)
+        self.facing.bvh().closest_point(p).map(|h| h.point)
     }
 
     /// The nearest point of the boundary edges.
@@ -136,16 +135,10 @@ impl<'a> Surface<'a> {
             .map(|(q, _)| q)
     }
 
-    /// True when the triangle `abc` faces the same side as the input face nearest its
-    /// centroid.
+    /// True when the triangle `abc` does not face away from the input (the metrics'
+    /// flipped-face test).
     fn agrees(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
-        match self.bvh.closest_point(triangle::centroid(a, b, c)) {
-            Some(h) => {
-                let f = h.face as usize;
-                triangle::cross(a, b, c).dot(self.mesh.face_normal(f)) > 0.0
-            }
-            None => true,
-        }
+        !self.facing.faces_away(a, b, c)
     }
 }
 
