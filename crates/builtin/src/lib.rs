@@ -20,6 +20,7 @@ pub fn builtin_stages() -> Vec<StageDescriptor> {
         coarsen_stage_postprocess::descriptor(),
         coarsen_stage_qem::descriptor(),
         coarsen_stage_refine::descriptor(),
+        coarsen_stage_relax::descriptor(),
         coarsen_stage_subdivide::descriptor(),
         coarsen_stage_svec::descriptor(),
     ]

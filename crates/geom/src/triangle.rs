@@ -31,6 +31,21 @@ pub fn centroid(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
 
 /// Angle in radians between vectors `u` and `v`; 0 when either is zero.
 ///
+/// Barycentric coordinates of the projection of `p` onto the plane of triangle `abc`
+/// (they sum to 1); the centroid's for a degenerate triangle.
+pub fn barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
+    let (e0, e1, e2) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (e2.dot(e0), e2.dot(e1));
+    let den = d00 * d11 - d01 * d01;
+    if den.is_nan() || den.abs() <= f64::MIN_POSITIVE || den.is_infinite() {
+        return [1.0 / 3.0; 3];
+    }
+    let v = (d11 * d20 - d01 * d21) / den;
+    let w = (d00 * d21 - d01 * d20) / den;
+    [1.0 - v - w, v, w]
+}
+
 /// Uses `atan2(|u × v|, u · v)`, accurate for angles near 0 and π where `acos` is not.
 #[inline]
 pub fn angle_between(u: DVec3, v: DVec3) -> f64 {
@@ -97,6 +112,22 @@ pub fn is_obtuse(a: DVec3, b: DVec3, c: DVec3) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn barycentric_recovers_the_weights_of_a_point() {
+        let (a, b, c) = (
+            DVec3::ZERO,
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 3.0, 1.0),
+        );
+        // Off the plane along the normal: the weights of the projection.
+        let p = 0.2 * a + 0.5 * b + 0.3 * c + 0.7 * normal(a, b, c);
+        let w = barycentric(p, a, b, c);
+        for (x, y) in w.iter().zip([0.2, 0.5, 0.3]) {
+            assert!((x - y).abs() < 1e-12, "{w:?}");
+        }
+        assert_eq!(barycentric(p, a, a, a), [1.0 / 3.0; 3]);
+    }
 
     fn equilateral() -> (DVec3, DVec3, DVec3) {
         (

@@ -178,6 +178,41 @@ impl HygieneReport {
     }
 }
 
+/// Splits every non-manifold vertex (several face fans meeting at one point, as at a
+/// bow-tie) into one vertex per fan: the first fan keeps the vertex, each other fan gets a
+/// copy at the same position with the same attributes. Returns the mesh and the number of
+/// copies made (0: the mesh comes back unchanged). Edges of three or more faces are left
+/// as they are.
+pub fn split_non_manifold_vertices(mesh: Mesh) -> (Mesh, usize) {
+    let topo = crate::Topology::build(&mesh);
+    let bad = topo.non_manifold_vertices();
+    if bad.is_empty() {
+        return (mesh, 0);
+    }
+    let mut positions = mesh.positions.clone();
+    let mut faces = mesh.faces.clone();
+    let mut origins = VertexOrigins::identity(mesh.n_vertices());
+    let mut copies = 0;
+    for &v in &bad {
+        for fan in topo.vertex_fans(v).skip(1) {
+            let w = positions.len() as Index;
+            positions.push(mesh.positions[v as usize]);
+            origins.push_copy(v);
+            for &f in fan {
+                for c in &mut faces[f as usize] {
+                    if *c == v {
+                        *c = w;
+                    }
+                }
+            }
+            copies += 1;
+        }
+    }
+    let face_origins = FaceOrigins::from_parents((0..mesh.n_faces() as Index).collect());
+    let (out, _) = mesh.rebuilt(positions, faces, &origins, &face_origins);
+    (out, copies)
+}
+
 /// Runs the clean-up steps `opts` selects on `mesh` (see the module docs).
 pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport), HygieneError> {
     mesh.validate_indices()?;
@@ -351,6 +386,27 @@ fn mark_duplicates(faces: &[[Index; 3]], keep: &mut [bool], drop: bool) -> (usiz
 mod tests {
     use super::*;
     use crate::AttrValues;
+
+    #[test]
+    fn a_bow_tie_vertex_is_split_into_one_vertex_per_fan() {
+        let mut m = crate::fixtures::bowtie();
+        let n = m.n_vertices();
+        m.vertex_attrs.insert(
+            "h",
+            AttrValues::Scalar((0..n).map(|v| v as f64 + 0.5).collect()),
+        );
+        let (out, copies) = split_non_manifold_vertices(m.clone());
+        assert_eq!(copies, 1);
+        assert_eq!(out.n_vertices(), n + 1);
+        assert_eq!(out.positions[n], m.positions[0]);
+        assert_eq!(out.vertex_attrs.scalar("h").unwrap()[n], 0.5);
+        let t = Topology::build(&out);
+        assert!(t.is_manifold());
+        assert_eq!(t.n_components(), 2);
+        // A manifold mesh comes back as it was.
+        let (same, none) = split_non_manifold_vertices(out.clone());
+        assert_eq!((same.faces, none), (out.faces, 0));
+    }
     use crate::topology::Topology;
     use crate::topology::tests::{read_obj, shared_data};
 

@@ -94,6 +94,48 @@ pub(crate) fn validity_of(
     }
 }
 
+/// The input surface's normal at a point of face `face` with barycentric weights `bary`
+/// (unnormalised): the face's own inside it, the summed normals of the faces around the
+/// edge or vertex it lies on (a weight of exactly 0 puts it on the opposite edge).
+fn surface_normal(mesh: &Mesh, topo: &Topology, face: u32, bary: [f64; 3]) -> DVec3 {
+    let face_cross = |f: u32| {
+        let [a, b, c] = mesh.corners(f as usize);
+        triangle::cross(a, b, c)
+    };
+    let vertex_normal =
+        |v: u32| -> DVec3 { topo.vertex_faces(v).iter().map(|&f| face_cross(f)).sum() };
+    let edge_normal = |a: u32, b: u32| {
+        topo.find_edge(a, b).map_or(DVec3::ZERO, |e| {
+            topo.edge_faces(e).iter().map(|&f| face_cross(f)).sum()
+        })
+    };
+    let [p, q, r] = mesh.faces[face as usize];
+    let n = match bary.map(|w| w != 0.0) {
+        [true, false, false] => vertex_normal(p),
+        [false, true, false] => vertex_normal(q),
+        [false, false, true] => vertex_normal(r),
+        [true, true, false] => edge_normal(p, q),
+        [false, true, true] => edge_normal(q, r),
+        [true, false, true] => edge_normal(r, p),
+        _ => DVec3::ZERO,
+    };
+    if n.length_squared() > 0.0 {
+        n
+    } else {
+        face_cross(face)
+    }
+}
+
+/// True when triangle `abc` points away (> 90°) from the input normal at the nearest point
+/// of the input to its centroid — the test behind [`Validity::n_flipped`].
+fn faces_away(mesh: &Mesh, topo: &Topology, bvh: &Bvh, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let n_out = triangle::cross(a, b, c);
+    n_out != DVec3::ZERO
+        && bvh
+            .closest_point(triangle::centroid(a, b, c))
+            .is_some_and(|hit| n_out.dot(surface_normal(mesh, topo, hit.face, hit.bary)) < 0.0)
+}
+
 /// Output faces whose normal points away (> 90°) from the input normal nearest their
 /// centroid (see [`Validity::n_flipped`]).
 pub(crate) fn count_flipped(
@@ -103,63 +145,45 @@ pub(crate) fn count_flipped(
     in_topology: &Topology,
 ) -> usize {
     let (out_mesh, in_mesh) = (output.mesh, input.mesh);
-    let face_cross = |f: u32| {
-        let [a, b, c] = in_mesh.corners(f as usize);
-        triangle::cross(a, b, c)
-    };
-    // The area-weighted vertex normal (unnormalised: only its direction is used), for
-    // the few vertices that are nearest points; no table over the whole input.
-    let vertex_normal = |v: u32| -> DVec3 {
-        in_topology
-            .vertex_faces(v)
-            .iter()
-            .map(|&f| face_cross(f))
-            .sum()
-    };
-    // The input's normal at the nearest point: of the face, the edge or the vertex it
-    // lies on (a barycentric weight of exactly 0 puts it on the opposite edge).
-    let input_normal = |face: u32, bary: [f64; 3]| -> DVec3 {
-        let [p, q, r] = in_mesh.faces[face as usize];
-        let edge_normal = |a: u32, b: u32| {
-            in_topology.find_edge(a, b).map_or(DVec3::ZERO, |e| {
-                in_topology
-                    .edge_faces(e)
-                    .iter()
-                    .map(|&f| face_cross(f))
-                    .sum()
-            })
-        };
-        let n = match bary.map(|w| w != 0.0) {
-            [true, false, false] => vertex_normal(p),
-            [false, true, false] => vertex_normal(q),
-            [false, false, true] => vertex_normal(r),
-            [true, true, false] => edge_normal(p, q),
-            [false, true, true] => edge_normal(q, r),
-            [true, false, true] => edge_normal(r, p),
-            _ => DVec3::ZERO,
-        };
-        if n.length_squared() > 0.0 {
-            n
-        } else {
-            face_cross(face)
-        }
-    };
     map_chunks(out_mesh.n_faces(), CHUNK, |range| {
         range
             .filter(|&f| {
                 let [a, b, c] = out_mesh.corners(f);
-                let n_out = triangle::cross(a, b, c);
-                if n_out == DVec3::ZERO {
-                    return false;
-                }
-                in_bvh
-                    .closest_point(triangle::centroid(a, b, c))
-                    .is_some_and(|hit| n_out.dot(input_normal(hit.face, hit.bary)) < 0.0)
+                faces_away(in_mesh, in_topology, in_bvh, a, b, c)
             })
             .count()
     })
     .into_iter()
     .sum()
+}
+
+/// An input surface indexed for the flipped-face test of the metrics, for stages that must
+/// not produce a face the metrics would count as flipped.
+pub struct Facing<'a> {
+    mesh: &'a Mesh,
+    topo: Topology,
+    bvh: Bvh,
+}
+
+impl<'a> Facing<'a> {
+    /// Indexes `input` (its faces and adjacency).
+    pub fn new(input: &'a Mesh) -> Self {
+        Facing {
+            mesh: input,
+            topo: Topology::build(input),
+            bvh: Bvh::build(&input.positions, &input.faces),
+        }
+    }
+
+    /// The index of the input's faces.
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// True when triangle `abc` would count as flipped against the input.
+    pub fn faces_away(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+        faces_away(self.mesh, &self.topo, &self.bvh, a, b, c)
+    }
 }
 
 #[cfg(test)]

@@ -1,4 +1,8 @@
 //! Running a checked pipeline on a mesh.
+//!
+//! Before a stage that needs a manifold mesh, non-manifold vertices (several face fans at
+//! one point) are split into one vertex per fan, with a warning in that stage's report;
+//! edges of three or more faces stop the run with [`RunError::NotManifold`].
 
 use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, Topology, sanity};
@@ -114,8 +118,19 @@ impl Pipeline {
         for (i, s) in self.stages.iter().enumerate() {
             let index = i + 1;
             let contract = s.stage.contract();
+            let mut split_note = None;
             if contract.needs.manifold {
-                let summary = Topology::build(&mesh).summary(&mesh);
+                let mut summary = Topology::build(&mesh).summary(&mesh);
+                if !summary.manifold && summary.n_non_manifold_edges == 0 {
+                    // Non-manifold vertices only: one vertex per face fan makes it workable.
+                    let (split, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
+                    split_note = Some(format!(
+                        "{} non-manifold vertices split into one vertex per face fan ({copies} copies added)",
+                        summary.n_non_manifold_vertices
+                    ));
+                    mesh = split;
+                    summary = Topology::build(&mesh).summary(&mesh);
+                }
                 if !summary.manifold {
                     return Err(RunError::NotManifold {
                         index,
@@ -134,6 +149,9 @@ impl Pipeline {
                 "stage starts"
             );
             let mut stage_report = StageReport::default();
+            if let Some(note) = split_note {
+                stage_report.warn(note);
+            }
             let t = Instant::now();
             let mut slot = opts
                 .progressive

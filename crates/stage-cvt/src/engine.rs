@@ -108,6 +108,8 @@ pub struct Clusterer<'a> {
     face_sums: Vec<Sums>,
     labels: Vec<u32>,
     sums: Vec<Sums>,
+    /// Stop when a pass lowers the energy by less than this fraction of it.
+    tolerance: f64,
 }
 
 impl<'a> Clusterer<'a> {
@@ -173,7 +175,14 @@ impl<'a> Clusterer<'a> {
             face_sums,
             labels: vec![NONE; nf],
             sums: Vec::new(),
+            tolerance: 0.0,
         })
+    }
+
+    /// Makes [`Clusterer::minimize`] stop after a pass that lowers the energy by less than
+    /// `tolerance` times its value (0, the default, stops only when nothing moves).
+    pub fn set_tolerance(&mut self, tolerance: f64) {
+        self.tolerance = tolerance;
     }
 
     /// The face across edge `i` (corner i → i+1) of face `f`, or `NONE`.
@@ -233,8 +242,11 @@ impl<'a> Clusterer<'a> {
     }
 
     /// Picks `n` seed faces (at least one per component, the rest in proportion to each
-    /// component's mass) with a [`SplitMix64`] from `seed`, and grows them breadth-first
-    /// until every face belongs to a cluster.
+    /// component's mass) and grows them breadth-first until every face belongs to a
+    /// cluster. Within a component the faces are ordered along a Morton (Z-order) curve of
+    /// their centroids and the seeds are stratified by mass along it — one in each of the
+    /// component's equal-mass stretches, at a point jittered by a [`SplitMix64`] from
+    /// `seed` — so the seeds start evenly spread and the minimisation has little to move.
     pub fn seed(&mut self, n: usize, seed: u64) -> Result<(), ClusterError> {
         let nf = self.faces.len();
         if n > nf {
@@ -250,40 +262,64 @@ impl<'a> Clusterer<'a> {
                 components: nc,
             });
         }
-        // Faces of each component, in face order (CSR).
-        let mut off = vec![0u32; nc + 1];
+        // Faces of each component along the Morton curve (CSR by component).
+        let mut order: Vec<(u32, u64, u32)> = (0..nf)
+            .map(|f| {
+                (
+                    comp[f],
+                    morton(self.face_sums[f].centroid_or_zero()),
+                    f as u32,
+                )
+            })
+            .collect();
+        order.sort_unstable();
+        let mut off = vec![0usize; nc + 1];
         comp.iter().for_each(|&c| off[c as usize + 1] += 1);
         for i in 0..nc {
             off[i + 1] += off[i];
         }
-        let mut pos = off.clone();
-        let mut members = vec![0u32; nf];
-        for (f, &c) in comp.iter().enumerate() {
-            members[pos[c as usize] as usize] = f as u32;
-            pos[c as usize] += 1;
-        }
+        let members: Vec<u32> = order.iter().map(|o| o.2).collect();
+        drop(order);
+        let mass_of = |f: u32| self.face_sums[f as usize].mass.max(0.0);
         let mass: Vec<f64> = (0..nc)
             .map(|c| {
-                members[off[c] as usize..off[c + 1] as usize]
+                members[off[c]..off[c + 1]]
                     .iter()
-                    .map(|&f| self.face_sums[f as usize].mass.max(0.0))
+                    .map(|&f| mass_of(f))
                     .sum()
             })
             .collect();
-        let quota = allocate(n, &mass, |c| (off[c + 1] - off[c]) as usize);
+        let quota = allocate(n, &mass, |c| off[c + 1] - off[c]);
         let mut rng = SplitMix64::new(seed);
         let mut labels = vec![NONE; nf];
         let mut queue = VecDeque::with_capacity(nf);
         let mut next = 0u32;
         for c in 0..nc {
-            let part = &mut members[off[c] as usize..off[c + 1] as usize];
-            // Partial Fisher–Yates: the first `quota[c]` entries become the seeds.
-            for i in 0..quota[c] {
-                let j = i + rng.below(part.len() - i);
-                part.swap(i, j);
-                labels[part[i] as usize] = next;
-                queue.push_back(part[i]);
-                next += 1;
+            let part = &members[off[c]..off[c + 1]];
+            let q = quota[c];
+            let total = mass[c];
+            // Walk the curve once; seed k goes to the face where the running mass passes
+            // (k + u)·total/q, or to the next free face when a heavy face spans strata.
+            let mut run = 0.0;
+            let mut k = 0usize;
+            let goal = |k: usize, rng: &mut SplitMix64| {
+                let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+                (k as f64 + u) * total / q as f64
+            };
+            let mut at = goal(0, &mut rng);
+            for (i, &f) in part.iter().enumerate() {
+                run += mass_of(f);
+                // Faces left must still cover the seeds left.
+                let must = part.len() - i <= q - k;
+                if k < q && (run > at || must || total <= 0.0) {
+                    labels[f as usize] = next;
+                    queue.push_back(f);
+                    next += 1;
+                    k += 1;
+                    if k < q {
+                        at = goal(k, &mut rng);
+                    }
+                }
             }
         }
         while let Some(f) = queue.pop_front() {
@@ -316,34 +352,49 @@ impl<'a> Clusterer<'a> {
         Ok(())
     }
 
-    /// Number of runs of faces of cluster `c` around vertex `v`, counting face `t` in the
-    /// cluster when `t_in` and out of it otherwise.
+    /// Around vertex `v`, the number of runs (maximal arcs) of faces of cluster `from`
+    /// without face `t`, of cluster `to` without `t`, and of `to` with `t` — in one walk
+    /// of the fan. A cluster covering the whole closed fan counts as one run.
     #[inline]
-    fn runs(&self, v: u32, c: u32, t: u32, t_in: bool) -> u32 {
+    fn runs(&self, v: u32, from: u32, to: u32, t: u32) -> [u32; 3] {
         let fan = self.topo.vertex_faces(v);
-        let member = |g: u32| {
+        // Membership bits of a face: from without t, to without t, to with t.
+        let member = |g: u32| -> u32 {
             if g == t {
-                t_in
+                0b100
             } else {
-                self.labels[g as usize] == c
+                let l = self.labels[g as usize];
+                if l == from {
+                    0b001
+                } else if l == to {
+                    0b110
+                } else {
+                    0
+                }
             }
         };
         let mut prev = match fan.last() {
             Some(&g) if self.closed[v as usize] => member(g),
-            _ => false,
+            _ => 0,
         };
-        let (mut runs, mut all) = (0, true);
+        let (mut runs, mut all) = ([0u32; 3], 0b111u32);
         for &g in fan {
             let m = member(g);
-            runs += (m && !prev) as u32;
+            let starts = m & !prev;
+            for (i, r) in runs.iter_mut().enumerate() {
+                *r += (starts >> i) & 1;
+            }
             all &= m;
             prev = m;
         }
-        if runs == 0 && all && !fan.is_empty() {
-            1
-        } else {
-            runs
+        if !fan.is_empty() {
+            for (i, r) in runs.iter_mut().enumerate() {
+                if *r == 0 && (all >> i) & 1 == 1 {
+                    *r = 1;
+                }
+            }
         }
+        runs
     }
 
     /// True when face `t` may leave its cluster for cluster `to`: its cluster keeps a face
@@ -355,11 +406,9 @@ impl<'a> Clusterer<'a> {
         if from == to || self.sums[from as usize].count < 1.5 {
             return false;
         }
-        self.faces[t as usize].iter().all(|&v| {
-            self.runs(v, from, t, false) <= 1
-                && self.runs(v, to, t, false) <= 1
-                && self.runs(v, to, t, true) <= 1
-        })
+        self.faces[t as usize]
+            .iter()
+            .all(|&v| self.runs(v, from, to, t).iter().all(|&r| r <= 1))
     }
 
     /// Energy change of moving face `t` to cluster `to`.
@@ -382,106 +431,103 @@ impl<'a> Clusterer<'a> {
         self.labels[t as usize] = to;
     }
 
-    /// The ACVD loop: a queue of edges between different clusters with an end-of-pass
-    /// marker; an edge is tested only when one of its clusters changed in this pass or the
-    /// previous one. Starts from the edges of the faces in `start` (every face when
-    /// `None`); stops after a pass without moves or after `max_passes` passes.
+    /// The ACVD loop, over faces: each pass sweeps the *active* faces in index order (at
+    /// first the faces of `start`, or every face when `None`). A face with no neighbour in
+    /// another cluster drops out; one on a cluster border stays active, and is tested only
+    /// when its cluster or a neighbouring one changed in this pass or the previous one
+    /// (ACVD's trick): it moves to the neighbouring cluster that lowers the energy most, if
+    /// the move is allowed. A move activates the face's neighbours — in this pass when
+    /// they come later in the sweep. Stops after a pass without moves, after `max_passes`
+    /// passes, or when a pass lowers the energy by less than the tolerance.
     pub fn minimize(
         &mut self,
         max_passes: u32,
         start: Option<&[u32]>,
         mut on_pass: impl FnMut(u32, u64, f64),
     ) -> PassLog {
-        let topo = self.topo;
-        let ne = topo.n_edges();
-        let mut in_queue = vec![false; ne];
-        let mut queue: VecDeque<u32> = VecDeque::new();
-        let interior = |e: u32| e != NONE && topo.edge_faces(e).len() == 2;
-        let push_face = |f: u32, queue: &mut VecDeque<u32>, in_queue: &mut Vec<bool>| {
-            for e in topo.face_edges(f) {
-                if interior(e) && !in_queue[e as usize] {
-                    in_queue[e as usize] = true;
-                    queue.push_back(e);
-                }
-            }
-        };
+        let nf = self.faces.len();
+        let words = nf.div_ceil(64);
+        let set = |bits: &mut [u64], f: u32| bits[f as usize / 64] |= 1 << (f % 64);
+        let mut cur = vec![0u64; words];
+        let mut next = vec![0u64; words];
         match start {
-            None => {
-                for e in 0..ne as u32 {
-                    if interior(e) {
-                        let ef = topo.edge_faces(e);
-                        if self.labels[ef[0] as usize] != self.labels[ef[1] as usize] {
-                            in_queue[e as usize] = true;
-                            queue.push_back(e);
-                        }
-                    }
-                }
-            }
+            None => (0..nf as u32).for_each(|f| set(&mut cur, f)),
             Some(faces) => faces
                 .iter()
-                .for_each(|&f| push_face(f, &mut queue, &mut in_queue)),
+                .filter(|&&f| (f as usize) < nf)
+                .for_each(|&f| set(&mut cur, f)),
         }
         let mut log = PassLog {
             initial_energy: self.total_energy(),
             ..PassLog::default()
         };
-        if max_passes == 0 || queue.is_empty() {
-            return log;
-        }
-        queue.push_back(NONE);
         let mut last_mod = vec![0u32; self.sums.len()];
-        let mut pass = 1u32;
-        let mut moves = 0u64;
-        while let Some(e) = queue.pop_front() {
-            if e == NONE {
-                let energy = self.total_energy();
-                log.moves.push(moves);
-                log.energy.push(energy);
-                on_pass(pass, moves, energy);
-                if moves == 0 || pass >= max_passes || queue.is_empty() {
-                    break;
+        let mut previous = log.initial_energy;
+        for pass in 1..=max_passes {
+            let mut moves = 0u64;
+            let fresh = |last_mod: &[u32], c: u32| last_mod[c as usize] + 1 >= pass;
+            let mut w = 0;
+            while w < words {
+                // Re-read the word each time: a move may activate later faces of it.
+                let bits = cur[w];
+                if bits == 0 {
+                    w += 1;
+                    continue;
                 }
-                pass += 1;
-                moves = 0;
-                queue.push_back(NONE);
-                continue;
-            }
-            let ef = topo.edge_faces(e);
-            let (fa, fb) = (ef[0], ef[1]);
-            let (ca, cb) = (self.labels[fa as usize], self.labels[fb as usize]);
-            if ca == cb {
-                in_queue[e as usize] = false;
-                continue;
-            }
-            let fresh = |c: u32| last_mod[c as usize] + 1 >= pass;
-            if fresh(ca) || fresh(cb) {
-                let (da, sa) = self.delta(fa, cb);
-                let (db, sb) = self.delta(fb, ca);
-                let mut cands = [(da, sa, fa, cb), (db, sb, fb, ca)];
-                if db < da {
-                    cands.swap(0, 1);
+                let b = bits.trailing_zeros();
+                cur[w] = bits & !(1u64 << b);
+                let t = (w * 64) as u32 + b;
+                let from = self.labels[t as usize];
+                let mut cands = [NONE; 3];
+                let mut k = 0;
+                for g in self.nbr[t as usize] {
+                    if g != NONE {
+                        let c = self.labels[g as usize];
+                        if c != from && !cands[..k].contains(&c) {
+                            cands[k] = c;
+                            k += 1;
+                        }
+                    }
                 }
-                for (d, scale, t, to) in cands {
-                    if d >= -1e-12 * scale {
-                        break;
+                if k == 0 {
+                    continue;
+                }
+                set(&mut next, t);
+                if !(fresh(&last_mod, from) || cands[..k].iter().any(|&c| fresh(&last_mod, c))) {
+                    continue;
+                }
+                let mut best: Option<(f64, u32)> = None;
+                for &to in &cands[..k] {
+                    let (d, scale) = self.delta(t, to);
+                    if d < -1e-12 * scale && best.is_none_or(|(bd, _)| d < bd) {
+                        best = Some((d, to));
                     }
-                    if self.may_move(t, to) {
-                        let from = self.labels[t as usize];
-                        self.apply_move(t, to);
-                        last_mod[from as usize] = pass;
-                        last_mod[to as usize] = pass;
-                        moves += 1;
-                        push_face(t, &mut queue, &mut in_queue);
-                        break;
-                    }
+                }
+                let Some((_, to)) = best else { continue };
+                if !self.may_move(t, to) {
                     log.refused += 1;
+                    continue;
+                }
+                self.apply_move(t, to);
+                last_mod[from as usize] = pass;
+                last_mod[to as usize] = pass;
+                moves += 1;
+                for g in self.nbr[t as usize] {
+                    if g != NONE {
+                        set(if g > t { &mut cur } else { &mut next }, g);
+                    }
                 }
             }
-            let ef = topo.edge_faces(e);
-            if self.labels[ef[0] as usize] != self.labels[ef[1] as usize] {
-                queue.push_back(e);
-            } else {
-                in_queue[e as usize] = false;
+            std::mem::swap(&mut cur, &mut next);
+            next.fill(0);
+            let energy = self.total_energy();
+            log.moves.push(moves);
+            log.energy.push(energy);
+            on_pass(pass, moves, energy);
+            let settled = previous - energy <= self.tolerance * energy.abs();
+            previous = energy;
+            if moves == 0 || settled {
+                break;
             }
         }
         log
@@ -513,6 +559,21 @@ impl<'a> Clusterer<'a> {
         }
         pieces.iter().map(|&p| p == 1).collect()
     }
+}
+
+/// The Morton (Z-order) key of a point of the normalised box [-1, 1]³, 21 bits per axis.
+fn morton(p: DVec3) -> u64 {
+    let spread = |x: f64| -> u64 {
+        let mut v = (((x.clamp(-1.0, 1.0) + 1.0) * 0.5) * ((1u64 << 21) - 1) as f64) as u64;
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        v = (v | v << 2) & 0x1249_2492_4924_9249;
+        v
+    };
+    spread(p.x) | spread(p.y) << 1 | spread(p.z) << 2
 }
 
 /// Splits `n` among components: one each, the rest in proportion to `mass` (largest

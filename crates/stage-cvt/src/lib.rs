@@ -16,20 +16,23 @@
 //! | `density` | `""` | vertex scalar used as density ρ by `valette2004` (none when empty) |
 //! | `seed` | `1` | seed of the SplitMix64 that picks the seed faces |
 //! | `max_passes` | `200` | most passes of the minimisation |
+//! | `tolerance` | `0` | stop after a pass lowering the energy by less than this fraction |
 //!
 //! 1. **Seeds**: every connected component gets one seed face, the rest are shared in
-//!    proportion to the components' masses; the seed faces are drawn by SplitMix64 and
-//!    grown breadth-first (in a fixed order) until every face belongs to a cluster.
-//! 2. **Minimisation** (the ACVD loop): a queue of edges between different clusters with an
-//!    end-of-pass marker; an edge is tested only when one of its two clusters changed in
-//!    the current or previous pass. For an edge between faces a ∈ Vᵢ and b ∈ Vₖ the
-//!    energy with a moved to Vₖ and with b moved to Vᵢ is compared (O(1) from the
-//!    clusters' running sums) and the best improving move kept. A move is refused when it
-//!    would empty the donor cluster, split it or pinch it (paper 1's "cluster separation
-//!    detection": the donor's faces must form at most one arc around each corner of the
-//!    moved face), or when the receiving cluster would close a loop or touch itself at a
-//!    corner.
-//! 3. Stops after a pass without moves or after `max_passes`.
+//!    proportion to the components' masses; within a component the faces are ordered along
+//!    a Morton curve of their centroids and one seed is drawn in each equal-mass stretch
+//!    (jittered by SplitMix64 from `seed`), then grown breadth-first until every face
+//!    belongs to a cluster.
+//! 2. **Minimisation** (the ACVD loop, over faces): each pass sweeps the faces on cluster
+//!    borders in index order; a face is tested only when its cluster or a neighbouring one
+//!    changed in the current or previous pass. Its move to each neighbouring cluster is
+//!    priced in O(1) from the clusters' running sums and the best improving one kept. A
+//!    move is refused when it would empty the donor cluster, split it or pinch it (paper
+//!    1's "cluster separation detection": the donor's faces must form at most one arc
+//!    around each corner of the moved face), or when the receiving cluster would close a
+//!    loop or touch itself at a corner. A move activates the face's neighbours.
+//! 3. Stops after a pass without moves, after `max_passes`, or after a pass that lowers the
+//!    energy by less than `tolerance` times its value.
 //!
 //! Output: the face label `cluster` (`0..n`); every cluster is non-empty and connected.
 //! The report gives `clusters`, `passes`, `moves`, `moves_per_pass`, `energy_per_pass`
@@ -93,6 +96,8 @@ params! {
         pub seed: u64 = 1,
         /// Most passes of the minimisation.
         pub max_passes: u32 = 200,
+        /// Stop after a pass that lowers the energy by less than this fraction (0: only when nothing moves).
+        pub tolerance: f64 = 0.0,
     }
 }
 
@@ -101,6 +106,7 @@ impl Params for CvtParams {
         let mut issues = Vec::new();
         check_range(&mut issues, "r", self.r, 0.0, 16.0);
         check_range(&mut issues, "clusters", self.clusters, 0, u32::MAX as u64);
+        check_range(&mut issues, "tolerance", self.tolerance, 0.0, 1.0);
         if !self.density.is_empty() && self.energy != EnergyKind::Valette2004 {
             issues.push(ParamIssue::new(
                 "density",
@@ -144,6 +150,37 @@ pub fn cluster(
     let energy = make_energy(params.energy, params.r);
     let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
     c.seed(n, params.seed)?;
+    c.set_tolerance(params.tolerance);
+    let log = c.minimize(params.max_passes, None, on_pass);
+    Ok(Clustering {
+        labels: c.into_labels(),
+        n,
+        log,
+    })
+}
+
+/// Like [`cluster`], but starting from the clustering `labels` (`0..n`, every cluster
+/// non-empty and connected — e.g. a previous clustering carried to a finer mesh) instead
+/// of fresh seeds. Falls back to fresh seeds when `labels` is not such a clustering.
+pub fn cluster_from(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: Vec<u32>,
+    n: usize,
+    params: &CvtParams,
+    density: Option<&[f64]>,
+    on_pass: impl FnMut(u32, u64, f64),
+) -> Result<Clustering, ClusterError> {
+    let energy = make_energy(params.energy, params.r);
+    let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
+    let usable = labels.len() == mesh.n_faces()
+        && c.set_labels(labels, n).is_ok()
+        && c.cluster_sums().iter().all(|s| s.count > 0.5)
+        && c.connected_clusters().iter().all(|&k| k);
+    if !usable {
+        c.seed(n, params.seed)?;
+    }
+    c.set_tolerance(params.tolerance);
     let log = c.minimize(params.max_passes, None, on_pass);
     Ok(Clustering {
         labels: c.into_labels(),

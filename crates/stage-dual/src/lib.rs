@@ -27,14 +27,15 @@
 //! not merged cyclically) give k − 2 triangles and the two outermost clusters are joined by
 //! an output boundary edge. Along each input boundary loop the clusters touching it (at
 //! least three, each once) thus become an output boundary loop in the same order. Their
-//! vertices are put on the input boundary: the nearest point of the cluster's boundary
-//! edges to the placement below.
+//! vertices are put on the input boundary, at the middle (by arc length) of the cluster's
+//! run of boundary edges, so they are spread evenly along it.
 //!
 //! # Placement (`placement`)
 //!
 //! * `closest-vertex` — paper 1: the input vertex of the cluster nearest its centroid;
 //! * `centroid` — the area-weighted centroid of the cluster;
-//! * `projected` — the nearest point of the input surface to that centroid;
+//! * `projected` — the nearest point of the run's input surface to that centroid (the
+//!   clustered mesh's own surface for callers of [`dual`] that give none);
 //! * `quadric` — the minimiser of the cluster's summed, area-weighted face-plane quadrics,
 //!   regularised towards the projected centroid (directions whose curvature is below
 //!   10⁻³ of the quadric's trace stay at it), and falling back to the projected centroid
@@ -45,8 +46,8 @@
 //!
 //! The report gives `vertices`, `faces`, `placement`, `repairs` (clusters split),
 //! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `boundary_clusters`
-//! `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate output
-//! triangle — e.g. three closest vertices in a row, or a boundary cluster between two
+//! `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate or
+//! flipped output triangle — e.g. three closest vertices in a row, or a boundary cluster between two
 //! others on a straight boundary — moved to their projected centroid, unsnapped).
 
 mod build;
@@ -107,12 +108,13 @@ pub struct Dual {
 }
 
 /// The dual triangulation of `mesh` clustered by `labels` (`0..n`): repairs the clustering
-/// where needed (the repaired labels are written back), places the vertices, carries the
-/// vertex attributes.
+/// where needed (the repaired labels are written back), places the vertices (projecting
+/// onto `surface`, or onto `mesh` itself when `None`), carries the vertex attributes.
 pub fn dual(
     mesh: &Mesh,
     labels: &mut Vec<u32>,
     placement: Placement,
+    surface: Option<&Mesh>,
     max_repair_rounds: u32,
     relax_passes: u32,
 ) -> Result<Dual, DualError> {
@@ -151,17 +153,19 @@ pub fn dual(
     let (faces, stats) =
         build::repaired_dual(mesh, &topo, labels, n, max_repair_rounds, relax_passes)?;
     let (mut positions, boundary_clusters, quadric_fallbacks) =
-        place(mesh, &topo, labels, n, placement, true);
-    // A degenerate output face (e.g. three closest vertices in a row on a flat part) gets
-    // its clusters' vertices moved to the projected centroids, the most central choice
-    // (the report's `degenerate_fixes`).
+        place(mesh, &topo, labels, n, placement, surface, true);
+    // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
+    // one facing away from the input surface nearest its centroid (closest-vertex placement
+    // on a curved part), gets its clusters' vertices moved to the projected centroids, the
+    // most central choice (the report's `degenerate_fixes`).
     let diag2 = mesh.bbox().diagonal().powi(2);
-    let degenerate = |positions: &[DVec3]| -> Vec<u32> {
+    let facing = coarsen_metrics::Facing::new(surface.unwrap_or(mesh));
+    let bad_faces = |positions: &[DVec3]| -> Vec<u32> {
         let mut v: Vec<u32> = faces
             .iter()
             .filter(|f| {
                 let [a, b, c] = f.map(|i| positions[i as usize]);
-                coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
+                coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2 || facing.faces_away(a, b, c)
             })
             .flatten()
             .copied()
@@ -170,17 +174,22 @@ pub fn dual(
         v.dedup();
         v
     };
-    let bad = degenerate(&positions);
+    let bad = bad_faces(&positions);
     if !bad.is_empty() {
         // Unsnapped: a boundary cluster between two others on a straight boundary would
         // otherwise give a flat triangle; its vertex then stays just inside the boundary.
-        let (projected, _, _) = place(mesh, &topo, labels, n, Placement::Projected, false);
+        let (projected, _, _) = place(mesh, &topo, labels, n, Placement::Projected, surface, false);
         bad.iter()
             .for_each(|&c| positions[c as usize] = projected[c as usize]);
     }
-    if let Some(&c) = degenerate(&positions).first() {
+    let degenerate = faces.iter().find(|f| {
+        let [a, b, c] = f.map(|i| positions[i as usize]);
+        coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
+    });
+    if let Some(f) = degenerate {
         return Err(DualError::Unrepaired(format!(
-            "the output vertex of cluster {c} lies on a degenerate triangle"
+            "the output vertex of cluster {} lies on a degenerate triangle",
+            f[0]
         )));
     }
     let origins = vertex_origins(mesh, labels, n);
@@ -227,11 +236,13 @@ fn place(
     labels: &[u32],
     n: usize,
     placement: Placement,
+    surface: Option<&Mesh>,
     snap: bool,
 ) -> (Vec<DVec3>, usize, usize) {
     let centroids = cluster_centroids(mesh, labels, n);
     let needs_bvh = matches!(placement, Placement::Projected | Placement::Quadric);
-    let bvh = needs_bvh.then(|| Bvh::build(&mesh.positions, &mesh.faces));
+    let onto = surface.unwrap_or(mesh);
+    let bvh = needs_bvh.then(|| Bvh::build(&onto.positions, &onto.faces));
     let project = |p: DVec3| {
         bvh.as_ref()
             .and_then(|b| b.closest_point(p))
@@ -307,7 +318,9 @@ fn place(
                 .collect()
         }
     };
-    // Clusters on the boundary: their vertex goes to the nearest point of their boundary edges.
+    // Clusters on the boundary: their vertex goes to the middle (by arc length) of their
+    // run of boundary edges, so the output boundary vertices are spread evenly along it;
+    // the nearest point of their boundary edges where no run is found.
     let mut best: Vec<Option<(f64, DVec3)>> = vec![None; n];
     for e in 0..topo.n_edges() as u32 {
         let ef = topo.edge_faces(e);
@@ -316,9 +329,18 @@ fn place(
         }
         let c = labels[ef[0] as usize] as usize;
         let [a, b] = topo.edge(e).map(|v| mesh.positions[v as usize]);
-        let (p, d) = closest_point_on_segment(pos[c], a, b);
+        let p = closest_point_on_segment(pos[c], a, b).0;
+        let d = p.distance_squared(pos[c]);
         if best[c].is_none_or(|(bd, _)| d < bd) {
             best[c] = Some((d, p));
+        }
+    }
+    for (c, mid) in boundary_run_middles(mesh, topo, labels, n)
+        .into_iter()
+        .enumerate()
+    {
+        if let Some(p) = mid {
+            best[c] = Some((0.0, p));
         }
     }
     let mut on_boundary = 0;
@@ -329,6 +351,73 @@ fn place(
         }
     }
     (pos, on_boundary, fallbacks)
+}
+
+/// Per cluster: the arc-length middle of its longest run of consecutive boundary edges
+/// along a closed boundary loop (`None` for clusters off the boundary, and for loops met
+/// by one cluster only).
+fn boundary_run_middles(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &[u32],
+    n: usize,
+) -> Vec<Option<DVec3>> {
+    let mut out: Vec<Option<(f64, DVec3)>> = vec![None; n];
+    for i in 0..topo.n_boundary_loops() {
+        let lp = topo.boundary_loop(i);
+        let k = lp.len();
+        if k < 3 || lp[0] == lp[k - 1] {
+            continue;
+        }
+        // The cluster of each edge lp[j] → lp[j + 1].
+        let edge_cluster = |j: usize| {
+            topo.find_edge(lp[j], lp[(j + 1) % k])
+                .and_then(|e| topo.edge_faces(e).first().copied())
+                .map(|f| labels[f as usize])
+        };
+        let ec: Vec<Option<u32>> = (0..k).map(edge_cluster).collect();
+        let Some(start) = (0..k).find(|&j| ec[j] != ec[(j + k - 1) % k]) else {
+            continue;
+        };
+        let mut j = 0;
+        while j < k {
+            let first = (start + j) % k;
+            let c = ec[first];
+            let mut len = 0;
+            while j + len < k && ec[(start + j + len) % k] == c {
+                len += 1;
+            }
+            if let Some(c) = c {
+                let seg = |m: usize| {
+                    let a = mesh.positions[lp[(first + m) % k] as usize];
+                    let b = mesh.positions[lp[(first + m + 1) % k] as usize];
+                    (a, b)
+                };
+                let total: f64 = (0..len).map(|m| seg(m).0.distance(seg(m).1)).sum();
+                let mut left = 0.5 * total;
+                let mut mid = seg(0).0;
+                for m in 0..len {
+                    let (a, b) = seg(m);
+                    let l = a.distance(b);
+                    if left <= l || m + 1 == len {
+                        mid = if l > 0.0 {
+                            a.lerp(b, (left / l).min(1.0))
+                        } else {
+                            a
+                        };
+                        break;
+                    }
+                    left -= l;
+                }
+                let slot = &mut out[c as usize];
+                if slot.is_none_or(|(t, _)| total > t) {
+                    *slot = Some((total, mid));
+                }
+            }
+            j += len;
+        }
+    }
+    out.into_iter().map(|o| o.map(|(_, p)| p)).collect()
 }
 
 /// The dual triangulation of the face clustering `cluster`.
@@ -368,6 +457,7 @@ impl Stage for DualStage {
             &mesh,
             &mut labels,
             p.placement,
+            (cx.original.n_faces() > 0).then_some(cx.original),
             p.max_repair_rounds,
             p.relax_passes,
         )

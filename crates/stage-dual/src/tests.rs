@@ -163,7 +163,7 @@ fn a_bad_clustering_is_repaired_with_the_count_kept() {
     let mut labels: Vec<u32> = (0..sphere.n_faces())
         .map(|f| (sphere.face_centroid(f).z > 0.0) as u32)
         .collect();
-    let e = dual(&sphere, &mut labels, Placement::Projected, 5, 2).unwrap_err();
+    let e = dual(&sphere, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
     assert!(matches!(e, DualError::Unrepaired(_)), "{e}");
     // Rings around the north pole (three annuli round a cap) above latitude-longitude
     // cells: the annuli are not discs and must be split, paid for by merges of cells.
@@ -183,7 +183,7 @@ fn a_bad_clustering_is_repaired_with_the_count_kept() {
         })
         .collect();
     let n = 36;
-    let d = dual(&sphere, &mut labels, Placement::Projected, 40, 4).unwrap();
+    let d = dual(&sphere, &mut labels, Placement::Projected, None, 40, 4).unwrap();
     assert!(d.stats.repairs >= 3, "{:?}", d.stats);
     assert!(d.stats.first_problems.not_disc >= 3, "{:?}", d.stats);
     check_valid(&sphere, &d.mesh, n, "bands");

@@ -6,9 +6,9 @@
 //! copies none of them.
 
 use coarsen_mesh::{Topology, sanity};
-use coarsen_spatial::Bvh;
 use coarsen_stage::{
-    Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
+    AttrValues, Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError,
+    params,
 };
 use coarsen_stage_cvt::{CvtParams, EnergyKind};
 use coarsen_stage_dual::Placement;
@@ -30,6 +30,9 @@ params! {
         pub placement: Placement = Placement::Projected,
         /// Pull every output vertex onto the nearest point of the run's input surface.
         pub project: bool = true,
+        /// Stop the finest level's re-clustering after a pass that lowers the energy by less
+        /// than this fraction (coarser levels: a tenth of it).
+        pub tolerance: f64 = 1e-3,
         /// Subdivide fewer times rather than pass this many faces.
         pub max_faces: u64 = 8_000_000,
     }
@@ -41,6 +44,7 @@ impl Params for PostprocessParams {
         coarsen_stage::params::check_range(&mut v, "times", self.times, 0, 6);
         coarsen_stage::params::check_range(&mut v, "r", self.r, 0.0, 16.0);
         coarsen_stage::params::check_range(&mut v, "max_passes", self.max_passes, 1, 100_000);
+        coarsen_stage::params::check_range(&mut v, "tolerance", self.tolerance, 0.0, 1.0);
         coarsen_stage::params::check_range(&mut v, "max_faces", self.max_faces, 1, 1 << 31);
         v
     }
@@ -72,26 +76,17 @@ impl Stage for Postprocess {
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let p = &self.0;
         let n = mesh.n_vertices();
-        // 1. Subdivide, within the face guard.
+        // 1–2. Subdivide and re-cluster into n regions, level by level: the first level
+        // starts from the dual cells of the coarse vertices, each finer one from the
+        // clustering of the level before carried to the child faces, so the global
+        // arrangement settles where faces are few and the fine levels only polish borders.
+        let coarse = mesh.clone();
         let mut fine = mesh;
-        let mut done = 0;
-        for _ in 0..p.times {
-            if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
-                cx.report.warn(format!(
-                    "subdivided {done} of {} times: another would pass max_faces = {}",
-                    p.times, p.max_faces
-                ));
-                break;
-            }
-            let all = vec![true; fine.n_faces()];
-            fine = coarsen_stage_refine::split_once(&fine, &all)
-                .map_err(|e| StageError::Input(e.to_string()))?
-                .0;
-            done += 1;
-        }
-        // 2. Re-cluster into n regions.
-        let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
-        let cvt = CvtParams {
+        fine.face_attrs.insert(
+            COARSE_FACE,
+            AttrValues::Label((0..coarse.n_faces() as u32).collect()),
+        );
+        let mut cvt = CvtParams {
             energy: p.energy,
             r: p.r,
             seed: p.seed,
@@ -99,51 +94,165 @@ impl Stage for Postprocess {
             ..Default::default()
         };
         let progress = cx.progress;
-        progress.begin(Self::KIND, u64::from(p.max_passes));
-        let clustering =
-            coarsen_stage_cvt::cluster(&fine, &topo, n, &cvt, None, |pass, moves, energy| {
-                progress.advance(
-                    u64::from(pass),
-                    &format!("{moves} moves, energy {energy:.4e}"),
-                );
-            })
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        progress.end();
-        drop(topo);
-        // 3. Dual again.
-        let mut labels = clustering.labels;
-        let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, 40, 8)
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        let mut out = dual.mesh;
-        // 4. Pull onto the input surface, keeping any move that would flip a face back out.
-        let mut projected = 0usize;
-        if p.project && cx.original.n_faces() > 0 {
-            let bvh = Bvh::build(&cx.original.positions, &cx.original.faces);
-            let before = out.clone();
-            for v in out.positions.iter_mut() {
-                if let Some(hit) = bvh.closest_point(*v) {
-                    *v = hit.point;
-                    projected += 1;
+        let mut done = 0;
+        let mut passes = Vec::new();
+        let mut log = None;
+        for _ in 0..p.times.max(1) {
+            if done < p.times {
+                if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
+                    cx.report.warn(format!(
+                        "subdivided {done} of {} times: another would pass max_faces = {}",
+                        p.times, p.max_faces
+                    ));
+                    if done > 0 {
+                        break;
+                    }
+                } else {
+                    let all = vec![true; fine.n_faces()];
+                    fine = coarsen_stage_refine::split_once(&fine, &all)
+                        .map_err(|e| StageError::Input(e.to_string()))?
+                        .0;
+                    done += 1;
                 }
             }
-            let flipped = (0..out.n_faces())
-                .filter(|&f| out.face_normal(f).dot(before.face_normal(f)) <= 0.0)
-                .count();
-            if flipped > 0 || sanity::sanity_check(&out).is_err() {
-                cx.report.warn(format!(
-                    "projection onto the input would flip or degenerate {flipped} faces: vertices left where the dual put them"
-                ));
+            let start = match fine.face_attrs.remove(CLUSTER) {
+                Some(AttrValues::Label(l)) => l,
+                _ => dual_cells(&coarse, &fine, done),
+            };
+            let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
+            // Coarse levels settle the arrangement (ten times tighter; they are cheap); the
+            // finest only polishes, and stops at `tolerance`.
+            cvt.tolerance = if done >= p.times {
+                p.tolerance
+            } else {
+                0.1 * p.tolerance
+            };
+            progress.begin(Self::KIND, u64::from(p.max_passes));
+            let clustering = coarsen_stage_cvt::cluster_from(
+                &fine,
+                &topo,
+                start,
+                n,
+                &cvt,
+                None,
+                |pass, moves, energy| {
+                    progress.advance(
+                        u64::from(pass),
+                        &format!("level {done}: {moves} moves, energy {energy:.4e}"),
+                    );
+                },
+            )
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+            progress.end();
+            passes.push(clustering.log.moves.len());
+            fine.face_attrs
+                .insert(CLUSTER, AttrValues::Label(clustering.labels));
+            log = Some(clustering.log);
+            if done == p.times || done == 0 {
+                break;
+            }
+        }
+        fine.face_attrs.remove(COARSE_FACE);
+        let Some(AttrValues::Label(mut labels)) = fine.face_attrs.remove(CLUSTER) else {
+            return Err(StageError::Internal(format!(
+                "`{}`: the clustering was lost",
+                Self::KIND
+            )));
+        };
+        let log = log.unwrap_or_default();
+        // 3. Dual again.
+        let surface = (p.project && cx.original.n_faces() > 0).then_some(cx.original);
+        let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, surface, 40, 8)
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let mut out = dual.mesh;
+        // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
+        // over, flatten it or make it face away from the input goes back where the dual put
+        // it (a few rounds, as undoing one move can expose a neighbour's).
+        let mut projected = 0usize;
+        if p.project && cx.original.n_faces() > 0 {
+            let facing = coarsen_metrics::Facing::new(cx.original);
+            let before = out.clone();
+            let mut moved = vec![false; out.n_vertices()];
+            for (v, pos) in out.positions.iter_mut().enumerate() {
+                if let Some(hit) = facing.bvh().closest_point(*pos) {
+                    moved[v] = hit.point != *pos;
+                    *pos = hit.point;
+                }
+            }
+            let diag2 = cx.original.bbox().diagonal().powi(2);
+            for _ in 0..8 {
+                let mut undo: Vec<u32> = Vec::new();
+                for f in 0..out.n_faces() {
+                    let [a, b, c] = out.corners(f);
+                    let bad = out.face_normal(f).dot(before.face_normal(f)) <= 0.0
+                        || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
+                        || facing.faces_away(a, b, c);
+                    if bad {
+                        undo.extend(out.faces[f].iter().filter(|&&v| moved[v as usize]));
+                    }
+                }
+                if undo.is_empty() {
+                    break;
+                }
+                for v in undo {
+                    out.positions[v as usize] = before.positions[v as usize];
+                    moved[v as usize] = false;
+                }
+            }
+            projected = moved.iter().filter(|&&m| m).count();
+            if sanity::sanity_check(&out).is_err() {
+                cx.report.warn(
+                    "projection onto the input would degenerate faces: vertices left where the dual put them",
+                );
                 out = before;
                 projected = 0;
             }
         }
         cx.report.figure("subdivisions", done);
         cx.report.figure("fine_faces", fine.n_faces());
-        cx.report.figure("passes", clustering.log.moves.len());
+        cx.report.figure("passes_per_level", &passes);
+        cx.report.figure("passes", log.moves.len());
+        cx.report.figure("initial_energy", log.initial_energy);
+        cx.report.figure("moves_per_pass", &log.moves);
+        cx.report.figure("energy_per_pass", &log.energy);
         cx.report.figure("repairs", dual.stats.repairs);
         cx.report.figure("projected_vertices", projected);
         Ok(out)
     }
+}
+
+/// Face label naming each fine face's coarse face while the stage runs.
+const COARSE_FACE: &str = "postprocess.coarse_face";
+
+/// Face label carrying the clustering of one level to the next while the stage runs.
+const CLUSTER: &str = "postprocess.cluster";
+
+/// The clustering of `fine` (a 1-to-4 subdivision of `coarse`, `times` deep, whose faces
+/// carry [`COARSE_FACE`]) into the dual cells of the coarse vertices: each fine face goes to
+/// the corner of its coarse face nearest in barycentric terms (ties to the lower index).
+/// Without subdivision every coarse vertex would not get a face: then it returns nothing,
+/// and the clusterer seeds afresh.
+fn dual_cells(coarse: &Mesh, fine: &Mesh, times: u32) -> Vec<u32> {
+    let Some(parent) = fine.face_attrs.label(COARSE_FACE) else {
+        return Vec::new();
+    };
+    if times == 0 {
+        return Vec::new();
+    }
+    (0..fine.n_faces())
+        .map(|t| {
+            let f = coarse.faces[parent[t] as usize];
+            let [a, b, c] = f.map(|v| coarse.positions[v as usize]);
+            let w = coarsen_geom::triangle::barycentric(fine.face_centroid(t), a, b, c);
+            let mut best = 0;
+            for i in 1..3 {
+                if w[i] > w[best] || (w[i] == w[best] && f[i] < f[best]) {
+                    best = i;
+                }
+            }
+            f[best]
+        })
+        .collect()
 }
 
 coarsen_stage::export_stage!(Postprocess);
