@@ -14,6 +14,8 @@ pub enum DualError {
     BadLabels(String),
     /// The clustering could not be repaired within the allowed rounds.
     Unrepaired(String),
+    /// Too few clusters for any valid mesh of the input's topology.
+    TooFew(String),
 }
 
 impl std::fmt::Display for DualError {
@@ -22,6 +24,7 @@ impl std::fmt::Display for DualError {
             DualError::NotManifold(m) => write!(f, "input is not a manifold oriented mesh: {m}"),
             DualError::BadLabels(m) => write!(f, "bad cluster labels: {m}"),
             DualError::Unrepaired(m) => write!(f, "the clustering could not be repaired: {m}"),
+            DualError::TooFew(m) => write!(f, "{m}"),
         }
     }
 }

@@ -150,6 +150,9 @@ pub fn dual(
             "cluster {c} has no face (labels must be 0..n, every value used)"
         )));
     }
+    if let Some(why) = too_few_vertices(&topo, n) {
+        return Err(DualError::TooFew(why));
+    }
     let (faces, stats) =
         build::repaired_dual(mesh, &topo, labels, n, max_repair_rounds, relax_passes)?;
     let (mut positions, boundary_clusters, quadric_fallbacks) =
@@ -202,6 +205,65 @@ pub fn dual(
         boundary_clusters,
         quadric_fallbacks,
         degenerate_fixes: bad.len(),
+    })
+}
+
+/// Why `n` vertices cannot make a valid mesh of `topo`'s topology, if they cannot: every
+/// boundary loop needs three vertices of its own, and a closed component of Euler
+/// characteristic χ needs at least (7 + √(49 − 24χ))/2 (Heawood: 4 for a sphere, 7 for a
+/// torus). Necessary conditions only.
+fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
+    let nc = topo.n_components();
+    let mut loops = vec![0usize; nc];
+    for i in 0..topo.n_boundary_loops() {
+        let comp = topo
+            .boundary_loop(i)
+            .first()
+            .and_then(|&v| topo.vertex_faces(v).first())
+            .map(|&f| topo.face_components()[f as usize] as usize);
+        if let Some(c) = comp.filter(|&c| c < nc) {
+            loops[c] += 1;
+        }
+    }
+    // χ per component from its vertices, edges and faces.
+    let (mut v, mut e, mut f) = (vec![0i64; nc], vec![0i64; nc], vec![0i64; nc]);
+    let comp_of_face = topo.face_components();
+    for (face, &c) in comp_of_face.iter().enumerate() {
+        if (c as usize) < nc && !topo.is_skipped_face(face as u32) {
+            f[c as usize] += 1;
+        }
+    }
+    for edge in 0..topo.n_edges() as u32 {
+        if let Some(&face) = topo.edge_faces(edge).first() {
+            e[comp_of_face[face as usize] as usize] += 1;
+        }
+    }
+    for vert in 0..topo.n_vertices() as u32 {
+        if let Some(&face) = topo.vertex_faces(vert).first() {
+            v[comp_of_face[face as usize] as usize] += 1;
+        }
+    }
+    let mut need = 0usize;
+    let mut worst = (0usize, 0usize);
+    for c in 0..nc {
+        let m = if loops[c] > 0 {
+            3 * loops[c]
+        } else {
+            let chi = (v[c] - e[c] + f[c]) as f64;
+            ((7.0 + (49.0 - 24.0 * chi).max(0.0).sqrt()) / 2.0).ceil() as usize
+        };
+        need += m;
+        if m > worst.1 {
+            worst = (c, m);
+        }
+    }
+    (n < need).then(|| {
+        format!(
+            "{n} vertices cannot make a valid mesh of this topology: it needs at least {need} \
+             (component {} of {nc} alone needs {}: three per boundary loop, four for a closed \
+             sphere, seven for a torus)",
+            worst.0, worst.1
+        )
     })
 }
 
@@ -463,6 +525,10 @@ impl Stage for DualStage {
         )
         .map_err(|e| match e {
             DualError::Unrepaired(_) => StageError::Internal(format!("`{}`: {e}", Self::KIND)),
+            DualError::TooFew(_) => StageError::Param {
+                name: "target",
+                message: format!("`{}`: {e}", Self::KIND),
+            },
             e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
         })?;
         let r = &mut *cx.report;

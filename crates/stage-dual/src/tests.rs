@@ -157,14 +157,14 @@ fn missing_or_gapped_labels_are_input_errors() {
 
 #[test]
 fn a_bad_clustering_is_repaired_with_the_count_kept() {
-    // Two clusters on a sphere (hemispheres) cannot have a dual: repairs must give 2
-    // clusters... which is impossible, so the stage fails rather than emit a broken mesh.
+    // Two clusters on a sphere (hemispheres) cannot have a dual: no valid mesh has 2
+    // vertices, so the stage refuses before trying, rather than emit a broken mesh.
     let sphere = icosphere(1.0, 3).unwrap();
     let mut labels: Vec<u32> = (0..sphere.n_faces())
         .map(|f| (sphere.face_centroid(f).z > 0.0) as u32)
         .collect();
     let e = dual(&sphere, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
-    assert!(matches!(e, DualError::Unrepaired(_)), "{e}");
+    assert!(matches!(e, DualError::TooFew(_)), "{e}");
     // Rings around the north pole (three annuli round a cap) above latitude-longitude
     // cells: the annuli are not discs and must be split, paid for by merges of cells.
     let sphere = icosphere(1.0, 4).unwrap();
@@ -234,4 +234,18 @@ fn real_meshes_give_valid_duals_with_exact_counts() {
             );
         }
     }
+}
+
+/// Too few clusters for any valid mesh of the topology: an input error, not a failed repair.
+#[test]
+fn too_few_clusters_for_the_topology_are_refused_up_front() {
+    let sphere = icosphere(1.0, 2).unwrap();
+    let mut labels: Vec<u32> = (0..sphere.n_faces() as u32).map(|f| f % 3).collect();
+    let e = dual(&sphere, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    assert!(matches!(e, DualError::TooFew(_)), "{e}");
+    assert!(e.to_string().contains("needs at least 4"), "{e}");
+    let disk = disk_with_holes(2, 5, 2.0).unwrap();
+    let mut labels: Vec<u32> = (0..disk.n_faces() as u32).map(|f| f % 8).collect();
+    let e = dual(&disk, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    assert!(e.to_string().contains("needs at least 9"), "{e}");
 }
