@@ -337,3 +337,21 @@ fn render_writes_a_png_of_one_mesh_or_two_side_by_side() {
         stderr(&o)
     );
 }
+
+/// `coarsen stages | head -1`: a reader that goes away early ends the command quietly, with
+/// success, instead of a panic about a broken pipe.
+#[test]
+fn a_closed_stdout_pipe_ends_quietly() {
+    let mut child = std::process::Command::new(EXE)
+        .arg("stages")
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+}

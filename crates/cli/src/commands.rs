@@ -154,10 +154,10 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         }
     }
     if !quiet {
-        print!("{}", report.summary());
-        println!("wrote {}", args.output.display());
+        out!("{}", report.summary());
+        outln!("wrote {}", args.output.display());
         if let (Some(path), Some(record)) = (&args.progressive, &record) {
-            println!(
+            outln!(
                 "wrote {} (levels 0 to {}: {} to {} vertices; `coarsen lod` rebuilds them)",
                 path.display(),
                 coarsen_lod::levels(record),
@@ -254,7 +254,7 @@ pub fn lod(args: LodArgs, quiet: bool) -> CmdResult {
     let mesh = coarsen_lod::rebuild(&coarse, &record, level).map_err(usage)?;
     coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
     if !quiet {
-        println!(
+        outln!(
             "level {level} of {}: {} vertices, {} faces; wrote {}",
             coarsen_lod::levels(&record),
             mesh.n_vertices(),
@@ -304,7 +304,7 @@ pub fn batch(args: BatchArgs, quiet: bool) -> CmdResult {
         batch::csv(&rows).as_bytes(),
     )?;
     if !quiet {
-        print!("{}", batch::table(&rows));
+        out!("{}", batch::table(&rows));
     }
     let failed = rows.iter().filter(|r| r.status == "failed").count();
     if failed > 0 {
@@ -379,7 +379,7 @@ pub fn stages(markdown: bool) -> CmdResult {
             out.push('\n');
         }
     }
-    print!("{out}");
+    out!("{out}");
     Ok(())
 }
 
@@ -392,7 +392,7 @@ pub fn check(spec: &str, target: &TargetArgs, sets: &[String], quiet: bool) -> C
             .target
             .map(|t| t.to_string())
             .unwrap_or_else(|| "none".into());
-        println!(
+        outln!(
             "{spec}: ok — pipeline `{}`, target {target}, stages: {}",
             p.name,
             kinds.join(" → ")
@@ -423,19 +423,19 @@ pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
             "topology": topo,
             "quality": quality,
         });
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&v).map_err(anyhow::Error::from)?
         );
         return Ok(());
     }
-    println!("{}", path.display());
+    outln!("{}", path.display());
     for n in &input.notes {
-        println!("  note: {n}");
+        outln!("  note: {n}");
     }
-    println!("  vertices           {}", mesh.n_vertices());
-    println!("  faces              {}", mesh.n_faces());
-    println!(
+    outln!("  vertices           {}", mesh.n_vertices());
+    outln!("  faces              {}", mesh.n_faces());
+    outln!(
         "  bbox               [{:.6}, {:.6}, {:.6}] – [{:.6}, {:.6}, {:.6}] (diagonal {:.6})",
         bbox.min.x,
         bbox.min.y,
@@ -445,19 +445,22 @@ pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
         bbox.max.z,
         bbox.diagonal()
     );
-    println!("  area               {:.6}", mesh.area());
+    outln!("  area               {:.6}", mesh.area());
     print_topology(&topo);
-    println!(
+    outln!(
         "  angles             min {:.2}°, mean of minimum {:.2}°, {:.2} % of faces under 30°",
-        quality.alpha_min_deg, quality.alpha_avg_deg, quality.p_lt30_pct
+        quality.alpha_min_deg,
+        quality.alpha_avg_deg,
+        quality.p_lt30_pct
     );
-    println!(
+    outln!(
         "  quality (Q)        min {:.3}, mean {:.3}",
-        quality.q_min, quality.q_avg
+        quality.q_min,
+        quality.q_avg
     );
     let attrs = attribute_list(mesh);
     if !attrs.is_empty() {
-        println!("  attributes         {}", attrs.join(", "));
+        outln!("  attributes         {}", attrs.join(", "));
     }
     Ok(())
 }
@@ -468,26 +471,28 @@ fn print_topology(t: &coarsen_mesh::topology::TopologySummary) {
         Some(g) => g.to_string(),
         None => "undefined (non-manifold)".into(),
     };
-    println!(
+    outln!(
         "  referenced vertices {} ({} unreferenced)",
-        t.n_vertices, t.n_isolated_vertices
+        t.n_vertices,
+        t.n_isolated_vertices
     );
-    println!(
+    outln!(
         "  edges              {} ({} on the boundary)",
-        t.n_edges, t.n_boundary_edges
+        t.n_edges,
+        t.n_boundary_edges
     );
-    println!("  components         {}", t.n_components);
-    println!("  boundary loops     {}", t.n_boundary_loops);
-    println!("  genus              {genus}");
-    println!("  euler              {}", t.euler);
-    println!(
+    outln!("  components         {}", t.n_components);
+    outln!("  boundary loops     {}", t.n_boundary_loops);
+    outln!("  genus              {genus}");
+    outln!("  euler              {}", t.euler);
+    outln!(
         "  manifold           {} ({} non-manifold edges, {} non-manifold vertices)",
         yes_no(t.manifold),
         t.n_non_manifold_edges,
         t.n_non_manifold_vertices
     );
-    println!("  oriented           {}", yes_no(t.consistently_oriented));
-    println!("  degenerate faces   {}", t.n_degenerate_faces);
+    outln!("  oriented           {}", yes_no(t.consistently_oriented));
+    outln!("  degenerate faces   {}", t.n_degenerate_faces);
 }
 
 fn attribute_list(mesh: &coarsen_mesh::Mesh) -> Vec<String> {
@@ -523,13 +528,13 @@ pub fn metrics(input: &Path, output: &Path, json: bool, samples_per_face: u32) -
     let report =
         coarsen_metrics::measure(Some(&a.mesh), &b.mesh, &opts).map_err(anyhow::Error::from)?;
     if json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&report).map_err(anyhow::Error::from)?
         );
     } else {
-        println!("{} against {}\n", output.display(), input.display());
-        print!("{}", report.to_markdown());
+        outln!("{} against {}\n", output.display(), input.display());
+        out!("{}", report.to_markdown());
     }
     Ok(())
 }

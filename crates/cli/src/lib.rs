@@ -3,6 +3,31 @@
 //! `coarsen_cli::main()` is the whole program; a third-party binary that links its own stage
 //! crates (`use my_stage as _;`) and calls it gets those stages too.
 
+/// `print!` to standard output that ends the process quietly (exit 0) when the reader has
+/// gone away (`coarsen … | head`), instead of panicking.
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = write!(std::io::stdout().lock(), $($t)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+        }
+    }};
+}
+
+/// [`out!`] with a newline.
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout().lock(), $($t)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+        }
+    }};
+}
+
 mod batch;
 mod commands;
 mod html;
