@@ -147,16 +147,7 @@ pub fn cluster(
     density: Option<&[f64]>,
     on_pass: impl FnMut(u32, u64, f64),
 ) -> Result<Clustering, ClusterError> {
-    let energy = make_energy(params.energy, params.r);
-    let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
-    c.seed(n, params.seed)?;
-    c.set_tolerance(params.tolerance);
-    let log = c.minimize(params.max_passes, None, on_pass);
-    Ok(Clustering {
-        labels: c.into_labels(),
-        n,
-        log,
-    })
+    cluster_from(mesh, topo, Vec::new(), n, params, density, on_pass)
 }
 
 /// Like [`cluster`], but starting from the clustering `labels` (`0..n`, every cluster
