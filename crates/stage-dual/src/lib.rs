@@ -155,14 +155,15 @@ pub fn dual(
     }
     let (faces, stats) =
         build::repaired_dual(mesh, &topo, labels, n, max_repair_rounds, relax_passes)?;
+    // One index of the surface serves the placement and the flipped-face test.
+    let facing = coarsen_metrics::Facing::new(surface.unwrap_or(mesh));
     let (mut positions, boundary_clusters, quadric_fallbacks) =
-        place(mesh, &topo, labels, n, placement, surface, true);
+        place(mesh, &topo, labels, n, placement, facing.bvh(), true);
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
     // one facing away from the input surface nearest its centroid (closest-vertex placement
     // on a curved part), gets its clusters' vertices moved to the projected centroids, the
     // most central choice (the report's `degenerate_fixes`).
     let diag2 = mesh.bbox().diagonal().powi(2);
-    let facing = coarsen_metrics::Facing::new(surface.unwrap_or(mesh));
     let bad_faces = |positions: &[DVec3]| -> Vec<u32> {
         let mut v: Vec<u32> = faces
             .iter()
@@ -181,7 +182,15 @@ pub fn dual(
     if !bad.is_empty() {
         // Unsnapped: a boundary cluster between two others on a straight boundary would
         // otherwise give a flat triangle; its vertex then stays just inside the boundary.
-        let (projected, _, _) = place(mesh, &topo, labels, n, Placement::Projected, surface, false);
+        let (projected, _, _) = place(
+            mesh,
+            &topo,
+            labels,
+            n,
+            Placement::Projected,
+            facing.bvh(),
+            false,
+        );
         bad.iter()
             .for_each(|&c| positions[c as usize] = projected[c as usize]);
     }
@@ -291,25 +300,19 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
     o
 }
 
-/// Output positions: `(positions, clusters on the boundary, quadric fall-backs)`.
+/// Output positions, projecting through `bvh` (the surface's index): `(positions, clusters
+/// on the boundary, quadric fall-backs)`.
 fn place(
     mesh: &Mesh,
     topo: &Topology,
     labels: &[u32],
     n: usize,
     placement: Placement,
-    surface: Option<&Mesh>,
+    bvh: &Bvh,
     snap: bool,
 ) -> (Vec<DVec3>, usize, usize) {
     let centroids = cluster_centroids(mesh, labels, n);
-    let needs_bvh = matches!(placement, Placement::Projected | Placement::Quadric);
-    let onto = surface.unwrap_or(mesh);
-    let bvh = needs_bvh.then(|| Bvh::build(&onto.positions, &onto.faces));
-    let project = |p: DVec3| {
-        bvh.as_ref()
-            .and_then(|b| b.closest_point(p))
-            .map_or(p, |h| h.point)
-    };
+    let project = |p: DVec3| bvh.closest_point(p).map_or(p, |h| h.point);
     let mut fallbacks = 0;
     let mut pos: Vec<DVec3> = match placement {
         Placement::Centroid => centroids.clone(),
