@@ -268,7 +268,7 @@ fuzz_target!(|data: &[u8]| {
         }
         Err(
             e @ RunError::Stage {
-                source: StageError::Internal(_),
+                error: StageError::Internal(_),
                 ..
             },
         ) if *STRICT => {

@@ -355,3 +355,27 @@ fn a_closed_stdout_pipe_ends_quietly() {
     assert!(!err.contains("panicked"), "{err}");
     assert!(out.status.success(), "{:?}: {err}", out.status);
 }
+
+/// A stage's error reaches the terminal once, named with its stage, and nothing is written.
+#[test]
+fn a_stage_error_is_printed_once_with_its_stage() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.ply");
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            "uniform-cvt",
+            "-o",
+            out.to_str().unwrap(),
+            "--vertices",
+            "2",
+            "-q",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("stage 3 `dual` failed"), "{err}");
+    assert_eq!(err.matches("cannot make a valid mesh").count(), 1, "{err}");
+    assert!(!out.exists());
+}

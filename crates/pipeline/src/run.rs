@@ -51,14 +51,16 @@ impl Default for RunOptions<'_> {
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
     /// A stage failed.
-    #[error("stage {index} `{kind}` failed: {source}")]
+    // The stage's error is part of this message, not a `source`: shown once at the CLI,
+    // which prints whole error chains.
+    #[error("stage {index} `{kind}` failed: {error}")]
     Stage {
         /// 1-based position.
         index: usize,
         /// Kind.
         kind: &'static str,
         /// The stage's error.
-        source: StageError,
+        error: StageError,
     },
     /// A stage needs a manifold mesh and did not get one.
     #[error(
@@ -166,10 +168,10 @@ impl Pipeline {
             mesh = s
                 .stage
                 .run(mesh, &mut cx)
-                .map_err(|source| RunError::Stage {
+                .map_err(|error| RunError::Stage {
                     index,
                     kind: s.kind,
-                    source,
+                    error,
                 })?;
             drop(slot);
             let seconds = t.elapsed().as_secs_f64();
