@@ -180,6 +180,11 @@ impl<'a> Facing<'a> {
         &self.bvh
     }
 
+    /// The input's adjacency.
+    pub fn topology(&self) -> &Topology {
+        &self.topo
+    }
+
     /// True when triangle `abc` would count as flipped against the input.
     pub fn faces_away(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
         faces_away(self.mesh, &self.topo, &self.bvh, a, b, c)

@@ -56,6 +56,7 @@ pub use build::{DualError, DualStats, Problems};
 
 use coarsen_geom::{Aabb, DVec3, Quadric};
 use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
+use coarsen_metrics::Facing;
 use coarsen_spatial::{Bvh, closest_point_on_segment};
 use coarsen_stage::{
     AttrKind, AttrRef, Context, Contract, Domain, Mesh, Needs, Params, Stage, StageError, params,
@@ -109,12 +110,13 @@ pub struct Dual {
 
 /// The dual triangulation of `mesh` clustered by `labels` (`0..n`): repairs the clustering
 /// where needed (the repaired labels are written back), places the vertices (projecting
-/// onto `surface`, or onto `mesh` itself when `None`), carries the vertex attributes.
+/// onto the indexed `surface`, or onto `mesh` itself when `None`), carries the vertex
+/// attributes.
 pub fn dual(
     mesh: &Mesh,
     labels: &mut Vec<u32>,
     placement: Placement,
-    surface: Option<&Mesh>,
+    surface: Option<&Facing<'_>>,
     max_repair_rounds: u32,
     relax_passes: u32,
 ) -> Result<Dual, DualError> {
@@ -156,7 +158,14 @@ pub fn dual(
     let (faces, stats) =
         build::repaired_dual(mesh, &topo, labels, n, max_repair_rounds, relax_passes)?;
     // One index of the surface serves the placement and the flipped-face test.
-    let facing = coarsen_metrics::Facing::new(surface.unwrap_or(mesh));
+    let own;
+    let facing = match surface {
+        Some(f) => f,
+        None => {
+            own = Facing::new(mesh);
+            &own
+        }
+    };
     let (mut positions, boundary_clusters, quadric_fallbacks) =
         place(mesh, &topo, labels, n, placement, facing.bvh(), true);
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
@@ -522,7 +531,9 @@ impl Stage for DualStage {
             &mesh,
             &mut labels,
             p.placement,
-            (cx.original.n_faces() > 0).then_some(cx.original),
+            (cx.original.n_faces() > 0)
+                .then(|| Facing::new(cx.original))
+                .as_ref(),
             p.max_repair_rounds,
             p.relax_passes,
         )

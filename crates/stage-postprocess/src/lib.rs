@@ -161,16 +161,18 @@ impl Stage for Postprocess {
         };
         let log = log.unwrap_or_default();
         // 3. Dual again.
-        let surface = (p.project && cx.original.n_faces() > 0).then_some(cx.original);
-        let dual = coarsen_stage_dual::dual(&fine, &mut labels, p.placement, surface, 40, 8)
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        // One index of the run's input serves the dual's placement and the projection.
+        let facing = (p.project && cx.original.n_faces() > 0)
+            .then(|| coarsen_metrics::Facing::new(cx.original));
+        let dual =
+            coarsen_stage_dual::dual(&fine, &mut labels, p.placement, facing.as_ref(), 40, 8)
+                .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         let mut out = dual.mesh;
         // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
         // over, flatten it or make it face away from the input goes back where the dual put
         // it (a few rounds, as undoing one move can expose a neighbour's).
         let mut projected = 0usize;
-        if p.project && cx.original.n_faces() > 0 {
-            let facing = coarsen_metrics::Facing::new(cx.original);
+        if let Some(facing) = &facing {
             let before = out.clone();
             let mut moved = vec![false; out.n_vertices()];
             for (v, pos) in out.positions.iter_mut().enumerate() {

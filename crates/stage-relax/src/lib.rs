@@ -104,18 +104,13 @@ pub struct Surface<'a> {
 impl<'a> Surface<'a> {
     /// Indexes `mesh` (its faces and boundary edges).
     pub fn new(mesh: &'a Mesh) -> Self {
-        let boundary = Topology::try_build(mesh)
-            .map(|t| {
-                (0..t.n_edges() as u32)
-                    .filter(|&e| t.is_boundary_edge(e))
-                    .map(|e| t.edge(e).map(|v| mesh.positions[v as usize]))
-                    .collect()
-            })
-            .unwrap_or_default();
-        Surface {
-            facing: Facing::new(mesh),
-            boundary,
-        }
+        let facing = Facing::new(mesh);
+        let t = facing.topology();
+        let boundary = (0..t.n_edges() as u32)
+            .filter(|&e| t.is_boundary_edge(e))
+            .map(|e| t.edge(e).map(|v| mesh.positions[v as usize]))
+            .collect();
+        Surface { facing, boundary }
     }
 
     /// The nearest point of the surface.
@@ -145,11 +140,14 @@ impl<'a> Surface<'a> {
 /// One sweep of edge flips over `mesh` (in edge order, each face flipped at most once):
 /// the interior edge a–b of faces abc and bad becomes c–d when the smallest angle of the
 /// two faces grows, c–d is not an edge yet, neither new face turns by more than `cos_turn`
-/// from the face it replaces, and both agree with `surface`. Returns the flips made.
-fn flip_sweep(mesh: &mut Mesh, surface: Option<&Surface<'_>>, cos_turn: f64) -> usize {
-    let Ok(topo) = Topology::try_build(mesh) else {
-        return 0;
-    };
+/// from the face it replaces, and both agree with `surface`. `topo` is `mesh`'s adjacency
+/// before the sweep. Returns the flips made.
+fn flip_sweep(
+    mesh: &mut Mesh,
+    topo: &Topology,
+    surface: Option<&Surface<'_>>,
+    cos_turn: f64,
+) -> usize {
     let mut touched = vec![false; mesh.n_faces()];
     let mut added: std::collections::HashSet<[u32; 2]> = std::collections::HashSet::new();
     let key = |a: u32, b: u32| if a < b { [a, b] } else { [b, a] };
@@ -246,7 +244,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     let mut topo = topo;
     for _ in 0..params.sweeps {
         if params.flips {
-            let flipped = flip_sweep(mesh, surface, cos_turn);
+            let flipped = flip_sweep(mesh, &topo, surface, cos_turn);
             out.flipped.push(flipped);
             if flipped > 0 {
                 match Topology::try_build(mesh) {
