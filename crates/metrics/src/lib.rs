@@ -43,7 +43,7 @@ pub mod validity;
 pub use error::{MAX_COORDINATE, MetricsError, Role};
 pub use fidelity::{Fidelity, FidelityOptions, fidelity};
 pub use quality::{Quality, quality};
-pub use validity::{Facing, Validity, validity};
+pub use validity::{Facing, SurfaceIndex, Validity, validity};
 
 use coarsen_mesh::Mesh;
 use prepare::Prepared;

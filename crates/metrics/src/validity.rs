@@ -8,6 +8,7 @@ use coarsen_mesh::topology::TopologySummary;
 use coarsen_mesh::{DVec3, Mesh, Topology};
 use coarsen_spatial::Bvh;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// Output faces per parallel chunk of the flip test.
 const CHUNK: usize = 2048;
@@ -157,37 +158,54 @@ pub(crate) fn count_flipped(
     .sum()
 }
 
+/// The indexes of an input surface that [`Facing`] reads: its adjacency and face hierarchy.
+/// Owns no reference to the mesh, so a run can build it once and share it.
+pub struct SurfaceIndex {
+    topo: Topology,
+    bvh: Bvh,
+}
+
+impl SurfaceIndex {
+    /// Indexes `input` (its faces and adjacency).
+    pub fn new(input: &Mesh) -> Self {
+        SurfaceIndex {
+            topo: Topology::build(input),
+            bvh: Bvh::build(&input.positions, &input.faces),
+        }
+    }
+}
+
 /// An input surface indexed for the flipped-face test of the metrics, for stages that must
 /// not produce a face the metrics would count as flipped.
 pub struct Facing<'a> {
     mesh: &'a Mesh,
-    topo: Topology,
-    bvh: Bvh,
+    index: Arc<SurfaceIndex>,
 }
 
 impl<'a> Facing<'a> {
     /// Indexes `input` (its faces and adjacency).
     pub fn new(input: &'a Mesh) -> Self {
-        Facing {
-            mesh: input,
-            topo: Topology::build(input),
-            bvh: Bvh::build(&input.positions, &input.faces),
-        }
+        Facing::with_index(input, Arc::new(SurfaceIndex::new(input)))
+    }
+
+    /// `input` with its index built earlier by [`SurfaceIndex::new`] from the same mesh.
+    pub fn with_index(input: &'a Mesh, index: Arc<SurfaceIndex>) -> Self {
+        Facing { mesh: input, index }
     }
 
     /// The index of the input's faces.
     pub fn bvh(&self) -> &Bvh {
-        &self.bvh
+        &self.index.bvh
     }
 
     /// The input's adjacency.
     pub fn topology(&self) -> &Topology {
-        &self.topo
+        &self.index.topo
     }
 
     /// True when triangle `abc` would count as flipped against the input.
     pub fn faces_away(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
-        faces_away(self.mesh, &self.topo, &self.bvh, a, b, c)
+        faces_away(self.mesh, &self.index.topo, &self.index.bvh, a, b, c)
     }
 }
 

@@ -5,7 +5,7 @@
 //! edges of three or more faces stop the run with [`RunError::NotManifold`].
 
 use crate::{Pipeline, RunReport, StageRecord};
-use coarsen_mesh::{Mesh, Topology, sanity};
+use coarsen_mesh::{Mesh, sanity};
 use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -117,12 +117,23 @@ impl Pipeline {
             ..Default::default()
         };
         let start = Instant::now();
+        let shared = coarsen_stage::Shared::new();
         for (i, s) in self.stages.iter().enumerate() {
             let index = i + 1;
             let contract = s.stage.contract();
             let mut split_note = None;
+            let summary_of = |mesh: &Mesh| {
+                shared
+                    .topology(mesh)
+                    .map(|t| t.summary(mesh))
+                    .map_err(|e| RunError::Stage {
+                        index,
+                        kind: s.kind,
+                        error: StageError::Input(e.to_string()),
+                    })
+            };
             if contract.needs.manifold {
-                let mut summary = Topology::build(&mesh).summary(&mesh);
+                let mut summary = summary_of(&mesh)?;
                 if !summary.manifold && summary.n_non_manifold_edges == 0 {
                     // Non-manifold vertices only: one vertex per face fan makes it workable.
                     let (split, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
@@ -131,7 +142,7 @@ impl Pipeline {
                         summary.n_non_manifold_vertices
                     ));
                     mesh = split;
-                    summary = Topology::build(&mesh).summary(&mesh);
+                    summary = summary_of(&mesh)?;
                 }
                 if !summary.manifold {
                     return Err(RunError::NotManifold {
@@ -164,6 +175,7 @@ impl Pipeline {
                 report: &mut stage_report,
                 progress: opts.progress,
                 progressive: slot.as_deref_mut(),
+                shared: Some(&shared),
             };
             mesh = s
                 .stage

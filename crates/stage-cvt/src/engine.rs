@@ -108,6 +108,8 @@ pub struct Clusterer<'a> {
     face_sums: Vec<Sums>,
     labels: Vec<u32>,
     sums: Vec<Sums>,
+    /// Per cluster: its energy term, kept in step with `sums`.
+    terms: Vec<f64>,
     /// Stop when a pass lowers the energy by less than this fraction of it.
     tolerance: f64,
 }
@@ -175,6 +177,7 @@ impl<'a> Clusterer<'a> {
             face_sums,
             labels: vec![NONE; nf],
             sums: Vec::new(),
+            terms: Vec::new(),
             tolerance: 0.0,
         })
     }
@@ -213,7 +216,7 @@ impl<'a> Clusterer<'a> {
 
     /// The total energy of the current clustering.
     pub fn total_energy(&self) -> f64 {
-        self.sums.iter().map(|s| self.energy.cluster(s)).sum()
+        self.terms.iter().sum()
     }
 
     /// Connected components of faces over the adjacency: `(component per face, count)`.
@@ -348,6 +351,7 @@ impl<'a> Clusterer<'a> {
             sums[l as usize] = sums[l as usize].plus(self.face_sums[f]);
         }
         self.labels = labels;
+        self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
         self.sums = sums;
         Ok(())
     }
@@ -417,7 +421,7 @@ impl<'a> Clusterer<'a> {
         let from = self.labels[t as usize] as usize;
         let ft = self.face_sums[t as usize];
         let (a, b) = (self.sums[from], self.sums[to as usize]);
-        let before = self.energy.cluster(&a) + self.energy.cluster(&b);
+        let before = self.terms[from] + self.terms[to as usize];
         let after = self.energy.cluster(&a.minus(ft)) + self.energy.cluster(&b.plus(ft));
         (after - before, before.abs())
     }
@@ -428,6 +432,8 @@ impl<'a> Clusterer<'a> {
         let ft = self.face_sums[t as usize];
         self.sums[from] = self.sums[from].minus(ft);
         self.sums[to as usize] = self.sums[to as usize].plus(ft);
+        self.terms[from] = self.energy.cluster(&self.sums[from]);
+        self.terms[to as usize] = self.energy.cluster(&self.sums[to as usize]);
         self.labels[t as usize] = to;
     }
 

@@ -231,7 +231,8 @@ impl Stage for ClusterCvt {
                 ))
             })?)
         };
-        let topo = Topology::try_build(&mesh)
+        let topo = cx
+            .topology(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         let progress = cx.progress;
         progress.begin(Self::KIND, u64::from(p.max_passes));

@@ -56,7 +56,7 @@ pub use build::{DualError, DualStats, Problems};
 
 use coarsen_geom::{Aabb, DVec3, Quadric};
 use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
-use coarsen_metrics::Facing;
+use coarsen_metrics::{Facing, SurfaceIndex};
 use coarsen_spatial::{Bvh, closest_point_on_segment};
 use coarsen_stage::{
     AttrKind, AttrRef, Context, Contract, Domain, Mesh, Needs, Params, Stage, StageError, params,
@@ -121,6 +121,27 @@ pub fn dual(
     relax_passes: u32,
 ) -> Result<Dual, DualError> {
     let topo = Topology::try_build(mesh).map_err(|e| DualError::NotManifold(e.to_string()))?;
+    dual_with(
+        mesh,
+        &topo,
+        labels,
+        placement,
+        surface,
+        max_repair_rounds,
+        relax_passes,
+    )
+}
+
+/// [`dual`] with the adjacency of `mesh` built by the caller.
+pub fn dual_with(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &mut Vec<u32>,
+    placement: Placement,
+    surface: Option<&Facing<'_>>,
+    max_repair_rounds: u32,
+    relax_passes: u32,
+) -> Result<Dual, DualError> {
     if let Some(f) = (0..mesh.n_faces() as u32).find(|&f| topo.is_skipped_face(f)) {
         return Err(DualError::NotManifold(format!("face {f} repeats a vertex")));
     }
@@ -527,12 +548,16 @@ impl Stage for DualStage {
                 StageError::Input(format!("`{}`: no face label `{CLUSTER}`", Self::KIND))
             })?
             .to_vec();
-        let d = dual(
+        let topo = cx
+            .topology(&mesh)
+            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let d = dual_with(
             &mesh,
+            &topo,
             &mut labels,
             p.placement,
             (cx.original.n_faces() > 0)
-                .then(|| Facing::new(cx.original))
+                .then(|| Facing::with_index(cx.original, cx.input_index(SurfaceIndex::new)))
                 .as_ref(),
             p.max_repair_rounds,
             p.relax_passes,

@@ -97,6 +97,7 @@ impl Stage for Postprocess {
         let mut done = 0;
         let mut passes = Vec::new();
         let mut log = None;
+        let mut level_topo = None;
         for _ in 0..p.times.max(1) {
             if done < p.times {
                 if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
@@ -148,6 +149,7 @@ impl Stage for Postprocess {
             fine.face_attrs
                 .insert(CLUSTER, AttrValues::Label(clustering.labels));
             log = Some(clustering.log);
+            level_topo = Some(topo);
             if done == p.times || done == 0 {
                 break;
             }
@@ -162,11 +164,27 @@ impl Stage for Postprocess {
         let log = log.unwrap_or_default();
         // 3. Dual again.
         // One index of the run's input serves the dual's placement and the projection.
-        let facing = (p.project && cx.original.n_faces() > 0)
-            .then(|| coarsen_metrics::Facing::new(cx.original));
-        let dual =
-            coarsen_stage_dual::dual(&fine, &mut labels, p.placement, facing.as_ref(), 40, 8)
-                .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let facing = (p.project && cx.original.n_faces() > 0).then(|| {
+            coarsen_metrics::Facing::with_index(
+                cx.original,
+                cx.input_index(coarsen_metrics::SurfaceIndex::new),
+            )
+        });
+        let topo = match level_topo {
+            Some(t) => t,
+            None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,
+        };
+        let dual = coarsen_stage_dual::dual_with(
+            &fine,
+            &topo,
+            &mut labels,
+            p.placement,
+            facing.as_ref(),
+            40,
+            8,
+        )
+        .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        drop(topo);
         let mut out = dual.mesh;
         // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
         // over, flatten it or make it face away from the input goes back where the dual put

@@ -22,11 +22,12 @@
 
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::Topology;
-use coarsen_metrics::Facing;
+use coarsen_metrics::{Facing, SurfaceIndex};
 use coarsen_spatial::closest_point_on_segment;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
 };
+use std::sync::Arc;
 
 params! {
     /// Parameters of `relax`.
@@ -104,7 +105,12 @@ pub struct Surface<'a> {
 impl<'a> Surface<'a> {
     /// Indexes `mesh` (its faces and boundary edges).
     pub fn new(mesh: &'a Mesh) -> Self {
-        let facing = Facing::new(mesh);
+        Surface::with_index(mesh, Arc::new(SurfaceIndex::new(mesh)))
+    }
+
+    /// `mesh` with its index built earlier by [`SurfaceIndex::new`] from the same mesh.
+    pub fn with_index(mesh: &'a Mesh, index: Arc<SurfaceIndex>) -> Self {
+        let facing = Facing::with_index(mesh, index);
         let t = facing.topology();
         let boundary = (0..t.n_edges() as u32)
             .filter(|&e| t.is_boundary_edge(e))
@@ -365,8 +371,8 @@ impl Stage for Relax {
     }
 
     fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
-        let surface =
-            (self.0.project && cx.original.n_faces() > 0).then(|| Surface::new(cx.original));
+        let surface = (self.0.project && cx.original.n_faces() > 0)
+            .then(|| Surface::with_index(cx.original, cx.input_index(SurfaceIndex::new)));
         let r = relax(&mut mesh, surface.as_ref(), &self.0);
         cx.report.figure("moved", &r.moved);
         cx.report.figure("flipped", &r.flipped);

@@ -143,6 +143,9 @@ pub struct Context<'a> {
     /// stage that records its collapses ([`crate::Stage::RECORDS_COLLAPSES`]) puts it,
     /// replacing an earlier stage's; `None` otherwise (then nothing is recorded).
     pub progressive: Option<&'a mut Option<Handback>>,
+    /// What the run's stages share (indexes of the input, the current adjacency); `None`
+    /// builds afresh on every request.
+    pub shared: Option<&'a crate::Shared>,
 }
 
 impl<'a> Context<'a> {
@@ -154,6 +157,32 @@ impl<'a> Context<'a> {
             report,
             progress: &NoProgress,
             progressive: None,
+            shared: None,
+        }
+    }
+
+    /// The value of type `T` derived from the run input ([`Context::original`]) by
+    /// `build`, built once per run and shared by every stage that asks for it.
+    pub fn input_index<T: std::any::Any + Send + Sync>(
+        &self,
+        build: impl FnOnce(&Mesh) -> T,
+    ) -> std::sync::Arc<T> {
+        let original = self.original;
+        match self.shared {
+            Some(s) => s.input_index(|| build(original)),
+            None => std::sync::Arc::new(build(original)),
+        }
+    }
+
+    /// The adjacency of `mesh`, shared with the stages before and after while the faces
+    /// stay the same.
+    pub fn topology(
+        &self,
+        mesh: &Mesh,
+    ) -> Result<std::sync::Arc<coarsen_mesh::Topology>, coarsen_mesh::TopologyError> {
+        match self.shared {
+            Some(s) => s.topology(mesh),
+            None => coarsen_mesh::Topology::try_build(mesh).map(std::sync::Arc::new),
         }
     }
 

@@ -63,12 +63,14 @@ pub mod contract;
 pub mod error;
 pub mod params;
 pub mod registry;
+pub mod shared;
 
 pub use context::{Context, Handback, NoProgress, Progress, StageReport, Target, TargetCount};
 pub use contract::{AttrRef, Contract, Needs};
 pub use error::StageError;
 pub use params::{FieldDoc, ParamIssue, Params};
 pub use registry::{DynStage, Registry, RegistryError, StageDescriptor};
+pub use shared::Shared;
 
 pub use coarsen_mesh::{AttrKind, AttrValues, DVec3, Domain, Mesh};
 

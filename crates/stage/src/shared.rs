@@ -1,0 +1,116 @@
+//! What the stages of one run share instead of rebuilding: indexes of the run's input
+//! (which never changes during a run) and the adjacency of the mesh passed between stages
+//! (reused while its faces stay the same).
+
+use coarsen_mesh::{Mesh, Topology, TopologyError};
+use std::any::{Any, TypeId};
+use std::sync::{Arc, Mutex, PoisonError};
+
+/// A value derived from the run's input.
+type Entry = Arc<dyn Any + Send + Sync>;
+
+/// The adjacency last built, and the faces it was built from.
+struct Adjacency {
+    n_vertices: usize,
+    faces: Vec<[u32; 3]>,
+    topology: Arc<Topology>,
+}
+
+/// Values built once per run and handed to every stage that asks: see
+/// [`crate::Context::input_index`] and [`crate::Context::topology`].
+#[derive(Default)]
+pub struct Shared {
+    input: Mutex<Vec<(TypeId, Entry)>>,
+    adjacency: Mutex<Option<Adjacency>>,
+}
+
+impl Shared {
+    /// An empty cache, for one run.
+    pub fn new() -> Shared {
+        Shared::default()
+    }
+
+    /// The value of type `T` derived from the run input: built by `build` on the first
+    /// call, the same value afterwards. `build` must depend on the run input alone.
+    pub fn input_index<T: Any + Send + Sync>(&self, build: impl FnOnce() -> T) -> Arc<T> {
+        let key = TypeId::of::<T>();
+        let mut input = self.input.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((_, v)) = input.iter().find(|(k, _)| *k == key) {
+            if let Ok(v) = Arc::clone(v).downcast::<T>() {
+                return v;
+            }
+        }
+        let v = Arc::new(build());
+        input.push((key, Arc::clone(&v) as Entry));
+        v
+    }
+
+    /// The adjacency of `mesh`: the one built last when `mesh` has the same vertex count
+    /// and faces as the mesh it was built from, else a new one (which replaces it).
+    pub fn topology(&self, mesh: &Mesh) -> Result<Arc<Topology>, TopologyError> {
+        let mut slot = self
+            .adjacency
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if let Some(a) = slot.as_ref() {
+            if a.n_vertices == mesh.n_vertices() && a.faces == mesh.faces {
+                return Ok(Arc::clone(&a.topology));
+            }
+        }
+        // Drop the old one first: at millions of faces both would not fit comfortably.
+        *slot = None;
+        let topology = Arc::new(Topology::try_build(mesh)?);
+        *slot = Some(Adjacency {
+            n_vertices: mesh.n_vertices(),
+            faces: mesh.faces.clone(),
+            topology: Arc::clone(&topology),
+        });
+        Ok(topology)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_mesh::DVec3;
+
+    fn two_triangles() -> Mesh {
+        let mut m = Mesh::default();
+        m.positions = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::ONE];
+        m.faces = vec![[0, 1, 2], [2, 1, 3]];
+        m
+    }
+
+    #[test]
+    fn an_input_index_is_built_once_per_type() {
+        let shared = Shared::new();
+        let mut builds = 0;
+        let a = shared.input_index(|| {
+            builds += 1;
+            7u64
+        });
+        let b = shared.input_index(|| {
+            builds += 1;
+            8u64
+        });
+        let c = shared.input_index(|| "other type");
+        assert_eq!((*a, *b, *c, builds), (7, 7, "other type", 1));
+    }
+
+    #[test]
+    fn the_topology_is_reused_only_while_the_faces_stay_the_same() {
+        let shared = Shared::new();
+        let mut m = two_triangles();
+        let t1 = shared.topology(&m).unwrap();
+        m.positions[3] = DVec3::splat(2.0); // positions do not matter to adjacency
+        let t2 = shared.topology(&m).unwrap();
+        assert!(Arc::ptr_eq(&t1, &t2));
+        m.faces.pop();
+        let t3 = shared.topology(&m).unwrap();
+        assert!(!Arc::ptr_eq(&t1, &t3));
+        assert_eq!(t3.n_edges(), 3);
+        m.positions.push(DVec3::NEG_ONE); // a new isolated vertex changes the adjacency
+        let t4 = shared.topology(&m).unwrap();
+        assert!(!Arc::ptr_eq(&t3, &t4));
+    }
+}
