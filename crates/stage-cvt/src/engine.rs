@@ -8,6 +8,7 @@ use crate::energy::{Energy, Sums};
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
+use rayon::prelude::*;
 use std::collections::VecDeque;
 
 /// Why a clustering could not be made.
@@ -96,10 +97,12 @@ impl SplitMix64 {
 }
 
 /// A face clustering in progress over one mesh.
-pub struct Clusterer<'a> {
+///
+/// Generic over the energy so that the move tests call it directly; `dyn Energy` works too.
+pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     topo: &'a Topology,
     faces: &'a [[u32; 3]],
-    energy: &'a dyn Energy,
+    energy: &'a E,
     /// Per face: the face across each edge (corner i → i+1), or `NONE`.
     nbr: Vec<[u32; 3]>,
     /// Per vertex: its faces form one closed fan.
@@ -114,13 +117,13 @@ pub struct Clusterer<'a> {
     tolerance: f64,
 }
 
-impl<'a> Clusterer<'a> {
+impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// A clusterer over `mesh` (whose adjacency is `topo`) with `energy`, face masses from
     /// the energy and the optional per-vertex `density`. No face is labelled yet.
     pub fn new(
         mesh: &'a Mesh,
         topo: &'a Topology,
-        energy: &'a dyn Energy,
+        energy: &'a E,
         density: Option<&[f64]>,
     ) -> Result<Self, ClusterError> {
         let nf = mesh.n_faces();
@@ -143,7 +146,9 @@ impl<'a> Clusterer<'a> {
         } else {
             1.0
         };
+        // Per face, in parallel: each entry depends on its own face alone.
         let face_sums = (0..nf)
+            .into_par_iter()
             .map(|f| {
                 let [a, b, c] = mesh.corners(f).map(|p| (p - center) * scale);
                 let rho = density.map_or(1.0, |d| {
@@ -154,6 +159,7 @@ impl<'a> Clusterer<'a> {
             })
             .collect();
         let nbr = (0..nf as u32)
+            .into_par_iter()
             .map(|f| {
                 topo.face_edges(f).map(|e| {
                     let ef = topo.edge_faces(e);
@@ -166,6 +172,7 @@ impl<'a> Clusterer<'a> {
             })
             .collect();
         let closed = (0..topo.n_vertices() as u32)
+            .into_par_iter()
             .map(|v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
             .collect();
         Ok(Clusterer {

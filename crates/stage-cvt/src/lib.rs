@@ -162,8 +162,37 @@ pub fn cluster_from(
     density: Option<&[f64]>,
     on_pass: impl FnMut(u32, u64, f64),
 ) -> Result<Clustering, ClusterError> {
-    let energy = make_energy(params.energy, params.r);
-    let mut c = Clusterer::new(mesh, topo, energy.as_ref(), density)?;
+    match params.energy {
+        EnergyKind::Shu2009 => {
+            let energy = Shu2009 { r: params.r };
+            run_from(mesh, topo, labels, n, params, &energy, density, on_pass)
+        }
+        EnergyKind::Valette2004 => run_from(
+            mesh,
+            topo,
+            labels,
+            n,
+            params,
+            &Valette2004,
+            density,
+            on_pass,
+        ),
+    }
+}
+
+/// [`cluster_from`] with the energy chosen.
+#[allow(clippy::too_many_arguments)]
+fn run_from<E: Energy>(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: Vec<u32>,
+    n: usize,
+    params: &CvtParams,
+    energy: &E,
+    density: Option<&[f64]>,
+    on_pass: impl FnMut(u32, u64, f64),
+) -> Result<Clustering, ClusterError> {
+    let mut c = Clusterer::new(mesh, topo, energy, density)?;
     let usable = labels.len() == mesh.n_faces()
         && c.set_labels(labels, n).is_ok()
         && c.cluster_sums().iter().all(|s| s.count > 0.5)

@@ -12,6 +12,7 @@ use coarsen_stage::{
 };
 use coarsen_stage_cvt::{CvtParams, EnergyKind};
 use coarsen_stage_dual::Placement;
+use rayon::prelude::*;
 
 params! {
     /// Parameters of `postprocess`.
@@ -260,6 +261,7 @@ fn dual_cells(coarse: &Mesh, fine: &Mesh, times: u32) -> Vec<u32> {
         return Vec::new();
     }
     (0..fine.n_faces())
+        .into_par_iter()
         .map(|t| {
             let f = coarse.faces[parent[t] as usize];
             let [a, b, c] = f.map(|v| coarse.positions[v as usize]);
