@@ -5,11 +5,20 @@
 //! in the energy plus a look at the fans of the moved face's three corners.
 
 use crate::energy::{Energy, Sums};
+use crate::sweep;
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+
+/// Parts the clusters are split into for the parallel sweep (fixed: the result must not
+/// depend on the thread count).
+const PARTS: usize = 8;
+
+/// Meshes with fewer faces are swept as one part.
+const PARALLEL_MIN_FACES: usize = 20_000;
 
 /// Why a clustering could not be made.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -422,17 +431,6 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             .all(|&v| self.runs(v, from, to, t).iter().all(|&r| r <= 1))
     }
 
-    /// Energy change of moving face `t` to cluster `to`.
-    #[inline]
-    fn delta(&self, t: u32, to: u32) -> (f64, f64) {
-        let from = self.labels[t as usize] as usize;
-        let ft = self.face_sums[t as usize];
-        let (a, b) = (self.sums[from], self.sums[to as usize]);
-        let before = self.terms[from] + self.terms[to as usize];
-        let after = self.energy.cluster(&a.minus(ft)) + self.energy.cluster(&b.plus(ft));
-        (after - before, before.abs())
-    }
-
     /// Moves face `t` to cluster `to` (no checks).
     pub fn apply_move(&mut self, t: u32, to: u32) {
         let from = self.labels[t as usize] as usize;
@@ -459,81 +457,90 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         mut on_pass: impl FnMut(u32, u64, f64),
     ) -> PassLog {
         let nf = self.faces.len();
+        let n = self.sums.len();
         let words = nf.div_ceil(64);
-        let set = |bits: &mut [u64], f: u32| bits[f as usize / 64] |= 1 << (f % 64);
-        let mut cur = vec![0u64; words];
-        let mut next = vec![0u64; words];
+        let bitset = || (0..words).map(|_| AtomicU64::new(0)).collect::<Vec<_>>();
+        let (mut cur, mut next) = (bitset(), bitset());
+        let set =
+            |bits: &[AtomicU64], f: u32| bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
         match start {
-            None => (0..nf as u32).for_each(|f| set(&mut cur, f)),
-            Some(faces) => faces
-                .iter()
-                .filter(|&&f| (f as usize) < nf)
-                .for_each(|&f| set(&mut cur, f)),
+            None => (0..nf as u32).for_each(|f| {
+                set(&cur, f);
+            }),
+            Some(faces) => faces.iter().filter(|&&f| (f as usize) < nf).for_each(|&f| {
+                set(&cur, f);
+            }),
         }
         let mut log = PassLog {
             initial_energy: self.total_energy(),
             ..PassLog::default()
         };
-        let mut last_mod = vec![0u32; self.sums.len()];
+        // Parts: clusters in Morton order of their centroids, cut into ranges of about
+        // equal face counts, renumbered so that each part is one range of labels.
+        let n_parts = if nf >= PARALLEL_MIN_FACES && n >= 64 * PARTS {
+            PARTS
+        } else {
+            1
+        };
+        let order: Vec<u32> = if n_parts == 1 {
+            (0..n as u32).collect()
+        } else {
+            let mut keyed: Vec<(u64, u32)> = (0..n)
+                .map(|c| (morton(self.sums[c].centroid_or_zero()), c as u32))
+                .collect();
+            keyed.sort_unstable();
+            keyed.into_iter().map(|(_, c)| c).collect()
+        };
+        let mut starts = vec![0u32];
+        let mut run = 0.0;
+        let total: f64 = self.sums.iter().map(|s| s.count).sum();
+        for (i, &c) in order.iter().enumerate() {
+            run += self.sums[c as usize].count;
+            if starts.len() < n_parts && run >= total * starts.len() as f64 / n_parts as f64 {
+                starts.push(i as u32 + 1);
+            }
+        }
+        starts.push(n as u32);
+        starts.dedup();
+        let mut new_of = vec![0u32; n];
+        for (i, &c) in order.iter().enumerate() {
+            new_of[c as usize] = i as u32;
+        }
+        let labels: Vec<AtomicU32> = self
+            .labels
+            .iter()
+            .map(|&l| AtomicU32::new(new_of[l as usize]))
+            .collect();
+        let mut sums: Vec<Sums> = order.iter().map(|&c| self.sums[c as usize]).collect();
+        let mut terms: Vec<f64> = order.iter().map(|&c| self.terms[c as usize]).collect();
+        let mut last_mod = vec![0u32; n];
+        let mut own = sweep::owners(&labels, &starts);
         let mut previous = log.initial_energy;
         for pass in 1..=max_passes {
-            let mut moves = 0u64;
-            let fresh = |last_mod: &[u32], c: u32| last_mod[c as usize] + 1 >= pass;
-            let mut w = 0;
-            while w < words {
-                // Re-read the word each time: a move may activate later faces of it.
-                let bits = cur[w];
-                if bits == 0 {
-                    w += 1;
-                    continue;
-                }
-                let b = bits.trailing_zeros();
-                cur[w] = bits & !(1u64 << b);
-                let t = (w * 64) as u32 + b;
-                let from = self.labels[t as usize];
-                let mut cands = [NONE; 3];
-                let mut k = 0;
-                for g in self.nbr[t as usize] {
-                    if g != NONE {
-                        let c = self.labels[g as usize];
-                        if c != from && !cands[..k].contains(&c) {
-                            cands[k] = c;
-                            k += 1;
-                        }
-                    }
-                }
-                if k == 0 {
-                    continue;
-                }
-                set(&mut next, t);
-                if !(fresh(&last_mod, from) || cands[..k].iter().any(|&c| fresh(&last_mod, c))) {
-                    continue;
-                }
-                let mut best: Option<(f64, u32)> = None;
-                for &to in &cands[..k] {
-                    let (d, scale) = self.delta(t, to);
-                    if d < -1e-12 * scale && best.is_none_or(|(bd, _)| d < bd) {
-                        best = Some((d, to));
-                    }
-                }
-                let Some((_, to)) = best else { continue };
-                if !self.may_move(t, to) {
-                    log.refused += 1;
-                    continue;
-                }
-                self.apply_move(t, to);
-                last_mod[from as usize] = pass;
-                last_mod[to as usize] = pass;
-                moves += 1;
-                for g in self.nbr[t as usize] {
-                    if g != NONE {
-                        set(if g > t { &mut cur } else { &mut next }, g);
-                    }
-                }
-            }
+            let view = sweep::View {
+                topo: self.topo,
+                faces: self.faces,
+                nbr: &self.nbr,
+                closed: &self.closed,
+                face_sums: &self.face_sums,
+                energy: self.energy,
+                labels: &labels,
+                cur: &cur,
+                next: &next,
+            };
+            let (moves, refused) = sweep::pass(
+                &view,
+                &starts,
+                &mut own,
+                &mut sums,
+                &mut terms,
+                &mut last_mod,
+                pass,
+            );
+            log.refused += refused;
             std::mem::swap(&mut cur, &mut next);
-            next.fill(0);
-            let energy = self.total_energy();
+            next.iter_mut().for_each(|w| *w.get_mut() = 0);
+            let energy: f64 = terms.iter().sum();
             log.moves.push(moves);
             log.energy.push(energy);
             on_pass(pass, moves, energy);
@@ -542,6 +549,14 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             if moves == 0 || settled {
                 break;
             }
+        }
+        self.labels = labels
+            .into_iter()
+            .map(|l| order[l.into_inner() as usize])
+            .collect();
+        for (i, &c) in order.iter().enumerate() {
+            self.sums[c as usize] = sums[i];
+            self.terms[c as usize] = terms[i];
         }
         log
     }

@@ -258,3 +258,39 @@ fn bunny_clusters_are_valid_at_5000() {
     );
     check_invariant(&mesh, out.face_attrs.label(CLUSTER).unwrap(), 5000);
 }
+
+#[test]
+fn parts_swept_in_parallel_give_the_same_clusters_with_any_thread_count() {
+    // Big enough for the parallel sweep (≥ 20K faces, ≥ 512 clusters).
+    let mesh = icosphere(1.0, 6).unwrap();
+    let topo = Topology::build(&mesh);
+    for energy in [EnergyKind::Shu2009, EnergyKind::Valette2004] {
+        let p = CvtParams {
+            energy,
+            r: 2.0,
+            ..CvtParams::default()
+        };
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| cluster(&mesh, &topo, 1500, &p, None, |_, _, _| {}).unwrap())
+        };
+        let one = on(1);
+        let three = on(3);
+        assert_eq!(one.labels, three.labels, "{energy:?}");
+        assert_eq!(one.log, three.log, "{energy:?}");
+        check_invariant(&mesh, &one.labels, 1500);
+        let log = &one.log;
+        assert!(log.moves.len() > 2, "{energy:?}: {:?}", log.moves);
+        assert!(
+            *log.energy.last().unwrap() < log.initial_energy,
+            "{energy:?}: {log:?}"
+        );
+        // Every pass lowers the energy, the border phase included.
+        for w in log.energy.windows(2) {
+            assert!(w[1] <= w[0], "{energy:?}: {:?}", log.energy);
+        }
+    }
+}

@@ -1,0 +1,328 @@
+//! The passes of the minimisation, with the clusters split into parts swept in parallel.
+//!
+//! The clusters are renumbered so that each part (clusters close along the Morton curve)
+//! is one range of labels. In the first phase of a pass every part sweeps, on its own
+//! thread, the active faces whose cluster and neighbouring clusters all lie in the part;
+//! such a move changes the sums of its own part alone, and a label only ever changes to
+//! another label of the same part, so what a part reads of another part's labels (always
+//! "not one of mine") cannot depend on timing. Faces on the border between two parts
+//! are set aside and swept in the second phase, alone, in face order. The number of parts
+//! depends on the problem size, never on the thread count: the result is the same bytes
+//! with one thread or many. With one part the passes are the plain sequential ACVD sweep.
+
+use crate::energy::{Energy, Sums};
+use coarsen_mesh::Topology;
+use coarsen_mesh::topology::NONE;
+use rayon::prelude::*;
+use std::ops::Range;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+
+/// What every part reads: the mesh's adjacency, the face sums, and the shared state that
+/// parts change only in their own label range (labels, active-face bitsets).
+pub(crate) struct View<'v, E: Energy + ?Sized> {
+    pub topo: &'v Topology,
+    pub faces: &'v [[u32; 3]],
+    pub nbr: &'v [[u32; 3]],
+    pub closed: &'v [bool],
+    pub face_sums: &'v [Sums],
+    pub energy: &'v E,
+    pub labels: &'v [AtomicU32],
+    /// Faces to sweep in this pass.
+    pub cur: &'v [AtomicU64],
+    /// Faces to sweep in the next pass.
+    pub next: &'v [AtomicU64],
+}
+
+/// The running state of a range of clusters: `sums[c - range.start]` is cluster `c`'s.
+pub(crate) struct Part<'p> {
+    pub range: Range<u32>,
+    pub sums: &'p mut [Sums],
+    pub terms: &'p mut [f64],
+    pub last_mod: &'p mut [u32],
+}
+
+/// What one part's sweep did.
+#[derive(Default)]
+pub(crate) struct Swept {
+    pub moves: u64,
+    pub refused: u64,
+    /// Faces on a border with another part, in face order, for the second phase.
+    pub deferred: Vec<u32>,
+}
+
+#[inline]
+fn set(bits: &[AtomicU64], f: u32) {
+    bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
+}
+
+impl<E: Energy + ?Sized> View<'_, E> {
+    #[inline]
+    fn label(&self, f: u32) -> u32 {
+        self.labels[f as usize].load(Relaxed)
+    }
+
+    /// Around vertex `v`, the number of runs of faces of `from` without `t`, of `to`
+    /// without `t`, and of `to` with `t` (see `Clusterer::may_move`).
+    #[inline]
+    fn runs(&self, v: u32, from: u32, to: u32, t: u32) -> [u32; 3] {
+        let fan = self.topo.vertex_faces(v);
+        let member = |g: u32| -> u32 {
+            if g == t {
+                0b100
+            } else {
+                let l = self.label(g);
+                if l == from {
+                    0b001
+                } else if l == to {
+                    0b110
+                } else {
+                    0
+                }
+            }
+        };
+        let mut prev = match fan.last() {
+            Some(&g) if self.closed[v as usize] => member(g),
+            _ => 0,
+        };
+        let (mut runs, mut all) = ([0u32; 3], 0b111u32);
+        for &g in fan {
+            let m = member(g);
+            let starts = m & !prev;
+            for (i, r) in runs.iter_mut().enumerate() {
+                *r += (starts >> i) & 1;
+            }
+            all &= m;
+            prev = m;
+        }
+        if !fan.is_empty() {
+            for (i, r) in runs.iter_mut().enumerate() {
+                if *r == 0 && (all >> i) & 1 == 1 {
+                    *r = 1;
+                }
+            }
+        }
+        runs
+    }
+
+    /// Sweeps face `t` of `part` (whose label range holds `t`'s cluster): moves it to the
+    /// best neighbouring cluster if allowed. Returns `None` when a neighbouring cluster
+    /// lies outside the part (and `defer` is on), else whether it moved (`Some(false)`
+    /// for no move, refused moves counted in `refused`).
+    #[inline]
+    fn visit(
+        &self,
+        t: u32,
+        part: &mut Part<'_>,
+        pass: u32,
+        defer: bool,
+        refused: &mut u64,
+    ) -> Option<bool> {
+        let lo = part.range.start;
+        let from = self.label(t);
+        let mut cands = [NONE; 3];
+        let mut k = 0;
+        for g in self.nbr[t as usize] {
+            if g != NONE {
+                let c = self.label(g);
+                if c != from && !cands[..k].contains(&c) {
+                    cands[k] = c;
+                    k += 1;
+                }
+            }
+        }
+        if k == 0 {
+            return Some(false);
+        }
+        set(self.next, t);
+        if defer && cands[..k].iter().any(|c| !part.range.contains(c)) {
+            return None;
+        }
+        let fresh = |c: u32| part.last_mod[(c - lo) as usize] + 1 >= pass;
+        if !(fresh(from) || cands[..k].iter().any(|&c| fresh(c))) {
+            return Some(false);
+        }
+        let ft = self.face_sums[t as usize];
+        let fi = (from - lo) as usize;
+        let a = part.sums[fi];
+        let after_from = self.energy.cluster(&a.minus(ft));
+        let mut best: Option<(f64, u32, f64)> = None;
+        for &to in &cands[..k] {
+            let ti = (to - lo) as usize;
+            let before = part.terms[fi] + part.terms[ti];
+            let after_to = self.energy.cluster(&part.sums[ti].plus(ft));
+            let d = (after_from + after_to) - before;
+            if d < -1e-12 * before.abs() && best.is_none_or(|(bd, _, _)| d < bd) {
+                best = Some((d, to, after_to));
+            }
+        }
+        let Some((_, to, after_to)) = best else {
+            return Some(false);
+        };
+        let allowed = a.count >= 1.5
+            && self.faces[t as usize]
+                .iter()
+                .all(|&v| self.runs(v, from, to, t).iter().all(|&r| r <= 1));
+        if !allowed {
+            *refused += 1;
+            return Some(false);
+        }
+        let ti = (to - lo) as usize;
+        part.sums[fi] = a.minus(ft);
+        part.sums[ti] = part.sums[ti].plus(ft);
+        part.terms[fi] = after_from;
+        part.terms[ti] = after_to;
+        part.last_mod[fi] = pass;
+        part.last_mod[ti] = pass;
+        self.labels[t as usize].store(to, Relaxed);
+        Some(true)
+    }
+
+    /// The first phase of a pass for one part: its active faces (`own` marks the faces
+    /// whose cluster is in the part) in face order.
+    pub fn sweep_part(&self, mut part: Part<'_>, own: &[u64], pass: u32) -> Swept {
+        let mut out = Swept::default();
+        for (w, &mine) in own.iter().enumerate() {
+            if mine == 0 {
+                continue;
+            }
+            loop {
+                // Re-read the word each time: a move may activate later faces of it.
+                let bits = self.cur[w].load(Relaxed) & mine;
+                if bits == 0 {
+                    break;
+                }
+                let b = bits.trailing_zeros();
+                let t = (w * 64) as u32 + b;
+                self.cur[w].fetch_and(!(1u64 << b), Relaxed);
+                match self.visit(t, &mut part, pass, true, &mut out.refused) {
+                    None => out.deferred.push(t),
+                    Some(false) => {}
+                    Some(true) => {
+                        out.moves += 1;
+                        for g in self.nbr[t as usize] {
+                            if g != NONE {
+                                set(if g > t { self.cur } else { self.next }, g);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The second phase of a pass: the border faces, in face order, with the whole state;
+    /// a face moving to another part changes owner in `own`.
+    pub fn sweep_border(
+        &self,
+        mut all: Part<'_>,
+        starts: &[u32],
+        own: &mut [Vec<u64>],
+        faces: &[u32],
+        pass: u32,
+    ) -> Swept {
+        let mut out = Swept::default();
+        let part_of = |c: u32| starts.partition_point(|&s| s <= c) - 1;
+        for &t in faces {
+            let from = self.label(t);
+            if self.visit(t, &mut all, pass, false, &mut out.refused) == Some(true) {
+                out.moves += 1;
+                let (p, q) = (part_of(from), part_of(self.label(t)));
+                if p != q {
+                    let (w, bit) = (t as usize / 64, 1u64 << (t % 64));
+                    own[p][w] &= !bit;
+                    own[q][w] |= bit;
+                }
+                for g in self.nbr[t as usize] {
+                    if g != NONE {
+                        set(self.next, g);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Splits `sums`, `terms` and `last_mod` (indexed by label) at the part boundaries
+/// `starts` (ascending, first 0, last the cluster count).
+pub(crate) fn split_parts<'p>(
+    starts: &[u32],
+    mut sums: &'p mut [Sums],
+    mut terms: &'p mut [f64],
+    mut last_mod: &'p mut [u32],
+) -> Vec<Part<'p>> {
+    let mut parts = Vec::with_capacity(starts.len().saturating_sub(1));
+    for w in starts.windows(2) {
+        let len = (w[1] - w[0]) as usize;
+        let (s, rest_s) = std::mem::take(&mut sums).split_at_mut(len);
+        let (t, rest_t) = std::mem::take(&mut terms).split_at_mut(len);
+        let (l, rest_l) = std::mem::take(&mut last_mod).split_at_mut(len);
+        parts.push(Part {
+            range: w[0]..w[1],
+            sums: s,
+            terms: t,
+            last_mod: l,
+        });
+        (sums, terms, last_mod) = (rest_s, rest_t, rest_l);
+    }
+    parts
+}
+
+/// Per part, the faces whose cluster is in it, as bitsets over the faces.
+pub(crate) fn owners(labels: &[AtomicU32], starts: &[u32]) -> Vec<Vec<u64>> {
+    let words = labels.len().div_ceil(64);
+    let mut own = vec![vec![0u64; words]; starts.len().saturating_sub(1)];
+    for (t, l) in labels.iter().enumerate() {
+        let p = starts.partition_point(|&s| s <= l.load(Relaxed)) - 1;
+        own[p][t / 64] |= 1 << (t % 64);
+    }
+    own
+}
+
+/// One pass over all parts (in parallel) and then the border faces: `(moves, refused)`.
+pub(crate) fn pass<E: Energy + ?Sized>(
+    view: &View<'_, E>,
+    starts: &[u32],
+    own: &mut [Vec<u64>],
+    sums: &mut [Sums],
+    terms: &mut [f64],
+    last_mod: &mut [u32],
+    pass: u32,
+) -> (u64, u64) {
+    let parts = split_parts(starts, sums, terms, last_mod);
+    let swept: Vec<Swept> = if parts.len() == 1 {
+        parts
+            .into_iter()
+            .zip(own.iter())
+            .map(|(p, o)| view.sweep_part(p, o, pass))
+            .collect()
+    } else {
+        parts
+            .into_par_iter()
+            .zip(own.par_iter())
+            .map(|(p, o)| view.sweep_part(p, o, pass))
+            .collect()
+    };
+    let (mut moves, mut refused) = (0, 0);
+    let mut border = Vec::new();
+    for s in swept {
+        moves += s.moves;
+        refused += s.refused;
+        border.extend(s.deferred);
+    }
+    if !border.is_empty() {
+        border.sort_unstable();
+        let n = *starts.last().unwrap_or(&0);
+        let all = Part {
+            range: 0..n,
+            sums,
+            terms,
+            last_mod,
+        };
+        let s = view.sweep_border(all, starts, own, &border, pass);
+        moves += s.moves;
+        refused += s.refused;
+    }
+    (moves, refused)
+}
