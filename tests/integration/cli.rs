@@ -38,6 +38,46 @@ fn run_without_input_uses_the_demo_mesh_and_writes_output_and_report() {
 }
 
 #[test]
+fn no_command_runs_adaptive_cvt_on_the_file_or_the_demo_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sphere.ply");
+    write_mesh(&coarsen_shapes::icosphere(1.0, 4).unwrap(), &input);
+    let out = dir.path().join("out.ply");
+    let report = dir.path().join("report.json");
+    for with_input in [true, false] {
+        let mut args = vec!["-q"];
+        if with_input {
+            args.push(input.to_str().unwrap());
+        }
+        args.extend([
+            "-o",
+            out.to_str().unwrap(),
+            "--vertices",
+            "300",
+            "--report",
+            report.to_str().unwrap(),
+        ]);
+        let o = run_cli(EXE, &args);
+        assert!(o.status.success(), "{with_input}: {}", stderr(&o));
+        let json: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
+        assert_eq!(json["pipeline"], "adaptive-cvt", "{with_input}");
+        let mesh = coarsen_io::read_path(&out, &Default::default())
+            .unwrap()
+            .mesh;
+        assert_eq!(mesh.n_vertices(), 300, "{with_input}");
+    }
+    // A mistyped command is still reported as one, not read as a file.
+    let o = run_cli(EXE, &["rnu", "x"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("unrecognized subcommand 'rnu'"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn a_pipeline_error_exits_2_and_names_the_line() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("bad.toml");

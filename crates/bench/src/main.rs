@@ -10,6 +10,7 @@
 
 mod cases;
 mod scale;
+mod speed;
 
 use anyhow::{Context as _, Result, bail};
 use cases::{Case, Published, TableId};
@@ -45,6 +46,22 @@ enum Command {
         /// Leave out the scale section (4.4M faces, a few minutes).
         #[arg(long)]
         no_scale: bool,
+        /// Leave out the speed section (whole `coarsen` processes, 7 runs per case).
+        #[arg(long)]
+        no_speed: bool,
+    },
+    /// Print only the speed section (whole `coarsen` processes on the bunny).
+    Speed {
+        /// Folder of the test meshes.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
+        data: PathBuf,
+    },
+    /// Runs `coarsen` with the arguments that follow (the speed section's child processes).
+    #[command(hide = true)]
+    Cli {
+        /// The `coarsen` arguments.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<std::ffi::OsString>,
     },
     /// One case of the scale section, run by `tables` in a child process.
     #[command(hide = true)]
@@ -65,7 +82,12 @@ fn main() -> ExitCode {
             data,
             out,
             no_scale,
-        } => tables(&data, &out, !no_scale),
+            no_speed,
+        } => tables(&data, &out, !no_scale, !no_speed),
+        Command::Speed { data } => {
+            speed::section(&data.join("stanford-bunny.obj")).map(|s| print!("{s}"))
+        }
+        Command::Cli { args } => return speed::child(args),
         Command::ScaleCase {
             pipeline,
             target,
@@ -98,7 +120,7 @@ struct Measured {
     load_seconds: f64,
 }
 
-fn tables(data: &Path, out: &Path, with_scale: bool) -> Result<()> {
+fn tables(data: &Path, out: &Path, with_scale: bool, with_speed: bool) -> Result<()> {
     if !data.join("stanford-bunny.obj").is_file() {
         bail!(
             "the test meshes are not in {} (pass --data DIR)",
@@ -135,6 +157,9 @@ fn tables(data: &Path, out: &Path, with_scale: bool) -> Result<()> {
         rows.push((case, outcomes.len() - 1));
     }
     let mut text = render(&rows, &outcomes);
+    if with_speed {
+        text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
+    }
     if with_scale {
         let bunny = match inputs.get("stanford-bunny.obj") {
             Some((m, _, _)) => m.clone(),

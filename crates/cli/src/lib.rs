@@ -40,7 +40,13 @@ use std::process::ExitCode;
 
 /// Coarsen big, badly shaped triangle meshes into small, well-shaped ones.
 #[derive(Parser, Debug)]
-#[command(name = "coarsen", version, about, long_about = None)]
+#[command(
+    name = "coarsen",
+    version,
+    about,
+    long_about = None,
+    after_help = "With no command, `coarsen [INPUT] -o OUT --vertices N` runs the adaptive-cvt pipeline (paper 1) on INPUT, or on the built-in demo mesh."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -288,10 +294,59 @@ impl From<anyhow::Error> for Failure {
     }
 }
 
+/// The pipeline `coarsen [INPUT] -o OUT --vertices N` runs when no command is named.
+pub const DEFAULT_PIPELINE: &str = "adaptive-cvt";
+
+/// `args` with `run adaptive-cvt` put in front of the first argument after the global
+/// options when that argument names no command but an option or a file (anything with a
+/// dot or a slash, or an existing path); otherwise unchanged, so that a mistyped command
+/// still gets clap's suggestion.
+fn with_default_command(mut args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
+    use clap::CommandFactory;
+    let mut i = 1;
+    while let Some(a) = args.get(i).and_then(|a| a.to_str()) {
+        let verbose = a.len() > 1 && a.starts_with('-') && a[1..].chars().all(|c| c == 'v');
+        match a {
+            "-q" | "--quiet" | "--verbose" => i += 1,
+            "--max-faces" => i += 2,
+            _ if verbose || a.starts_with("--max-faces=") => i += 1,
+            _ => break,
+        }
+    }
+    let Some(first) = args.get(i) else {
+        return args;
+    };
+    let text = first.to_string_lossy();
+    let command = Cli::command();
+    let named = matches!(&*text, "help" | "-h" | "--help" | "-V" | "--version")
+        || command
+            .get_subcommands()
+            .any(|c| c.get_name() == text || c.get_all_aliases().any(|a| a == text));
+    let file_or_option = text.starts_with('-')
+        || text.contains('.')
+        || text.contains('/')
+        || std::path::Path::new(first).exists();
+    if !named && file_or_option {
+        args.splice(i..i, ["run".into(), DEFAULT_PIPELINE.into()]);
+    }
+    args
+}
+
 /// Runs the command line and returns the process exit code: 0 success, 1 runtime failure,
 /// 2 usage or pipeline error.
 pub fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    main_from(std::env::args_os())
+}
+
+/// [`main`] with the command line given (the program name first), e.g. for a benchmark
+/// that runs `coarsen` in child processes of its own.
+pub fn main_from<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let args: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
+    let cli = match Cli::try_parse_from(with_default_command(args)) {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();

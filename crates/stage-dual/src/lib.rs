@@ -173,11 +173,11 @@ pub fn dual_with(
             "cluster {c} has no face (labels must be 0..n, every value used)"
         )));
     }
-    if let Some(why) = too_few_vertices(&topo, n) {
+    if let Some(why) = too_few_vertices(topo, n) {
         return Err(DualError::TooFew(why));
     }
     let (faces, stats) =
-        build::repaired_dual(mesh, &topo, labels, n, max_repair_rounds, relax_passes)?;
+        build::repaired_dual(mesh, topo, labels, n, max_repair_rounds, relax_passes)?;
     // One index of the surface serves the placement and the flipped-face test.
     let own;
     let facing = match surface {
@@ -188,7 +188,7 @@ pub fn dual_with(
         }
     };
     let (mut positions, boundary_clusters, quadric_fallbacks) =
-        place(mesh, &topo, labels, n, placement, facing.bvh(), true);
+        place(mesh, topo, labels, n, placement, facing.bvh(), true);
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
     // one facing away from the input surface nearest its centroid (closest-vertex placement
     // on a curved part), gets its clusters' vertices moved to the projected centroids, the
@@ -214,7 +214,7 @@ pub fn dual_with(
         // otherwise give a flat triangle; its vertex then stays just inside the boundary.
         let (projected, _, _) = place(
             mesh,
-            &topo,
+            topo,
             labels,
             n,
             Placement::Projected,

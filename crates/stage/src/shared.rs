@@ -35,10 +35,10 @@ impl Shared {
     pub fn input_index<T: Any + Send + Sync>(&self, build: impl FnOnce() -> T) -> Arc<T> {
         let key = TypeId::of::<T>();
         let mut input = self.input.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((_, v)) = input.iter().find(|(k, _)| *k == key) {
-            if let Ok(v) = Arc::clone(v).downcast::<T>() {
-                return v;
-            }
+        if let Some((_, v)) = input.iter().find(|(k, _)| *k == key)
+            && let Ok(v) = Arc::clone(v).downcast::<T>()
+        {
+            return v;
         }
         let v = Arc::new(build());
         input.push((key, Arc::clone(&v) as Entry));
@@ -52,10 +52,11 @@ impl Shared {
             .adjacency
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
-        if let Some(a) = slot.as_ref() {
-            if a.n_vertices == mesh.n_vertices() && a.faces == mesh.faces {
-                return Ok(Arc::clone(&a.topology));
-            }
+        if let Some(a) = slot.as_ref()
+            && a.n_vertices == mesh.n_vertices()
+            && a.faces == mesh.faces
+        {
+            return Ok(Arc::clone(&a.topology));
         }
         // Drop the old one first: at millions of faces both would not fit comfortably.
         *slot = None;
@@ -75,10 +76,11 @@ mod tests {
     use coarsen_mesh::DVec3;
 
     fn two_triangles() -> Mesh {
-        let mut m = Mesh::default();
-        m.positions = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::ONE];
-        m.faces = vec![[0, 1, 2], [2, 1, 3]];
-        m
+        Mesh {
+            positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::ONE],
+            faces: vec![[0, 1, 2], [2, 1, 3]],
+            ..Default::default()
+        }
     }
 
     #[test]
