@@ -308,22 +308,32 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
 
 /// Each cluster's vertex as the area-weighted blend of its faces' corners.
 fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
-    let mut entries: Vec<(u32, u32, f64)> = Vec::with_capacity(3 * mesh.n_faces());
+    // The corners of each cluster's faces, by cluster (counting sort, face order kept),
+    // then each cluster's short list by vertex (stable: equal vertices in face order).
+    let mut start = vec![0usize; n + 1];
+    labels.iter().for_each(|&c| start[c as usize + 1] += 3);
+    for c in 0..n {
+        start[c + 1] += start[c];
+    }
+    let mut at = start.clone();
+    let mut entries: Vec<(u32, f64)> = vec![(0, 0.0); 3 * labels.len()];
     for (f, &c) in labels.iter().enumerate() {
         let w = mesh.face_area(f) / 3.0 + f64::MIN_POSITIVE;
-        mesh.faces[f].iter().for_each(|&v| entries.push((c, v, w)));
+        for &v in &mesh.faces[f] {
+            entries[at[c as usize]] = (v, w);
+            at[c as usize] += 1;
+        }
     }
-    entries.sort_unstable_by_key(|e| (e.0, e.1));
     let mut o = VertexOrigins::with_capacity(n);
-    let mut i = 0;
-    for c in 0..n as u32 {
+    for c in 0..n {
+        let corners = &mut entries[start[c]..start[c + 1]];
+        corners.sort_by_key(|e| e.0);
         let mut blend: Vec<(u32, f64)> = Vec::new();
-        while i < entries.len() && entries[i].0 == c {
+        for &(v, w) in corners.iter() {
             match blend.last_mut() {
-                Some(last) if last.0 == entries[i].1 => last.1 += entries[i].2,
-                _ => blend.push((entries[i].1, entries[i].2)),
+                Some(last) if last.0 == v => last.1 += w,
+                _ => blend.push((v, w)),
             }
-            i += 1;
         }
         o.push_blend(blend);
     }
