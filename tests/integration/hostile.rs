@@ -136,7 +136,7 @@ fn a_single_triangle_runs_and_is_kept() {
 }
 
 #[test]
-fn a_bow_tie_vertex_is_reported_and_locked() {
+fn a_bow_tie_vertex_is_reported_and_split_before_a_collapse_stage() {
     let bowtie = mesh(
         &[
             [0.0; 3],
@@ -150,14 +150,18 @@ fn a_bow_tie_vertex_is_reported_and_locked() {
     let t = info_topology(&bowtie, "bowtie.obj");
     assert_eq!(t["n_bowtie_vertices"], 1);
     assert_eq!(t["manifold"], false);
-    let ran = run_ok(&bowtie, "bowtie.obj", "qem", &["--ratio", "0.5"]);
-    assert_eq!(ran.counts(), (5, 2));
-    let w = ran.warnings();
-    assert!(
-        w.iter()
-            .any(|w| w.starts_with("1 non-manifold vertices") && w.contains("locked")),
-        "{w:?}"
-    );
+    for pipeline in ["qem", "svec"] {
+        let ran = run_ok(&bowtie, "bowtie.obj", pipeline, &["--ratio", "0.5"]);
+        // One vertex per face fan: two separate triangles, nothing to collapse.
+        assert_eq!(ran.counts(), (6, 2), "{pipeline}");
+        assert!(Topology::build(&ran.output).summary(&ran.output).manifold);
+        let w = ran.warnings();
+        assert!(
+            w.iter().any(|w| w
+                == "1 non-manifold vertices split into one vertex per face fan (1 copies added)"),
+            "{pipeline}: {w:?}"
+        );
+    }
 }
 
 #[test]
@@ -439,4 +443,108 @@ fn the_input_is_never_overwritten_under_another_name() {
         assert!(stderr(&o).contains("refusing to overwrite the input"));
         assert_eq!(std::fs::read(&input).unwrap(), before);
     }
+}
+
+/// A strip of `2·nb − 3` triangles, zigzag between a row of `nb` vertices and one of
+/// `nb − 1` (issue #8: every face has a boundary edge).
+fn zigzag_strip(nb: u32) -> Mesh {
+    let mut positions = Vec::new();
+    (0..nb).for_each(|i| positions.push(DVec3::new(f64::from(i), 0.0, 0.0)));
+    (0..nb - 1).for_each(|i| positions.push(DVec3::new(f64::from(i) + 0.5, 1.0, 0.0)));
+    let mut faces = Vec::new();
+    for i in 0..nb - 1 {
+        faces.push([i, i + 1, nb + i]);
+        if i + 2 < nb {
+            faces.push([i + 1, nb + i + 1, nb + i]);
+        }
+    }
+    Mesh::new(positions, faces)
+}
+
+/// Issue #8: a 17-face strip through the CVT pipelines used to end in `dual`'s internal
+/// "could not be repaired" (every compact cluster touches the boundary twice); the clusters
+/// are now rebuilt from single faces, and every count gives a valid open strip.
+#[test]
+fn a_seventeen_face_strip_goes_through_the_cvt_pipelines_at_every_count() {
+    let strip = zigzag_strip(10);
+    assert_eq!(strip.n_faces(), 17);
+    for pipeline in ["adaptive-cvt", "uniform-cvt"] {
+        for n in [3, 5, 10, 17, 20] {
+            let what = format!("{pipeline} --vertices {n}");
+            let n_arg = n.to_string();
+            let ran = run_ok(&strip, "strip.obj", pipeline, &["--vertices", &n_arg]);
+            assert_eq!(ran.output.n_vertices(), n, "{what}");
+            let t = Topology::build(&ran.output).summary(&ran.output);
+            assert!(t.manifold, "{what}");
+            assert_eq!((t.n_components, t.n_boundary_loops), (1, 1), "{what}");
+            assert_eq!(t.genus_total, Some(0), "{what}");
+        }
+    }
+    let ran = run_ok(&strip, "strip.obj", "adaptive-cvt", &["--vertices", "20"]);
+    assert!(
+        ran.warnings()
+            .iter()
+            .any(|w| w.contains("rebuilt from single faces")),
+        "{:?}",
+        ran.warnings()
+    );
+}
+
+/// An annulus one face wide (48 faces): every two faces sharing an edge touch both
+/// boundary loops, so only one vertex per face makes a valid dual; another count is a
+/// parameter error naming the count that works, exit 1, no output.
+#[test]
+fn an_annulus_one_face_wide_refuses_other_counts_than_one_per_face() {
+    let k = 24u32;
+    let mut positions = Vec::new();
+    for r in 0..2u32 {
+        for i in 0..k {
+            let a = (f64::from(i) + 0.5 * f64::from(r)) / f64::from(k) * std::f64::consts::TAU;
+            let rad = 2.0 - 0.2 * f64::from(r);
+            positions.push(DVec3::new(rad * a.cos(), rad * a.sin(), 0.0));
+        }
+    }
+    let v = |r: u32, i: u32| r * k + i % k;
+    let faces = (0..k)
+        .flat_map(|i| {
+            [
+                [v(0, i), v(0, i + 1), v(1, i)],
+                [v(0, i + 1), v(1, i + 1), v(1, i)],
+            ]
+        })
+        .collect();
+    let annulus = Mesh::new(positions, faces);
+    // Clustering and dual only: the shipped pipelines subdivide or refine first.
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = dir.path().join("cvt-dual.toml");
+    std::fs::write(
+        &pipeline,
+        "[pipeline]\nname = \"cvt-dual\"\ndescription = \"cluster, dual\"\n\
+         [[stage]]\nkind = \"cluster.cvt\"\n[[stage]]\nkind = \"dual\"\n",
+    )
+    .unwrap();
+    let pipeline = pipeline.to_str().unwrap();
+    let ran = run_ok(&annulus, "annulus.obj", pipeline, &["--vertices", "48"]);
+    assert_eq!(ran.output.n_vertices(), 48);
+    let (input, out) = (dir.path().join("annulus.obj"), dir.path().join("out.ply"));
+    write_mesh(&annulus, &input);
+    let o = run_pipeline(EXE, pipeline, &input, &out, &["--vertices", "20"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("parameter `target`"), "{e}");
+    assert!(e.contains("only 48 (one per face) works"), "{e}");
+    assert!(!e.contains("internal error"), "{e}");
+    assert!(!out.exists());
+    // Bent by a wave, through adaptive-cvt (refined first, so 20 vertices exist): its
+    // post-process once ended in "lies on a degenerate triangle" (clusters whose
+    // centroids were in a row); a flat triangle's vertex now moves inside its cluster.
+    let mut bent = annulus.clone();
+    bent.positions
+        .iter_mut()
+        .for_each(|p| p.z = 0.3 * (3.0 * p.y.atan2(p.x)).sin());
+    let ran = run_ok(&bent, "bent.obj", "adaptive-cvt", &["--vertices", "20"]);
+    assert_eq!(ran.output.n_vertices(), 20);
+    let t = Topology::build(&ran.output).summary(&ran.output);
+    assert!(t.manifold);
+    assert_eq!(t.n_boundary_loops, 2);
 }

@@ -1,8 +1,10 @@
 //! Running a checked pipeline on a mesh.
 //!
-//! Before a stage that needs a manifold mesh, non-manifold vertices (several face fans at
-//! one point) are split into one vertex per fan, with a warning in that stage's report;
-//! edges of three or more faces stop the run with [`RunError::NotManifold`].
+//! Before a stage that needs a manifold mesh, and before a collapse stage (one that records
+//! its collapses), non-manifold vertices (several face fans at one point) are split into one
+//! vertex per fan, with a warning in that stage's report. Edges of three or more faces stop
+//! a stage that needs a manifold mesh with [`RunError::NotManifold`]; a collapse stage gets
+//! a mesh with such edges as it is (its engine locks their vertices).
 
 use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, sanity};
@@ -132,19 +134,24 @@ impl Pipeline {
                         error: StageError::Input(e.to_string()),
                     })
             };
-            if contract.needs.manifold {
+            // Collapse stages (those that record their collapses) lock what is not manifold,
+            // so they get the split too, and keep running with edges of three or more faces.
+            if contract.needs.manifold || s.stage.records_collapses() {
                 let mut summary = summary_of(&mesh)?;
-                if !summary.manifold && summary.n_non_manifold_edges == 0 {
-                    // Non-manifold vertices only: one vertex per face fan makes it workable.
+                if summary.n_non_manifold_vertices > 0 && summary.n_non_manifold_edges == 0 {
+                    // One vertex per face fan makes non-manifold vertices workable.
                     let (split, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
-                    split_note = Some(format!(
-                        "{} non-manifold vertices split into one vertex per face fan ({copies} copies added)",
-                        summary.n_non_manifold_vertices
-                    ));
                     mesh = split;
-                    summary = summary_of(&mesh)?;
+                    let after = summary_of(&mesh)?;
+                    if copies > 0 {
+                        split_note = Some(format!(
+                            "{} non-manifold vertices split into one vertex per face fan ({copies} copies added)",
+                            summary.n_non_manifold_vertices - after.n_non_manifold_vertices
+                        ));
+                    }
+                    summary = after;
                 }
-                if !summary.manifold {
+                if contract.needs.manifold && !summary.manifold {
                     return Err(RunError::NotManifold {
                         index,
                         kind: s.kind,

@@ -338,3 +338,59 @@ fn the_last_recording_stage_hands_its_record_back_when_asked() {
     .unwrap();
     assert_eq!(marks_only.recording_stage(), None);
 }
+
+/// Two triangles sharing only vertex 0 (a bow-tie), below z = 0 so nothing is dropped.
+fn bow_tie() -> Mesh {
+    let p = |x: f64, y: f64| DVec3::new(x, y, -1.0);
+    Mesh::new(
+        vec![
+            p(0.0, 0.0),
+            p(1.0, 0.0),
+            p(1.0, 1.0),
+            p(-1.0, 0.0),
+            p(-1.0, -1.0),
+        ],
+        vec![[0, 1, 2], [0, 3, 4]],
+    )
+}
+
+#[test]
+fn a_collapse_stage_gets_non_manifold_vertices_split_and_says_so() {
+    let p = parse(GOOD, &Overrides::default()).unwrap();
+    let (out, report) = p.run(bow_tie(), RunOptions::default()).unwrap();
+    assert_eq!(out.n_vertices(), 6, "the bow-tie vertex split in two");
+    assert!(coarsen_mesh::Topology::build(&out).summary(&out).manifold);
+    assert!(
+        report.stages[0].warnings.is_empty(),
+        "test.mark is no collapse stage"
+    );
+    assert_eq!(
+        report.stages[1].warnings,
+        ["1 non-manifold vertices split into one vertex per face fan (1 copies added)"]
+    );
+    // The copy carries the attribute the collapse stage reads.
+    let h = out.vertex_attrs.scalar("height").unwrap();
+    assert_eq!(h[5], h[0]);
+}
+
+#[test]
+fn a_collapse_stage_takes_edges_of_three_faces_as_they_are() {
+    // Three triangles on edge 0-1, and a bow-tie at vertex 0: no split, no refusal.
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z - 2.0);
+    let mesh = Mesh::new(
+        vec![
+            p(0.0, 0.0, 0.0),
+            p(1.0, 0.0, 0.0),
+            p(0.5, 1.0, 0.0),
+            p(0.5, -1.0, 0.0),
+            p(0.5, 0.0, 1.0),
+            p(-1.0, 0.0, 0.0),
+            p(-1.0, -1.0, 0.0),
+        ],
+        vec![[0, 1, 2], [1, 0, 3], [0, 1, 4], [0, 5, 6]],
+    );
+    let pl = parse(GOOD, &Overrides::default()).unwrap();
+    let (out, report) = pl.run(mesh.clone(), RunOptions::default()).unwrap();
+    assert_eq!(out.n_vertices(), mesh.n_vertices());
+    assert!(report.stages[1].warnings.is_empty());
+}

@@ -16,6 +16,8 @@ pub enum DualError {
     Unrepaired(String),
     /// Too few clusters for any valid mesh of the input's topology.
     TooFew(String),
+    /// No clustering of this input has a valid dual (e.g. a boundary loop along two faces).
+    NoDual(String),
 }
 
 impl std::fmt::Display for DualError {
@@ -25,6 +27,7 @@ impl std::fmt::Display for DualError {
             DualError::BadLabels(m) => write!(f, "bad cluster labels: {m}"),
             DualError::Unrepaired(m) => write!(f, "the clustering could not be repaired: {m}"),
             DualError::TooFew(m) => write!(f, "{m}"),
+            DualError::NoDual(m) => write!(f, "this mesh has no valid dual: {m}"),
         }
     }
 }
@@ -40,6 +43,9 @@ pub struct DualStats {
     pub repair_rounds: usize,
     /// Problems found in the first diagnosis, by kind.
     pub first_problems: Problems,
+    /// Splitting could not repair the clustering, so its clusters to blame were rebuilt
+    /// from single faces merged back to the count (the fallback for thin parts).
+    pub rebuilt: bool,
 }
 
 /// Counts of problems found by one diagnosis.
@@ -506,33 +512,377 @@ pub(crate) fn repaired_dual(
         if !d.problems.any() {
             return Ok((d.faces, stats));
         }
-        if round == max_rounds {
-            return Err(DualError::Unrepaired(format!(
-                "{:?} remain after {max_rounds} rounds (clusters {:?}…)",
-                d.problems,
-                &d.bad[..d.bad.len().min(8)]
-            )));
-        }
-        stats.repair_rounds += 1;
-        if d.bad.is_empty() {
-            return Err(DualError::Unrepaired(format!(
-                "{:?}, and no cluster to blame",
-                d.problems
-            )));
-        }
-        let (changed, splits) = repair(mesh, topo, &nbr, labels, n, &d.bad);
+        // Splitting cannot help any more: rebuild the clusters to blame from single faces.
+        let stuck = round == max_rounds || d.bad.is_empty();
+        let splits = if stuck {
+            0
+        } else {
+            stats.repair_rounds += 1;
+            let (changed, splits) = repair(mesh, topo, &nbr, labels, n, &d.bad);
+            if splits > 0 {
+                stats.repairs += splits;
+                // The last rounds do not relax, so that a repair is not undone.
+                if round + 2 < max_rounds {
+                    relax(mesh, topo, labels, n, &changed, relax_passes);
+                }
+            }
+            splits
+        };
         if splits == 0 {
-            return Err(DualError::Unrepaired(format!(
-                "{:?}: no cluster could be split (clusters {:?}…)",
-                d.problems,
-                &d.bad[..d.bad.len().min(8)]
-            )));
-        }
-        stats.repairs += splits;
-        // The last rounds do not relax, so that a repair is not undone.
-        if round + 2 < max_rounds {
-            relax(mesh, topo, labels, n, &changed, relax_passes);
+            let faces = rebuild_by_merging(mesh, topo, labels, n, expect, &d.bad)?;
+            stats.rebuilt = true;
+            return Ok((faces, stats));
         }
     }
     Err(DualError::Unrepaired("no rounds".into()))
+}
+
+/// Relabels `labels` to `0..m` in order of first use; returns m.
+fn compact(labels: &mut [u32]) -> usize {
+    let mut map: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    for l in labels.iter_mut() {
+        let next = map.len() as u32;
+        *l = *map.entry(*l).or_insert(next);
+    }
+    map.len()
+}
+
+/// Gives every face of the clusters in `bad` but one a cluster of its own; returns the new
+/// cluster count.
+fn explode(labels: &mut [u32], m: usize, bad: &[u32]) -> usize {
+    let mut is_bad = vec![false; m];
+    bad.iter().for_each(|&c| is_bad[c as usize] = true);
+    let mut kept = vec![false; m];
+    let mut next = m as u32;
+    for l in labels.iter_mut() {
+        let c = *l as usize;
+        if is_bad[c] {
+            if kept[c] {
+                *l = next;
+                next += 1;
+            } else {
+                kept[c] = true;
+            }
+        }
+    }
+    next as usize
+}
+
+/// The dual as a mesh whose edges can be collapsed: collapsing dual edge a–b is merging
+/// clusters a and b.
+struct DualMesh {
+    faces: Vec<[u32; 3]>,
+    alive: Vec<bool>,
+    /// Alive (and, until compacted, some dead) faces around each dual vertex.
+    around: Vec<Vec<u32>>,
+}
+
+impl DualMesh {
+    fn new(faces: Vec<[u32; 3]>, m: usize) -> Self {
+        let mut around = vec![Vec::new(); m];
+        for (i, f) in faces.iter().enumerate() {
+            f.iter().for_each(|&c| around[c as usize].push(i as u32));
+        }
+        DualMesh {
+            alive: vec![true; faces.len()],
+            faces,
+            around,
+        }
+    }
+
+    /// Alive faces around `v`.
+    fn faces_of(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
+        self.around[v as usize]
+            .iter()
+            .copied()
+            .filter(|&f| self.alive[f as usize])
+    }
+
+    /// Distinct neighbours of `v`, ascending.
+    fn neighbors(&self, v: u32) -> Vec<u32> {
+        let mut n: Vec<u32> = self
+            .faces_of(v)
+            .flat_map(|f| self.faces[f as usize])
+            .filter(|&w| w != v)
+            .collect();
+        n.sort_unstable();
+        n.dedup();
+        n
+    }
+
+    /// Alive faces holding both `a` and `b`.
+    fn edge_faces(&self, a: u32, b: u32) -> Vec<u32> {
+        self.faces_of(a)
+            .filter(|&f| self.faces[f as usize].contains(&b))
+            .collect()
+    }
+
+    /// True when `v` lies on an edge of one face.
+    fn is_boundary(&self, v: u32) -> bool {
+        self.neighbors(v)
+            .into_iter()
+            .any(|w| self.edge_faces(v, w).len() == 1)
+    }
+
+    /// True when collapsing `b` into `a` keeps the dual a manifold of the same topology:
+    /// the link condition, no interior edge between two boundary vertices, no duplicate
+    /// face and no vertex left without a face.
+    fn can_collapse(&self, a: u32, b: u32) -> bool {
+        let shared = self.edge_faces(a, b);
+        if shared.is_empty() || shared.len() > 2 {
+            return false;
+        }
+        let mut opposite: Vec<u32> = shared
+            .iter()
+            .flat_map(|&f| self.faces[f as usize])
+            .filter(|&c| c != a && c != b)
+            .collect();
+        opposite.sort_unstable();
+        opposite.dedup();
+        let (na, nb) = (self.neighbors(a), self.neighbors(b));
+        let common: Vec<u32> = na
+            .iter()
+            .copied()
+            .filter(|c| nb.binary_search(c).is_ok())
+            .collect();
+        if common != opposite {
+            return false;
+        }
+        if shared.len() == 2 && self.is_boundary(a) && self.is_boundary(b) {
+            return false;
+        }
+        if opposite
+            .iter()
+            .any(|&c| self.faces_of(c).all(|f| shared.contains(&f)))
+        {
+            return false;
+        }
+        // No face of b, renamed, may repeat a face of a.
+        let key = |mut f: [u32; 3]| {
+            f.sort_unstable();
+            f
+        };
+        let mut at_a: Vec<[u32; 3]> = self
+            .faces_of(a)
+            .filter(|f| !shared.contains(f))
+            .map(|f| key(self.faces[f as usize]))
+            .collect();
+        at_a.sort_unstable();
+        !self.faces_of(b).filter(|f| !shared.contains(f)).any(|f| {
+            let renamed = self.faces[f as usize].map(|c| if c == b { a } else { c });
+            at_a.binary_search(&key(renamed)).is_ok()
+        })
+    }
+
+    /// Collapses `b` into `a` (checked by [`DualMesh::can_collapse`]).
+    fn collapse(&mut self, a: u32, b: u32) {
+        let moved = std::mem::take(&mut self.around[b as usize]);
+        for f in moved {
+            if !self.alive[f as usize] {
+                continue;
+            }
+            let face = &mut self.faces[f as usize];
+            if face.contains(&a) {
+                self.alive[f as usize] = false;
+            } else {
+                face.iter_mut().filter(|c| **c == b).for_each(|c| *c = a);
+                self.around[a as usize].push(f);
+            }
+        }
+        let alive = &self.alive;
+        self.around[a as usize].retain(|&f| alive[f as usize]);
+    }
+}
+
+/// The fallback when splitting cannot repair the clustering (e.g. on a strip one or two
+/// faces wide, where every compact cluster touches the boundary on both sides): the
+/// clusters to blame are broken into single faces — all of them when that is not enough —
+/// and clusters are then merged back, smallest pair first, as collapses of the dual's
+/// edges that keep it a manifold of the input's topology, until `n` remain.
+fn rebuild_by_merging(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &mut [u32],
+    n: usize,
+    expect: (usize, usize, Option<i64>),
+    bad: &[u32],
+) -> Result<Vec<[u32; 3]>, DualError> {
+    let nf = mesh.n_faces();
+    let mut m = explode(labels, n, bad);
+    let mut d = diagnose(mesh, topo, labels, m, expect);
+    for _ in 0..4 {
+        if !d.problems.any() {
+            break;
+        }
+        let mut size = vec![0usize; m];
+        labels.iter().for_each(|&c| size[c as usize] += 1);
+        let big: Vec<u32> = d
+            .bad
+            .iter()
+            .copied()
+            .filter(|&c| size[c as usize] > 1)
+            .collect();
+        if big.is_empty() {
+            break;
+        }
+        m = explode(labels, m, &big);
+        d = diagnose(mesh, topo, labels, m, expect);
+    }
+    if d.problems.any() {
+        labels
+            .iter_mut()
+            .enumerate()
+            .for_each(|(f, l)| *l = f as u32);
+        m = nf;
+        d = diagnose(mesh, topo, labels, m, expect);
+        if d.problems.any() {
+            // Merging clusters never adds one along a boundary loop nor undoes a problem
+            // of single faces: no clustering of this mesh has a valid dual.
+            return Err(DualError::NoDual(format!(
+                "even one vertex per face leaves {:?}",
+                d.problems
+            )));
+        }
+    }
+    let mut count = merge_down(mesh, topo, labels, m, d.faces, n);
+    if count > n && m < nf {
+        // Stuck: one more try from one cluster per face, which may merge further.
+        let mut singles: Vec<u32> = (0..nf as u32).collect();
+        let d = diagnose(mesh, topo, &singles, nf, expect);
+        if !d.problems.any() {
+            let reached = merge_down(mesh, topo, &mut singles, nf, d.faces, n);
+            if reached <= count {
+                labels.copy_from_slice(&singles);
+                count = reached;
+            }
+        }
+    }
+    if count > n {
+        let ask = if count == nf {
+            format!("only {nf} (one per face) works")
+        } else {
+            format!("ask for at least {count} (at most {nf}, one per face)")
+        };
+        return Err(DualError::TooFew(format!(
+            "{n} vertices cannot make a valid dual of this mesh: in its thin parts (one or two \
+             faces wide) bigger clusters would touch a boundary more than once, and no valid \
+             clustering with fewer than {count} vertices was found; {ask}"
+        )));
+    }
+    let k = count;
+    debug_assert_eq!(k, n);
+    let d = diagnose(mesh, topo, labels, k, expect);
+    if d.problems.any() {
+        return Err(DualError::Unrepaired(format!(
+            "{:?} after merging single-face clusters (clusters {:?}…)",
+            d.problems,
+            &d.bad[..d.bad.len().min(8)]
+        )));
+    }
+    Ok(d.faces)
+}
+
+/// Merges the clusters of `labels` (`0..m`, whose dual `faces` is valid), the pair of
+/// smallest summed area first, each merge a dual edge collapse that keeps the dual a
+/// manifold of the same topology, until `n` remain or no merge is valid; relabels to
+/// `0..k` and returns k.
+fn merge_down(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &mut [u32],
+    m: usize,
+    faces: Vec<[u32; 3]>,
+    n: usize,
+) -> usize {
+    let mut area = vec![0.0f64; m];
+    labels
+        .iter()
+        .enumerate()
+        .for_each(|(f, &c)| area[c as usize] += mesh.face_area(f));
+    let mut dual = DualMesh::new(faces, m);
+    let mut version = vec![0u32; m];
+    let mut heap = std::collections::BinaryHeap::new();
+    // Min-heap on (summed area, a, b); ties by label, so the order is deterministic.
+    let push = |heap: &mut std::collections::BinaryHeap<_>,
+                version: &[u32],
+                area: &[f64],
+                a: u32,
+                b: u32| {
+        let (a, b) = (a.min(b), a.max(b));
+        let cost = area[a as usize] + area[b as usize];
+        heap.push(std::cmp::Reverse((
+            cost.to_bits(),
+            a,
+            b,
+            version[a as usize],
+            version[b as usize],
+        )));
+    };
+    // Clusters sharing an input edge: only those may merge (two clusters meeting at a
+    // vertex only are joined by a dual edge too, but their union would be pinched).
+    let mut touch: Vec<Vec<u32>> = vec![Vec::new(); m];
+    for e in 0..topo.n_edges() as u32 {
+        if let [f, g] = *topo.edge_faces(e) {
+            let (a, b) = (labels[f as usize], labels[g as usize]);
+            if a != b {
+                touch[a as usize].push(b);
+                touch[b as usize].push(a);
+            }
+        }
+    }
+    touch.iter_mut().for_each(|t| {
+        t.sort_unstable();
+        t.dedup();
+    });
+    for a in 0..m as u32 {
+        for &b in &touch[a as usize] {
+            if a < b {
+                push(&mut heap, &version, &area, a, b);
+            }
+        }
+    }
+    let mut into: Vec<u32> = (0..m as u32).collect();
+    let mut count = m;
+    while count > n {
+        let Some(std::cmp::Reverse((_, a, b, va, vb))) = heap.pop() else {
+            break;
+        };
+        if va != version[a as usize] || vb != version[b as usize] || !dual.can_collapse(a, b) {
+            continue;
+        }
+        dual.collapse(a, b);
+        for x in std::mem::take(&mut touch[b as usize]) {
+            let t = &mut touch[x as usize];
+            t.retain(|&y| y != b);
+            if x != a {
+                t.push(a);
+                t.sort_unstable();
+                t.dedup();
+                touch[a as usize].push(x);
+            }
+        }
+        touch[a as usize].sort_unstable();
+        touch[a as usize].dedup();
+        into[b as usize] = a;
+        area[a as usize] += area[b as usize];
+        count -= 1;
+        // The link of every edge at a or its neighbours may have changed: queue them again.
+        let ring = dual.neighbors(a);
+        for &v in ring.iter().chain([a].iter()) {
+            version[v as usize] += 1;
+        }
+        for &v in ring.iter().chain([a].iter()) {
+            for &w in &touch[v as usize] {
+                push(&mut heap, &version, &area, v, w);
+            }
+        }
+    }
+    for l in labels.iter_mut() {
+        let mut c = *l;
+        while into[c as usize] != c {
+            c = into[c as usize];
+        }
+        *l = c;
+    }
+    compact(labels)
 }

@@ -19,7 +19,16 @@
 //! kept exact by **merging** the smallest interior cluster far from every problem into its
 //! smallest neighbour; a few constrained minimisation passes (`relax_passes`) then smooth
 //! the touched clusters, and the diagnosis runs again, at most `max_repair_rounds` times.
-//! If problems remain the stage fails: it never emits a broken mesh nor adds a vertex.
+//! When splitting cannot help — on a strip or ribbon one or two faces wide every compact
+//! cluster touches the boundary on both sides, and halves of it do too — the clusters to
+//! blame are **rebuilt**: broken into single faces (every cluster, if that is not enough),
+//! then merged back, the pair of smallest summed area first, as collapses of the dual's
+//! edges that pass the link condition (so the dual stays a manifold of the input's
+//! topology), until the count is exact. If no valid merge is left above the count, the
+//! stage fails with a parameter error naming the smallest count it reached; if problems
+//! remain it fails too: it never emits a broken mesh nor adds a vertex. A mesh with a
+//! boundary loop along fewer than three faces (e.g. a component of two triangles) has no
+//! valid dual under any clustering and is refused up front, as an input error.
 //!
 //! # Boundaries
 //!
@@ -45,7 +54,8 @@
 //! cluster's vertices; face attributes do not survive.
 //!
 //! The report gives `vertices`, `faces`, `placement`, `repairs` (clusters split),
-//! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `boundary_clusters`
+//! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `rebuilt` (the
+//! fallback above ran), `boundary_clusters`
 //! `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate or
 //! flipped output triangle — e.g. three closest vertices in a row, or a boundary cluster between two
 //! others on a straight boundary — moved to their projected centroid, unsnapped).
@@ -173,6 +183,9 @@ pub fn dual_with(
             "cluster {c} has no face (labels must be 0..n, every value used)"
         )));
     }
+    if let Some(why) = short_boundary_loop(topo) {
+        return Err(DualError::NoDual(why));
+    }
     if let Some(why) = too_few_vertices(topo, n) {
         return Err(DualError::TooFew(why));
     }
@@ -224,10 +237,85 @@ pub fn dual_with(
         bad.iter()
             .for_each(|&c| positions[c as usize] = projected[c as usize]);
     }
-    let degenerate = faces.iter().find(|f| {
+    let flat = |f: &[u32; 3], positions: &[DVec3]| {
         let [a, b, c] = f.map(|i| positions[i as usize]);
         coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
-    });
+    };
+    let mut moved = bad.len();
+    let still: Vec<u32> = {
+        let mut v: Vec<u32> = faces
+            .iter()
+            .filter(|f| flat(f, &positions))
+            .flatten()
+            .copied()
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    if !still.is_empty() {
+        // Centroids in a row (e.g. thin clusters along a straight strip): each vertex of a
+        // flat triangle tries points of its cluster's faces and takes, of those that leave
+        // none of its triangles flat, the one with the fewest facing away (nearest first).
+        let mut involved = vec![false; n];
+        still.iter().for_each(|&c| involved[c as usize] = true);
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for (f, &c) in labels.iter().enumerate() {
+            if involved[c as usize] {
+                members[c as usize].push(f as u32);
+            }
+        }
+        let mut around: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, f) in faces.iter().enumerate() {
+            f.iter()
+                .filter(|&&c| involved[c as usize])
+                .for_each(|&c| around[c as usize].push(i));
+        }
+        for &c in &still {
+            // (flat, facing away) triangles around c.
+            let score = |positions: &[DVec3]| {
+                around[c as usize].iter().fold((0, 0), |(fl, aw), &i| {
+                    let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
+                    (
+                        fl + flat(&faces[i], positions) as usize,
+                        aw + facing.faces_away(a, b, cc) as usize,
+                    )
+                })
+            };
+            let here = positions[c as usize];
+            let now = score(&positions);
+            if now.0 == 0 {
+                continue;
+            }
+            // Each face's centroid, and the points halfway from it to the face's corners
+            // (the centroids alone are in a row too under a fan of faces on a straight line).
+            let mut cand: Vec<(f64, u64, DVec3)> = members[c as usize]
+                .iter()
+                .flat_map(|&f| {
+                    let g = mesh.face_centroid(f as usize);
+                    let [a, b, cc] = mesh.corners(f as usize);
+                    [g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(cc, 0.5)]
+                        .into_iter()
+                        .enumerate()
+                        .map(move |(k, p)| {
+                            (p.distance_squared(here), (u64::from(f) << 2) | k as u64, p)
+                        })
+                })
+                .collect();
+            cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let mut best: Option<((usize, usize), DVec3)> = None;
+            for (_, _, p) in cand {
+                positions[c as usize] = p;
+                let sc = score(&positions);
+                if sc.0 == 0 && best.is_none_or(|(b, _)| sc.1 < b.1) {
+                    best = Some((sc, p));
+                }
+            }
+            positions[c as usize] = best.map_or(here, |(_, p)| p);
+            moved += best.is_some() as usize;
+        }
+    }
+    let degenerate = faces.iter().find(|f| flat(f, &positions));
     if let Some(f) = degenerate {
         return Err(DualError::Unrepaired(format!(
             "the output vertex of cluster {} lies on a degenerate triangle",
@@ -243,7 +331,7 @@ pub fn dual_with(
         stats,
         boundary_clusters,
         quadric_fallbacks,
-        degenerate_fixes: bad.len(),
+        degenerate_fixes: moved,
     })
 }
 
@@ -303,6 +391,29 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
              sphere, seven for a torus)",
             worst.0, worst.1
         )
+    })
+}
+
+/// A boundary loop along fewer than three faces, if any: its output loop needs three
+/// clusters, each with a face on it, so no clustering has a valid dual (e.g. a component
+/// of two triangles).
+fn short_boundary_loop(topo: &Topology) -> Option<String> {
+    (0..topo.n_boundary_loops()).find_map(|i| {
+        let lp = topo.boundary_loop(i);
+        let mut faces: Vec<u32> = (0..lp.len())
+            .filter_map(|j| topo.find_edge(lp[j], lp[(j + 1) % lp.len()]))
+            .filter_map(|e| topo.edge_faces(e).first().copied())
+            .collect();
+        faces.sort_unstable();
+        faces.dedup();
+        (faces.len() < 3).then(|| {
+            format!(
+                "the boundary loop through vertex {} runs along only {} faces, and the dual of \
+                 a boundary loop needs three (one vertex per face along it)",
+                lp.first().copied().unwrap_or(0),
+                faces.len()
+            )
+        })
     })
 }
 
@@ -590,7 +701,14 @@ impl Stage for DualStage {
         r.figure("boundary_clusters", d.boundary_clusters);
         r.figure("quadric_fallbacks", d.quadric_fallbacks);
         r.figure("degenerate_fixes", d.degenerate_fixes);
-        if d.stats.repairs > 0 {
+        r.figure("rebuilt", d.stats.rebuilt);
+        if d.stats.rebuilt {
+            r.warn(
+                "splitting could not repair the clustering (parts too thin for compact clusters): \
+                 the clusters to blame were rebuilt from single faces merged back to the count"
+                    .to_string(),
+            );
+        } else if d.stats.repairs > 0 {
             r.warn(format!(
                 "the clustering was repaired: {} clusters split (each paid for by a merge elsewhere) in {} rounds",
                 d.stats.repairs, d.stats.repair_rounds

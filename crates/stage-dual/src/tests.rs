@@ -249,3 +249,192 @@ fn too_few_clusters_for_the_topology_are_refused_up_front() {
     let e = dual(&disk, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
     assert!(e.to_string().contains("needs at least 9"), "{e}");
 }
+
+/// A strip of `nb − 1 + nb − 2` triangles between a row of `nb` vertices and a row of
+/// `nb − 1` above it, zigzag (every face has a boundary edge).
+fn zigzag_strip(nb: u32) -> Mesh {
+    let mut positions = Vec::new();
+    (0..nb).for_each(|i| positions.push(DVec3::new(f64::from(i), 0.0, 0.0)));
+    (0..nb - 1).for_each(|i| positions.push(DVec3::new(f64::from(i) + 0.5, 1.0, 0.0)));
+    let t = |i: u32| nb + i;
+    let mut faces = Vec::new();
+    for i in 0..nb - 1 {
+        faces.push([i, i + 1, t(i)]);
+        if i + 2 < nb {
+            faces.push([i + 1, t(i + 1), t(i)]);
+        }
+    }
+    Mesh::new(positions, faces)
+}
+
+/// An annulus `rings` faces wide: `k` segments between a circle of radius 2 and one of
+/// radius 2 − 0.2·rings, zigzag, bent out of the plane by a wave.
+fn thin_annulus(k: u32, rings: u32) -> Mesh {
+    let mut positions = Vec::new();
+    for r in 0..=rings {
+        for i in 0..k {
+            let a = (f64::from(i) + 0.5 * f64::from(r)) / f64::from(k) * std::f64::consts::TAU;
+            let rad = 2.0 - 0.2 * f64::from(r);
+            positions.push(DVec3::new(
+                rad * a.cos(),
+                rad * a.sin(),
+                0.3 * (3.0 * a).sin(),
+            ));
+        }
+    }
+    let v = |r: u32, i: u32| r * k + i % k;
+    let mut faces = Vec::new();
+    for r in 0..rings {
+        for i in 0..k {
+            faces.push([v(r, i), v(r, i + 1), v(r + 1, i)]);
+            faces.push([v(r, i + 1), v(r + 1, i + 1), v(r + 1, i)]);
+        }
+    }
+    Mesh::new(positions, faces)
+}
+
+/// Clusters `mesh` into `n` (CVT, `seed`) and takes the dual: the dual's result.
+fn try_coarsen(mesh: &Mesh, n: u64, seed: u64) -> Result<(Mesh, StageReport), StageError> {
+    let mut r1 = StageReport::default();
+    let mut cx = Context::new(mesh, &mut r1);
+    let p = CvtParams {
+        clusters: n,
+        seed,
+        ..CvtParams::default()
+    };
+    let clustered = ClusterCvt::new(p).run(mesh.clone(), &mut cx)?;
+    let mut report = StageReport::default();
+    let mut cx = Context::new(mesh, &mut report);
+    let out = DualStage::new(DualParams::default()).run(clustered, &mut cx)?;
+    Ok((out, report))
+}
+
+/// Issue #8: every compact cluster of a strip one face wide touches the boundary twice, so
+/// splitting cannot repair it; the clusters are rebuilt from single faces instead, and
+/// every count from the smallest valid one (3 vertices per boundary loop) up to one per
+/// face gives a valid dual.
+#[test]
+fn thin_strips_ribbons_and_annuli_give_valid_duals_at_every_count() {
+    let shapes = [
+        ("17-face zigzag strip", zigzag_strip(10), 3),
+        ("41-face zigzag strip", zigzag_strip(22), 3),
+        ("ribbon 1 face wide", plane_grid(20, 1, 20.0).unwrap(), 3),
+        ("ribbon 2 faces wide", plane_grid(16, 2, 16.0).unwrap(), 3),
+        ("annulus 2 faces wide", thin_annulus(24, 2), 6),
+    ];
+    for (name, mesh, least) in shapes {
+        let mut rebuilt = 0;
+        for n in least..=mesh.n_faces() {
+            for seed in [1, 7] {
+                let what = format!("{name} n={n} seed={seed}");
+                let (out, report) =
+                    try_coarsen(&mesh, n as u64, seed).unwrap_or_else(|e| panic!("{what}: {e}"));
+                check_valid(&mesh, &out, n, &what);
+                let m = coarsen_metrics::measure(Some(&mesh), &out, &Default::default()).unwrap();
+                assert_eq!(m.validity.n_degenerate, 0, "{what}");
+                rebuilt +=
+                    (report.get("rebuilt").map(|v| v.to_string()) == Some("true".into())) as usize;
+            }
+        }
+        assert!(rebuilt > 0, "{name}: the fallback never ran");
+    }
+}
+
+/// In an annulus one face wide every two faces sharing an edge touch both boundary loops,
+/// so one cluster per face is the only valid clustering: any other count is a parameter
+/// error that says so, never an internal error.
+#[test]
+fn an_annulus_one_face_wide_takes_one_cluster_per_face_and_says_so() {
+    let mesh = thin_annulus(24, 1);
+    let nf = mesh.n_faces();
+    let (out, _) = try_coarsen(&mesh, nf as u64, 1).unwrap();
+    check_valid(&mesh, &out, nf, "one per face");
+    for n in [6, 20, nf - 1] {
+        let e = try_coarsen(&mesh, n as u64, 3).unwrap_err();
+        assert!(
+            matches!(e, StageError::Param { name: "target", .. }),
+            "{n}: {e}"
+        );
+        assert!(
+            e.to_string().contains("only 48 (one per face) works"),
+            "{n}: {e}"
+        );
+    }
+}
+
+/// Fuzz `stages` (svec-then-cvt, 20 vertices): single-face clusters fanned from one apex
+/// to a straight row of vertices have their centroids, and their boundary midpoints, in a
+/// row, so every placement gave a flat dual triangle ("lies on a degenerate triangle", an
+/// internal error). A vertex of a flat triangle now also tries points between its faces'
+/// centroids and corners.
+#[test]
+fn clusters_fanned_onto_a_straight_row_get_a_dual_without_flat_triangles() {
+    // A row P0..P4 on y = 0; apex A = 5 above it, inside its fan (closed by Q, R, S);
+    // B = 9 below, so the row's edges are interior too.
+    let p = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+    let mut positions: Vec<DVec3> = (0..5).map(|i| p(f64::from(i) - 2.0, 0.0)).collect();
+    positions.extend([
+        p(0.0, 1.0),
+        p(3.0, 2.0),
+        p(0.0, 3.0),
+        p(-3.0, 2.0),
+        p(0.0, -1.0),
+    ]);
+    let mut faces: Vec<[u32; 3]> = (0..4).map(|i| [i, i + 1, 5]).collect();
+    faces.extend([[4, 6, 5], [6, 7, 5], [7, 8, 5], [8, 0, 5]]);
+    faces.extend((0..4).map(|i| [i + 1, i, 9]));
+    let fan = Mesh::new(positions, faces);
+    let nf = fan.n_faces();
+    for placement in [
+        Placement::Projected,
+        Placement::Centroid,
+        Placement::Quadric,
+    ] {
+        let mut labels: Vec<u32> = (0..nf as u32).collect();
+        let d = dual(&fan, &mut labels, placement, None, 5, 2)
+            .unwrap_or_else(|e| panic!("{placement:?}: {e}"));
+        check_valid(&fan, &d.mesh, nf, &format!("{placement:?}"));
+        assert!(d.degenerate_fixes > 0, "{placement:?}");
+        let m = coarsen_metrics::measure(Some(&fan), &d.mesh, &Default::default()).unwrap();
+        assert_eq!(m.validity.n_degenerate, 0, "{placement:?}");
+    }
+}
+
+/// Fuzz `stages` (adaptive-cvt, 20 vertices): a component whose boundary loop runs along
+/// two faces (a quad of two triangles) has no valid dual under any clustering — its output
+/// loop would have two vertices. Was an internal "could not be repaired … even with one
+/// cluster per face"; now an input error up front, naming the loop.
+#[test]
+fn a_boundary_loop_along_two_faces_has_no_dual_and_says_so() {
+    let grid = plane_grid(6, 6, 6.0).unwrap();
+    let quad = Mesh::new(
+        vec![
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(11.0, 0.0, 0.0),
+            DVec3::new(11.0, 1.0, 0.0),
+            DVec3::new(10.0, 1.0, 0.0),
+        ],
+        vec![[0, 1, 2], [0, 2, 3]],
+    );
+    let mut positions = grid.positions.clone();
+    let off = positions.len() as u32;
+    positions.extend(quad.positions.iter().copied());
+    let mut faces = grid.faces.clone();
+    faces.extend(quad.faces.iter().map(|f| f.map(|v| v + off)));
+    let mesh = Mesh::new(positions, faces);
+    let mut labels: Vec<u32> = (0..mesh.n_faces() as u32).map(|f| f % 20).collect();
+    let e = dual(&mesh, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    assert!(matches!(e, DualError::NoDual(_)), "{e}");
+    assert!(e.to_string().contains("runs along only 2 faces"), "{e}");
+    let mut report = StageReport::default();
+    let mut cx = Context::new(&mesh, &mut report);
+    let mut clustered = mesh.clone();
+    clustered.face_attrs.insert(
+        CLUSTER,
+        AttrValues::Label((0..mesh.n_faces() as u32).map(|f| f % 20).collect()),
+    );
+    let e = DualStage::new(DualParams::default())
+        .run(clustered, &mut cx)
+        .unwrap_err();
+    assert!(matches!(e, StageError::Input(_)), "{e}");
+}

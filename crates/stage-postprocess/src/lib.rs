@@ -184,7 +184,13 @@ impl Stage for Postprocess {
             40,
             8,
         )
-        .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        .map_err(|e| match e {
+            coarsen_stage_dual::DualError::TooFew(_) => StageError::Param {
+                name: "target",
+                message: format!("`{}`: {e}", Self::KIND),
+            },
+            e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
+        })?;
         drop(topo);
         let mut out = dual.mesh;
         // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
