@@ -499,10 +499,11 @@ pub(crate) fn repaired_dual(
         summary.n_boundary_loops,
         summary.genus_total,
     );
-    let energy = Valette2004;
-    let helper = Clusterer::new(mesh, topo, &energy, None)
-        .map_err(|e| DualError::NotManifold(e.to_string()))?;
-    let nbr = |f: u32, i: usize| helper.neighbor(f, i);
+    // The face across each edge, built only when a repair needs it.
+    let table: std::cell::OnceCell<Vec<[u32; 3]>> = std::cell::OnceCell::new();
+    let nbr = |f: u32, i: usize| {
+        table.get_or_init(|| face_neighbors(topo, mesh.n_faces()))[f as usize][i]
+    };
     let mut stats = DualStats::default();
     for round in 0..=max_rounds {
         let d = diagnose(mesh, topo, labels, n, expect);
@@ -535,6 +536,26 @@ pub(crate) fn repaired_dual(
         }
     }
     Err(DualError::Unrepaired("no rounds".into()))
+}
+
+/// Per face, the face across each edge (corner i → i+1) when the edge has two faces, else
+/// `NONE`.
+fn face_neighbors(topo: &Topology, n_faces: usize) -> Vec<[u32; 3]> {
+    (0..n_faces as u32)
+        .map(|f| {
+            topo.face_edges(f)
+                .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
+                    Some(&[a, b]) => {
+                        if a == f {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                    _ => NONE,
+                })
+        })
+        .collect()
 }
 
 /// Relabels `labels` to `0..m` in order of first use; returns m.
