@@ -419,8 +419,8 @@ fn short_boundary_loop(topo: &Topology) -> Option<String> {
 
 /// Each cluster's vertex as the area-weighted blend of its faces' corners.
 fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
-    // The corners of each cluster's faces, by cluster (counting sort, face order kept),
-    // then each cluster's short list by vertex (stable: equal vertices in face order).
+    // The corners of each cluster's faces, by cluster (counting sort, face order kept);
+    // each cluster's vertices in order of first appearance, weights summed per vertex.
     let mut start = vec![0usize; n + 1];
     labels.iter().for_each(|&c| start[c as usize + 1] += 3);
     for c in 0..n {
@@ -435,16 +435,22 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
             at[c as usize] += 1;
         }
     }
+    let mut slot = vec![u32::MAX; mesh.n_vertices()];
     let mut o = VertexOrigins::with_capacity(n);
     for c in 0..n {
-        let corners = &mut entries[start[c]..start[c + 1]];
-        corners.sort_by_key(|e| e.0);
+        let corners = &entries[start[c]..start[c + 1]];
         let mut blend: Vec<(u32, f64)> = Vec::new();
-        for &(v, w) in corners.iter() {
-            match blend.last_mut() {
-                Some(last) if last.0 == v => last.1 += w,
-                _ => blend.push((v, w)),
+        for &(v, w) in corners {
+            match slot[v as usize] {
+                u32::MAX => {
+                    slot[v as usize] = blend.len() as u32;
+                    blend.push((v, w));
+                }
+                i => blend[i as usize].1 += w,
             }
+        }
+        for &(v, _) in &blend {
+            slot[v as usize] = u32::MAX;
         }
         o.push_blend(blend);
     }
