@@ -165,13 +165,14 @@ pub(crate) fn diagnose(
             }
         }
         vertex_runs(topo, labels, v, &mut runs);
-        // A cluster met twice around a vertex is pinched there.
-        let mut sorted = runs.clone();
-        sorted.sort_unstable();
-        for w in sorted.windows(2) {
-            if w[0] == w[1] && !bad[w[0] as usize] {
-                bad[w[0] as usize] = true;
-                p.pinched += 1;
+        // A cluster met twice around a vertex is pinched there (runs of one or two
+        // clusters cannot repeat one: equal neighbours are merged).
+        if runs.len() > 2 {
+            for (i, &c) in runs.iter().enumerate() {
+                if runs[..i].contains(&c) && !bad[c as usize] {
+                    bad[c as usize] = true;
+                    p.pinched += 1;
+                }
             }
         }
         for i in 1..runs.len().saturating_sub(1) {
