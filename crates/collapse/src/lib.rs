@@ -42,7 +42,9 @@
 //!    (see the table below) is costed by the model and pushed on a binary heap keyed by
 //!    `(cost, insertion sequence)`, so equal costs — zero costs on flat regions in
 //!    particular — are taken first-in first-out, as paper 2 prescribes.
-//! 3. **Collapse** the cheapest candidate unless a check refuses it; entries go stale
+//! 3. **Collapse** the cheapest candidate unless a check refuses it or it costs more now
+//!    than when it was queued (its neighbourhood changed beyond the model's [`Reach`]: it
+//!    goes back in line at its current cost); entries go stale
 //!    lazily (each holds the sum of its vertices' version stamps) rather than being
 //!    removed from the heap. After a collapse the candidates around the new vertex are
 //!    re-costed and pushed again, and refused candidates whose neighbourhood changed are
@@ -142,7 +144,12 @@ pub enum Unit {
     Triangle,
 }
 
-/// Which candidates must be re-costed after a collapse.
+/// Which candidates are re-costed right after a collapse.
+///
+/// A candidate outside the reach whose cost changed keeps its queued cost; it is costed
+/// again when it comes off the queue, and queued again at its current cost if that grew.
+/// Every collapse is therefore made at its exact current cost; only a candidate that got
+/// cheaper may be taken later than an exact order would take it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Reach {
     /// Only those containing the new vertex (the cost depends on per-vertex data only,
@@ -222,6 +229,9 @@ pub struct Options {
     /// Refuse collapses leaving a face below this quality (and below its current quality);
     /// `0` turns the check off. Default `0`.
     pub min_quality: f64,
+    /// Keep every collapse in [`Outcome::log`] (56 bytes each); `false` leaves the log
+    /// empty, for runs that only need the totals. Default `true`.
+    pub keep_log: bool,
 }
 
 impl Options {
@@ -231,6 +241,7 @@ impl Options {
             goal,
             max_error: None,
             min_quality: 0.0,
+            keep_log: true,
         }
     }
 }
@@ -352,7 +363,7 @@ pub struct Outcome {
     pub sve: f64,
     /// The largest cost of a collapse performed (0 when none).
     pub max_cost: f64,
-    /// Every collapse, in order.
+    /// Every collapse, in order (empty unless [`Options::keep_log`]).
     pub log: Vec<CollapseRecord>,
 }
 

@@ -624,7 +624,10 @@ impl LiveMesh {
         let per_face = if unit == Unit::Edge { 3 } else { 2 };
         let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + 16);
         self.rank_all(model, unit, &mut q, &mut out.refused);
-        out.log.reserve(self.remaining(opts.goal));
+        q.heapify();
+        if opts.keep_log {
+            out.log.reserve(self.remaining(opts.goal));
+        }
 
         out.stop = loop {
             if self.reached(opts.goal) {
@@ -654,6 +657,13 @@ impl LiveMesh {
                 q.park(e);
                 continue;
             };
+            // A candidate outside the model's reach keeps its queued cost when its
+            // neighbourhood changes; if it has grown dearer since, it goes back in line
+            // at its current cost.
+            if plan.cost > e.cost {
+                q.push(plan.cost, e.vertices, e.stamp, true);
+                continue;
+            }
             // The heap is ordered by cost: nothing cheaper is left.
             if let Some(max) = opts.max_error
                 && plan.cost > max
@@ -682,13 +692,15 @@ impl LiveMesh {
             for (slot, &v) in removed.iter_mut().zip(verts.iter().filter(|&&v| v != kept)) {
                 *slot = v;
             }
-            out.log.push(CollapseRecord {
-                kept,
-                removed,
-                position: plan.position,
-                cost: plan.cost,
-                sve,
-            });
+            if opts.keep_log {
+                out.log.push(CollapseRecord {
+                    kept,
+                    removed,
+                    position: plan.position,
+                    cost: plan.cost,
+                    sve,
+                });
+            }
             out.collapses += 1;
             out.sve += sve;
             out.max_cost = out.max_cost.max(plan.cost);
@@ -777,13 +789,15 @@ impl LiveMesh {
         Some(plan)
     }
 
-    /// Costs one candidate and queues it, or counts why it cannot be.
+    /// Costs one candidate and queues it, or counts why it cannot be; `ordered` false
+    /// leaves the heap order to a later [`Queue::heapify`].
     fn propose<M: CostModel>(
         &self,
         model: &M,
         verts: &[Index],
         q: &mut Queue,
         refused: &mut Refusals,
+        ordered: bool,
     ) {
         let pinned = match self.rule(verts) {
             Ok(p) => p,
@@ -793,7 +807,7 @@ impl LiveMesh {
             Some(plan) => {
                 let mut v = [NONE; 3];
                 v[..verts.len()].copy_from_slice(verts);
-                q.push(plan.cost, v, self.stamp_sum(verts));
+                q.push(plan.cost, v, self.stamp_sum(verts), ordered);
             }
             None => refused.count(Refusal::Model),
         }
@@ -809,11 +823,11 @@ impl LiveMesh {
                     for c in 0..3 {
                         let (a, b) = (face[c], face[(c + 1) % 3]);
                         if a < b || self.is_boundary_edge(a, b) {
-                            self.propose(model, &[a.min(b), a.max(b)], q, refused);
+                            self.propose(model, &[a.min(b), a.max(b)], q, refused, false);
                         }
                     }
                 }
-                Unit::Triangle => self.propose(model, &face, q, refused),
+                Unit::Triangle => self.propose(model, &face, q, refused, false),
             }
         }
     }
@@ -1059,14 +1073,14 @@ impl LiveMesh {
                             if reach != Reach::Kept && s.in_touched.contains(u) && u < v {
                                 continue;
                             }
-                            self.propose(model, &[v.min(u), v.max(u)], q, refused);
+                            self.propose(model, &[v.min(u), v.max(u)], q, refused, true);
                         }
                     }
                 }
                 Unit::Triangle => {
                     for &f in self.lists.get(v) {
                         if s.seen.insert(f) {
-                            self.propose(model, &self.faces[f as usize], q, refused);
+                            self.propose(model, &self.faces[f as usize], q, refused, true);
                         }
                     }
                 }
@@ -1715,6 +1729,48 @@ mod tests {
             cells.windows(2).all(|w| w[0] < w[1]),
             "faces keep input order"
         );
+    }
+
+    #[test]
+    fn a_candidate_dearer_than_queued_goes_back_in_line() {
+        // Edge (84, 85) is far from edge (24, 25), so a Kept reach does not re-cost it
+        // after (24, 25) collapses; its cost has grown meanwhile, which its pop must see.
+        let mesh = grid(10, 10, |_, _| 0.0);
+        let n = mesh.n_vertices();
+        let cost = |m: &LiveMesh, v: &[Index]| match v {
+            [24, 25] => 0.5,
+            [84, 85] if m.n_vertices() == n => 0.75,
+            [84, 85] => 5.0,
+            _ => 1.0,
+        };
+        let mut model = Scripted {
+            unit: Unit::Edge,
+            reach: Reach::Kept,
+            cost,
+        };
+        let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(n - 2));
+        assert_eq!(outcome.collapses, 2);
+        assert_eq!((outcome.log[0].kept, outcome.log[0].removed[0]), (24, 25));
+        assert_eq!(outcome.log[1].cost, 1.0, "{:?}", outcome.log[1]);
+        assert!(
+            outcome
+                .log
+                .iter()
+                .all(|r| (r.kept, r.removed[0]) != (84, 85))
+        );
+        // Without the log, the same run.
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        let opts = Options {
+            keep_log: false,
+            ..Options::new(Goal::Vertices(n - 2))
+        };
+        let quiet = live.collapse(&mut model, &opts, &mut |_| {});
+        assert!(quiet.log.is_empty());
+        assert_eq!(
+            (quiet.collapses, quiet.sve),
+            (outcome.collapses, outcome.sve)
+        );
+        assert_eq!(live.to_mesh(&mesh).unwrap().0, out);
     }
 
     #[test]

@@ -71,6 +71,16 @@ impl Heap {
         self.items.len()
     }
 
+    /// Appends `e` without restoring the heap order ([`Heap::heapify`] must follow).
+    fn push_unordered(&mut self, e: Entry) {
+        self.items.push(e);
+    }
+
+    /// Restores the heap order of every entry, bottom-up (linear time).
+    fn heapify(&mut self) {
+        self.retain(|_| true);
+    }
+
     fn push(&mut self, e: Entry) {
         let mut i = self.items.len();
         self.items.push(e);
@@ -160,16 +170,29 @@ impl Queue {
         self.heap.len()
     }
 
-    /// Queues a candidate behind every candidate of the same cost queued before.
-    pub(crate) fn push(&mut self, cost: f64, vertices: [Index; 3], stamp: u32) {
+    /// Queues a candidate behind every candidate of the same cost queued before. With
+    /// `ordered` false the heap order waits for [`Queue::heapify`] (a linear-time build
+    /// for the initial ranking); the order entries pop in is the same either way, since
+    /// `(cost, sequence)` orders them totally.
+    pub(crate) fn push(&mut self, cost: f64, vertices: [Index; 3], stamp: u32, ordered: bool) {
         let seq = self.next_seq;
         self.next_seq += 1;
-        self.heap.push(Entry {
+        let e = Entry {
             cost,
             seq,
             vertices,
             stamp,
-        });
+        };
+        if ordered {
+            self.heap.push(e);
+        } else {
+            self.heap.push_unordered(e);
+        }
+    }
+
+    /// Restores the heap order after unordered pushes.
+    pub(crate) fn heapify(&mut self) {
+        self.heap.heapify();
     }
 
     pub(crate) fn pop(&mut self) -> Option<Entry> {
@@ -198,7 +221,7 @@ impl Queue {
                 self.n_released += 1;
                 let e = *e;
                 if current(&e) {
-                    self.push(e.cost, e.vertices, e.stamp);
+                    self.push(e.cost, e.vertices, e.stamp, true);
                 }
             }
             node = next;
@@ -249,10 +272,10 @@ mod tests {
     fn equal_costs_pop_in_queue_order() {
         let mut q = Queue::new(10, 8);
         for v in [5, 1, 7, 3] {
-            q.push(0.0, [v, v + 1, NONE], 0);
+            q.push(0.0, [v, v + 1, NONE], 0, true);
         }
-        q.push(-0.0, [9, 0, NONE], 0);
-        q.push(0.5, [0, 1, NONE], 0);
+        q.push(-0.0, [9, 0, NONE], 0, true);
+        q.push(0.5, [0, 1, NONE], 0, true);
         let order: Vec<_> = std::iter::from_fn(|| q.pop())
             .map(|e| e.vertices[0])
             .collect();
@@ -261,7 +284,7 @@ mod tests {
     }
 
     #[test]
-    fn heap_pops_in_cost_then_sequence_order_through_pushes_and_sweeps() {
+    fn heap_pops_in_cost_then_sequence_order_through_heapify_pushes_and_sweeps() {
         // Oracle: a sorted list. Costs drawn from a few values so that ties are common.
         let mut q = Queue::new(4, 8);
         let mut oracle: Vec<(f64, u64, u32)> = Vec::new();
@@ -274,11 +297,16 @@ mod tests {
         };
         let mut popped = Vec::new();
         let mut expected = Vec::new();
+        // The first 300 entries are pushed unordered, then heapified (as the initial
+        // ranking is); the rest in order.
         for round in 0..2000u32 {
             let cost = (next() % 7) as f64 * 0.5;
-            q.push(cost, [round, 0, NONE], 0);
+            q.push(cost, [round, 0, NONE], 0, round >= 300);
+            if round == 299 {
+                q.heapify();
+            }
             oracle.push((cost, round as u64, round));
-            if next() % 3 == 0 {
+            if round >= 300 && next() % 3 == 0 {
                 oracle.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
                 expected.push(oracle.remove(0).2);
                 popped.push(q.pop().unwrap().vertices[0]);
@@ -298,7 +326,7 @@ mod tests {
     #[test]
     fn parked_entries_return_once_when_a_vertex_is_touched() {
         let mut q = Queue::new(10, 8);
-        q.push(1.0, [2, 3, NONE], 0);
+        q.push(1.0, [2, 3, NONE], 0, true);
         let e = q.pop().unwrap();
         q.park(e);
         assert_eq!(q.len(), 0);

@@ -5,7 +5,10 @@
 //! where Linux's `schedstat` is unavailable):
 //!
 //! * the Stanford bunny (when `../shared/data` has it) with 70 % and 95 % of faces removed;
-//! * a 1.3M-face icosphere down to 60 000 faces.
+//! * a 1.3M-face icosphere down to 60 000 faces;
+//! * issue #6's speed bar: the bunny subdivided 1-to-4 three times (4.4M faces) down to
+//!   60 000 faces, once each, `simplify.qem` and `simplify.svec` against meshoptimizer
+//!   (`cargo bench -p coarsen-stage-qem -- --bench scale` runs only this case).
 //!
 //! coarsen's time covers the whole stage (adjacency, quadrics, collapses, compaction with
 //! attribute carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
@@ -16,6 +19,7 @@
 use coarsen_mesh::Mesh;
 use coarsen_stage::{Context, Stage, StageReport, Target};
 use coarsen_stage_qem::{QemParams, SimplifyQem};
+use coarsen_stage_svec::{SimplifySvec, SvecParams};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -77,12 +81,59 @@ fn time_both<A, B>(
 }
 
 fn coarsen(mesh: &Mesh, target: Target) -> Mesh {
+    run_stage(SimplifyQem::new(QemParams::default()), mesh, target)
+}
+
+/// Runs `stage` on a copy of `mesh` to `target`.
+fn run_stage<S: Stage>(stage: S, mesh: &Mesh, target: Target) -> Mesh {
     let mut report = StageReport::default();
     let mut cx = Context::new(mesh, &mut report);
     cx.target = Some(target);
-    SimplifyQem::new(QemParams::default())
-        .run(mesh.clone(), &mut cx)
-        .expect("simplify.qem runs")
+    stage.run(mesh.clone(), &mut cx).expect("the stage runs")
+}
+
+/// Issue #6's bar: `big` to 60 000 faces once by meshoptimizer, QEM and SVEC, in turns.
+fn scale_case(big: &Mesh) {
+    let target = Target::Faces(60_000);
+    let goal = target.faces_for(big) as usize;
+    let indices: Vec<u32> = big.faces.iter().flatten().copied().collect();
+    let positions: Vec<[f32; 3]> = big
+        .positions
+        .iter()
+        .map(|p| p.as_vec3().to_array())
+        .collect();
+    let time = |f: &mut dyn FnMut() -> usize| {
+        let start = (Instant::now(), cpu_time());
+        let faces = f();
+        let t = match (start.1, cpu_time()) {
+            (Some(a), Some(b)) => b - a,
+            _ => start.0.elapsed(),
+        };
+        (t.as_secs_f64(), faces)
+    };
+    let (theirs, their_faces) = time(&mut || meshopt_simplify(&indices, &positions, goal));
+    let (qem, qem_faces) = time(&mut || coarsen(big, target).n_faces());
+    let (svec, svec_faces) =
+        time(&mut || run_stage(SimplifySvec::new(SvecParams::default()), big, target).n_faces());
+    println!(
+        "subdivided bunny {} → 60K faces: meshopt {theirs:.2} s ({their_faces} faces), \
+         qem {qem:.2} s ({qem_faces} faces, ratio {:.2}), svec {svec:.2} s ({svec_faces} faces, ratio {:.2})",
+        big.n_faces(),
+        qem / theirs,
+        svec / theirs
+    );
+}
+
+/// The bunny subdivided 1-to-4 three times (as the tables' scale section builds it).
+fn subdivided(bunny: &Mesh) -> Mesh {
+    let mut m = bunny.clone();
+    for _ in 0..3 {
+        let all = vec![true; m.n_faces()];
+        m = coarsen_stage_refine::split_once(&m, &all)
+            .expect("the bunny subdivides")
+            .0;
+    }
+    m
 }
 
 /// meshoptimizer on the same triangles; returns the output face count.
@@ -133,12 +184,17 @@ fn case(name: &str, mesh: &Mesh, target: Target, runs: usize, min: Duration) {
 fn main() {
     // `cargo bench` passes `--bench`; `cargo test --benches` does not: then run one quick case.
     let quick = !std::env::args().any(|a| a == "--bench");
+    let only_scale = std::env::args().any(|a| a == "scale");
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     let bunny = data.join("stanford-bunny.obj");
     if bunny.exists() {
         let mesh = coarsen_io::read_path(&bunny, &Default::default())
             .expect("the bunny loads")
             .mesh;
+        if only_scale {
+            scale_case(&subdivided(&mesh));
+            return;
+        }
         if quick {
             case(
                 "bunny, 70 % removed",
@@ -165,5 +221,11 @@ fn main() {
             3,
             min,
         );
+        if bunny.exists() {
+            let mesh = coarsen_io::read_path(&bunny, &Default::default())
+                .expect("the bunny loads")
+                .mesh;
+            scale_case(&subdivided(&mesh));
+        }
     }
 }

@@ -39,14 +39,12 @@ impl Default for SvecOptions {
 #[derive(Clone, Debug)]
 pub struct SvecModel {
     unit: Unit,
-    /// Unit normal of each face (zero when degenerate).
-    normal: Vec<DVec3>,
-    /// Area of each face, in units of the squared diagonal.
-    area: Vec<f64>,
-    /// Qᵢ = (1/9)·Wᵢ·Nᵢ·Sᵢ²·p pᵀ, scaled to a unit diagonal.
-    quadric: Vec<Quadric>,
-    /// (1/9)·Sᵢ²·p pᵀ (the plain squared volume), scaled to a unit diagonal; for φ.
-    volume: Vec<Quadric>,
+    /// Plane, quadric weight and area of each face, side by side (a sum over faces reads
+    /// one record per face).
+    face: Vec<FaceData>,
+    /// Interior angle of each face at each of its corners (computed once per change of
+    /// shape, read by the angle deficits and the shape factors).
+    angles: Vec<[f64; 3]>,
     /// Σ areas of the faces around each vertex (A_v), unit-diagonal units.
     vertex_area: Vec<f64>,
     /// |angle deficit| of each vertex (2π − Σα inside, π − Σα on the boundary).
@@ -63,16 +61,36 @@ pub struct SvecModel {
     generation: u32,
 }
 
-/// |2π − Σα| (interior) or |π − Σα| (boundary) at `v`, and the area around it.
-fn deficit_and_area(mesh: &LiveMesh, area: &[f64], v: Index) -> (f64, f64) {
+/// What [`SvecModel`] keeps of one face. Planes and weights (not 10-number quadrics) are
+/// kept, to save memory; Qᵢ is rebuilt when summed.
+#[derive(Clone, Copy, Debug, Default)]
+struct FaceData {
+    /// Unit normal n (zero when degenerate).
+    normal: DVec3,
+    /// Offset d of the plane n·x + d = 0 (zero when degenerate).
+    offset: f64,
+    /// (1/9)·Wᵢ·Nᵢ·Sᵢ² scaled to a unit diagonal: Qᵢ is this weight times the plane's
+    /// quadric. The plain squared volume (for φ) is the same plane with weight (1/9)·Sᵢ².
+    weight: f64,
+    /// Area, in units of the squared diagonal.
+    area: f64,
+}
+
+/// |2π − Σα| (interior) or |π − Σα| (boundary) at `v`, and the area around it, from the
+/// faces' corner angles and areas.
+fn deficit_and_area(
+    mesh: &LiveMesh,
+    angles: &[[f64; 3]],
+    data: &[FaceData],
+    v: Index,
+) -> (f64, f64) {
     let mut angle_sum = 0.0;
     let mut a = 0.0;
     for &f in mesh.faces_around(v) {
         let face = mesh.face(f);
         let c = face.iter().position(|&u| u == v).unwrap_or(0);
-        let [p, q, r] = [face[c], face[(c + 1) % 3], face[(c + 2) % 3]].map(|u| mesh.position(u));
-        angle_sum += triangle::angle_between(q - p, r - p);
-        a += area[f as usize];
+        angle_sum += angles[f as usize][c];
+        a += data[f as usize].area;
     }
     let full = if mesh.kind(v) == VertexKind::Boundary {
         PI
@@ -110,10 +128,8 @@ impl SvecModel {
         };
         let mut m = SvecModel {
             unit: Unit::Triangle,
-            normal: vec![DVec3::ZERO; n_faces],
-            area: vec![0.0; n_faces],
-            quadric: vec![Quadric::ZERO; n_faces],
-            volume: vec![Quadric::ZERO; n_faces],
+            face: vec![FaceData::default(); n_faces],
+            angles: vec![[0.0; 3]; n_faces],
             vertex_area: vec![0.0; n_vertices],
             deficit: vec![0.0; n_vertices],
             threshold: f64::INFINITY,
@@ -187,27 +203,41 @@ impl SvecModel {
     }
 
     /// The quadric Qᵢ of face `f` (unit-diagonal units).
-    pub fn face_quadric(&self, f: Index) -> &Quadric {
-        &self.quadric[f as usize]
+    pub fn face_quadric(&self, f: Index) -> Quadric {
+        let fi = f as usize;
+        plane_quadric(
+            self.face[fi].normal,
+            self.face[fi].offset,
+            self.face[fi].weight,
+        )
     }
 
-    /// Normal and area of face `f` from the current positions.
+    /// The plain squared volume (1/9)·Sᵢ²·p pᵀ of face `f` (unit-diagonal units), for φ.
+    fn volume_quadric(&self, f: Index) -> Quadric {
+        let fi = f as usize;
+        let s = self.face[fi].area;
+        let plain = s * s / 9.0 * self.scale * self.scale;
+        plane_quadric(self.face[fi].normal, self.face[fi].offset, plain)
+    }
+
+    /// Normal, area and corner angles of face `f` from the current positions.
     fn update_shape(&mut self, mesh: &LiveMesh, f: Index) {
         let [a, b, c] = mesh.face(f).map(|v| mesh.position(v));
         let cross = triangle::cross(a, b, c);
         let len = cross.length();
         let fi = f as usize;
-        self.normal[fi] = if len > 0.0 && len.is_finite() {
+        self.angles[fi] = triangle::angles(a, b, c);
+        self.face[fi].normal = if len > 0.0 && len.is_finite() {
             cross / len
         } else {
             DVec3::ZERO
         };
-        self.area[fi] = 0.5 * len * self.scale * self.scale;
+        self.face[fi].area = 0.5 * len * self.scale * self.scale;
     }
 
     /// A_v and the angle deficit of vertex `v`.
     fn update_vertex(&mut self, mesh: &LiveMesh, v: Index) {
-        let (d, a) = deficit_and_area(mesh, &self.area, v);
+        let (d, a) = deficit_and_area(mesh, &self.angles, &self.face, v);
         self.deficit[v as usize] = d;
         self.vertex_area[v as usize] = a;
     }
@@ -215,41 +245,42 @@ impl SvecModel {
     /// Nᵢ (from the normals around face `f`) and then Qᵢ.
     fn update_quadric(&mut self, mesh: &LiveMesh, f: Index) {
         let fi = f as usize;
-        let n = self.normal[fi];
+        let n = self.face[fi].normal;
         if n == DVec3::ZERO {
-            self.quadric[fi] = Quadric::ZERO;
-            self.volume[fi] = Quadric::ZERO;
+            self.face[fi].offset = 0.0;
+            self.face[fi].weight = 0.0;
             return;
         }
         let face = mesh.face(f);
         let (mut sum, mut count) = (0.0, 0usize);
         for_faces_around(mesh, &face, |g| {
-            let m = self.normal[g as usize];
+            let m = self.face[g as usize].normal;
             if g != f && m != DVec3::ZERO {
                 sum += 0.5 * (1.0 - n.dot(m).abs());
                 count += 1;
             }
         });
         let normal_factor = if count > 0 { sum / count as f64 } else { 0.0 };
-        let [a, b, c] = face.map(|v| mesh.position(v));
-        let s = self.area[fi];
-        let shape = 2.0 * (1.0 - triangle::min_angle(a, b, c).cos()) * s;
+        let a = mesh.position(face[0]);
+        let s = self.face[fi].area;
+        let [x, y, z] = self.angles[fi];
+        let shape = 2.0 * (1.0 - x.min(y).min(z).cos()) * s;
         // Distances squared are in world units: scale them to a unit diagonal too.
         let plain = s * s / 9.0 * self.scale * self.scale;
-        self.volume[fi] = Quadric::from_plane(n, a, plain);
-        self.quadric[fi] = Quadric::from_plane(n, a, shape * normal_factor * plain);
+        self.face[fi].offset = -n.dot(a);
+        self.face[fi].weight = shape * normal_factor * plain;
     }
 
     /// Σ Qᵢ (each weighted by `phi` when given) over the faces around `verts`.
     fn summed(&self, mesh: &LiveMesh, verts: &[Index], phi: Option<(DVec3, f64)>) -> Quadric {
         let mut q = Quadric::ZERO;
-        for_faces_around(mesh, verts, |f| {
-            let w = match phi {
-                Some((p, mean)) => self.volume[f as usize].eval(p).max(0.0) / mean,
-                None => 1.0,
-            };
-            q += self.quadric[f as usize] * w;
-        });
+        match phi {
+            Some((p, mean)) => for_faces_around(mesh, verts, |f| {
+                let w = self.volume_quadric(f).eval(p).max(0.0) / mean;
+                q += self.face_quadric(f) * w;
+            }),
+            None => for_faces_around(mesh, verts, |f| q += self.face_quadric(f)),
+        }
         q
     }
 
@@ -257,7 +288,7 @@ impl SvecModel {
     fn mean_volume(&self, mesh: &LiveMesh, verts: &[Index], p: DVec3) -> f64 {
         let (mut sum, mut count) = (0.0, 0usize);
         for_faces_around(mesh, verts, |f| {
-            sum += self.volume[f as usize].eval(p).max(0.0);
+            sum += self.volume_quadric(f).eval(p).max(0.0);
             count += 1;
         });
         if count > 0 { sum / count as f64 } else { 0.0 }
@@ -340,6 +371,24 @@ impl SvecModel {
     }
 }
 
+/// `weight · (n·v + d)²`: the quadric of the plane n·v + d = 0 (unit `n`), computed as
+/// `Quadric::from_plane` does, so that a plane kept as (n, d) gives the same numbers.
+#[inline]
+fn plane_quadric(n: DVec3, d: f64, w: f64) -> Quadric {
+    Quadric {
+        a: [
+            w * n.x * n.x,
+            w * n.x * n.y,
+            w * n.x * n.z,
+            w * n.y * n.y,
+            w * n.y * n.z,
+            w * n.z * n.z,
+        ],
+        b: w * d * n,
+        c: w * d * d,
+    }
+}
+
 /// mean + `sigma` · standard deviation of `values` (∞ when empty).
 fn mean_plus_sigma(values: &[f64], sigma: f64) -> f64 {
     if values.is_empty() {
@@ -357,7 +406,9 @@ impl CostModel for SvecModel {
     }
 
     fn reach(&self) -> Reach {
-        Reach::TwoRings
+        // The triangles around the new vertex; those farther out are re-costed when
+        // they come off the queue (see the crate docs).
+        Reach::Kept
     }
 
     fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan> {
@@ -433,6 +484,16 @@ impl CostModel for SvecModel {
 mod tests {
     use super::*;
     use coarsen_mesh::Mesh;
+
+    #[test]
+    fn a_plane_kept_as_normal_and_offset_gives_from_planes_numbers() {
+        let n = DVec3::new(0.3, -0.4, 0.5).normalize();
+        let point = DVec3::new(1.7, -2.3, 0.9);
+        let w = 0.37;
+        let q = plane_quadric(n, -n.dot(point), w);
+        assert_eq!(q, Quadric::from_plane(n, point, w));
+        assert_ne!(q, plane_quadric(n, -n.dot(point), 2.0 * w));
+    }
 
     #[test]
     fn omega_minimises_the_quadric_along_the_boundary_segment() {

@@ -195,7 +195,7 @@ fn feature_vertex_is_the_one_of_largest_curvature() {
 
 #[test]
 fn boundary_rules_pin_one_slide_two_and_never_merge_three() {
-    let grid = bumpy_grid(10);
+    let grid = bumpy_grid(12);
     let mut live = LiveMesh::new(&grid).unwrap();
     let kind: Vec<VertexKind> = (0..grid.n_vertices() as Index)
         .map(|v| live.kind(v))
