@@ -160,6 +160,11 @@ impl Pipeline {
                     });
                 }
             }
+            if s.stage.records_collapses() {
+                // Collapse stages build adjacency of their own: the kept one would only
+                // add to their peak (350 MiB at 4.4M faces).
+                shared.forget_topology();
+            }
             let (vb, fb) = (mesh.n_vertices(), mesh.n_faces());
             tracing::info!(
                 stage = index,

@@ -45,6 +45,15 @@ impl Shared {
         v
     }
 
+    /// Drops the adjacency kept for the next stage (before a stage that keeps its own, so
+    /// that the two do not add up to its peak memory).
+    pub fn forget_topology(&self) {
+        *self
+            .adjacency
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = None;
+    }
+
     /// The adjacency of `mesh`: the one built last when `mesh` has the same vertex count
     /// and faces as the mesh it was built from, else a new one (which replaces it).
     pub fn topology(&self, mesh: &Mesh) -> Result<Arc<Topology>, TopologyError> {
