@@ -25,7 +25,11 @@ impl Quadric {
 
     /// `weight · (n·v + d)²` for the plane through `point` with unit normal `n`.
     pub fn from_plane(n: DVec3, point: DVec3, weight: f64) -> Self {
-        let d = -n.dot(point);
+        Quadric::from_plane_offset(n, -n.dot(point), weight)
+    }
+
+    /// `weight · (n·v + d)²` for the plane n·v + d = 0 (unit `n`).
+    pub fn from_plane_offset(n: DVec3, d: f64, weight: f64) -> Self {
         let w = weight;
         Quadric {
             a: [

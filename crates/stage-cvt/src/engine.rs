@@ -373,48 +373,12 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     }
 
     /// Around vertex `v`, the number of runs (maximal arcs) of faces of cluster `from`
-    /// without face `t`, of cluster `to` without `t`, and of `to` with `t` — in one walk
-    /// of the fan. A cluster covering the whole closed fan counts as one run.
+    /// without face `t`, of cluster `to` without `t`, and of `to` with `t` (see [`fan_runs`]).
     #[inline]
     fn runs(&self, v: u32, from: u32, to: u32, t: u32) -> [u32; 3] {
-        let fan = self.topo.vertex_faces(v);
-        // Membership bits of a face: from without t, to without t, to with t.
-        let member = |g: u32| -> u32 {
-            if g == t {
-                0b100
-            } else {
-                let l = self.labels[g as usize];
-                if l == from {
-                    0b001
-                } else if l == to {
-                    0b110
-                } else {
-                    0
-                }
-            }
-        };
-        let mut prev = match fan.last() {
-            Some(&g) if self.closed[v as usize] => member(g),
-            _ => 0,
-        };
-        let (mut runs, mut all) = ([0u32; 3], 0b111u32);
-        for &g in fan {
-            let m = member(g);
-            let starts = m & !prev;
-            for (i, r) in runs.iter_mut().enumerate() {
-                *r += (starts >> i) & 1;
-            }
-            all &= m;
-            prev = m;
-        }
-        if !fan.is_empty() {
-            for (i, r) in runs.iter_mut().enumerate() {
-                if *r == 0 && (all >> i) & 1 == 1 {
-                    *r = 1;
-                }
-            }
-        }
-        runs
+        fan_runs(self.topo, self.closed[v as usize], v, [from, to, t], |g| {
+            self.labels[g as usize]
+        })
     }
 
     /// True when face `t` may leave its cluster for cluster `to`: its cluster keeps a face
@@ -587,6 +551,58 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         }
         pieces.iter().map(|&p| p == 1).collect()
     }
+}
+
+/// Around vertex `v` (of `topo`, `closed` when its faces form one closed fan), the number
+/// of runs (maximal arcs) of faces of cluster `from` without face `t`, of cluster `to`
+/// without `t`, and of `to` with `t` — in one walk of the fan, `label` giving each face's
+/// cluster. A cluster covering the whole closed fan counts as one run.
+#[inline]
+pub(crate) fn fan_runs(
+    topo: &Topology,
+    closed: bool,
+    v: u32,
+    [from, to, t]: [u32; 3],
+    label: impl Fn(u32) -> u32,
+) -> [u32; 3] {
+    let fan = topo.vertex_faces(v);
+    // Membership bits of a face: from without t, to without t, to with t.
+    let member = |g: u32| -> u32 {
+        if g == t {
+            0b100
+        } else {
+            let l = label(g);
+            if l == from {
+                0b001
+            } else if l == to {
+                0b110
+            } else {
+                0
+            }
+        }
+    };
+    let mut prev = match fan.last() {
+        Some(&g) if closed => member(g),
+        _ => 0,
+    };
+    let (mut runs, mut all) = ([0u32; 3], 0b111u32);
+    for &g in fan {
+        let m = member(g);
+        let starts = m & !prev;
+        for (i, r) in runs.iter_mut().enumerate() {
+            *r += (starts >> i) & 1;
+        }
+        all &= m;
+        prev = m;
+    }
+    if !fan.is_empty() {
+        for (i, r) in runs.iter_mut().enumerate() {
+            if *r == 0 && (all >> i) & 1 == 1 {
+                *r = 1;
+            }
+        }
+    }
+    runs
 }
 
 /// The Morton (Z-order) key of a point of the normalised box [-1, 1]³, 21 bits per axis.

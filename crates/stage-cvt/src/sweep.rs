@@ -11,6 +11,7 @@
 //! with one thread or many. With one part the passes are the plain sequential ACVD sweep.
 
 use crate::energy::{Energy, Sums};
+use crate::engine::fan_runs;
 use coarsen_mesh::Topology;
 use coarsen_mesh::topology::NONE;
 use rayon::prelude::*;
@@ -59,49 +60,6 @@ impl<E: Energy + ?Sized> View<'_, E> {
     #[inline]
     fn label(&self, f: u32) -> u32 {
         self.labels[f as usize].load(Relaxed)
-    }
-
-    /// Around vertex `v`, the number of runs of faces of `from` without `t`, of `to`
-    /// without `t`, and of `to` with `t` (see `Clusterer::may_move`).
-    #[inline]
-    fn runs(&self, v: u32, from: u32, to: u32, t: u32) -> [u32; 3] {
-        let fan = self.topo.vertex_faces(v);
-        let member = |g: u32| -> u32 {
-            if g == t {
-                0b100
-            } else {
-                let l = self.label(g);
-                if l == from {
-                    0b001
-                } else if l == to {
-                    0b110
-                } else {
-                    0
-                }
-            }
-        };
-        let mut prev = match fan.last() {
-            Some(&g) if self.closed[v as usize] => member(g),
-            _ => 0,
-        };
-        let (mut runs, mut all) = ([0u32; 3], 0b111u32);
-        for &g in fan {
-            let m = member(g);
-            let starts = m & !prev;
-            for (i, r) in runs.iter_mut().enumerate() {
-                *r += (starts >> i) & 1;
-            }
-            all &= m;
-            prev = m;
-        }
-        if !fan.is_empty() {
-            for (i, r) in runs.iter_mut().enumerate() {
-                if *r == 0 && (all >> i) & 1 == 1 {
-                    *r = 1;
-                }
-            }
-        }
-        runs
     }
 
     /// Sweeps face `t` of `part` (whose label range holds `t`'s cluster): moves it to the
@@ -159,9 +117,13 @@ impl<E: Energy + ?Sized> View<'_, E> {
             return Some(false);
         };
         let allowed = a.count >= 1.5
-            && self.faces[t as usize]
+            && self.faces[t as usize].iter().all(|&v| {
+                fan_runs(self.topo, self.closed[v as usize], v, [from, to, t], |g| {
+                    self.label(g)
+                })
                 .iter()
-                .all(|&v| self.runs(v, from, to, t).iter().all(|&r| r <= 1));
+                .all(|&r| r <= 1)
+            });
         if !allowed {
             *refused += 1;
             return Some(false);

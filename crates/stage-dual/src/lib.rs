@@ -121,29 +121,8 @@ pub struct Dual {
 /// The dual triangulation of `mesh` clustered by `labels` (`0..n`): repairs the clustering
 /// where needed (the repaired labels are written back), places the vertices (projecting
 /// onto the indexed `surface`, or onto `mesh` itself when `None`), carries the vertex
-/// attributes.
+/// attributes. `topo` is `mesh`'s adjacency.
 pub fn dual(
-    mesh: &Mesh,
-    labels: &mut Vec<u32>,
-    placement: Placement,
-    surface: Option<&Facing<'_>>,
-    max_repair_rounds: u32,
-    relax_passes: u32,
-) -> Result<Dual, DualError> {
-    let topo = Topology::try_build(mesh).map_err(|e| DualError::NotManifold(e.to_string()))?;
-    dual_with(
-        mesh,
-        &topo,
-        labels,
-        placement,
-        surface,
-        max_repair_rounds,
-        relax_passes,
-    )
-}
-
-/// [`dual`] with the adjacency of `mesh` built by the caller.
-pub fn dual_with(
     mesh: &Mesh,
     topo: &Topology,
     labels: &mut Vec<u32>,
@@ -678,7 +657,7 @@ impl Stage for DualStage {
         let topo = cx
             .topology(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        let d = dual_with(
+        let d = dual(
             &mesh,
             &topo,
             &mut labels,

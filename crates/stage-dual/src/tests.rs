@@ -163,7 +163,16 @@ fn a_bad_clustering_is_repaired_with_the_count_kept() {
     let mut labels: Vec<u32> = (0..sphere.n_faces())
         .map(|f| (sphere.face_centroid(f).z > 0.0) as u32)
         .collect();
-    let e = dual(&sphere, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    let e = dual(
+        &sphere,
+        &Topology::build(&sphere),
+        &mut labels,
+        Placement::Projected,
+        None,
+        5,
+        2,
+    )
+    .unwrap_err();
     assert!(matches!(e, DualError::TooFew(_)), "{e}");
     // Rings around the north pole (three annuli round a cap) above latitude-longitude
     // cells: the annuli are not discs and must be split, paid for by merges of cells.
@@ -183,7 +192,16 @@ fn a_bad_clustering_is_repaired_with_the_count_kept() {
         })
         .collect();
     let n = 36;
-    let d = dual(&sphere, &mut labels, Placement::Projected, None, 40, 4).unwrap();
+    let d = dual(
+        &sphere,
+        &Topology::build(&sphere),
+        &mut labels,
+        Placement::Projected,
+        None,
+        40,
+        4,
+    )
+    .unwrap();
     assert!(d.stats.repairs >= 3, "{:?}", d.stats);
     assert!(d.stats.first_problems.not_disc >= 3, "{:?}", d.stats);
     check_valid(&sphere, &d.mesh, n, "bands");
@@ -241,12 +259,30 @@ fn real_meshes_give_valid_duals_with_exact_counts() {
 fn too_few_clusters_for_the_topology_are_refused_up_front() {
     let sphere = icosphere(1.0, 2).unwrap();
     let mut labels: Vec<u32> = (0..sphere.n_faces() as u32).map(|f| f % 3).collect();
-    let e = dual(&sphere, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    let e = dual(
+        &sphere,
+        &Topology::build(&sphere),
+        &mut labels,
+        Placement::Projected,
+        None,
+        5,
+        2,
+    )
+    .unwrap_err();
     assert!(matches!(e, DualError::TooFew(_)), "{e}");
     assert!(e.to_string().contains("needs at least 4"), "{e}");
     let disk = disk_with_holes(2, 5, 2.0).unwrap();
     let mut labels: Vec<u32> = (0..disk.n_faces() as u32).map(|f| f % 8).collect();
-    let e = dual(&disk, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    let e = dual(
+        &disk,
+        &Topology::build(&disk),
+        &mut labels,
+        Placement::Projected,
+        None,
+        5,
+        2,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("needs at least 9"), "{e}");
 }
 
@@ -391,8 +427,16 @@ fn clusters_fanned_onto_a_straight_row_get_a_dual_without_flat_triangles() {
         Placement::Quadric,
     ] {
         let mut labels: Vec<u32> = (0..nf as u32).collect();
-        let d = dual(&fan, &mut labels, placement, None, 5, 2)
-            .unwrap_or_else(|e| panic!("{placement:?}: {e}"));
+        let d = dual(
+            &fan,
+            &Topology::build(&fan),
+            &mut labels,
+            placement,
+            None,
+            5,
+            2,
+        )
+        .unwrap_or_else(|e| panic!("{placement:?}: {e}"));
         check_valid(&fan, &d.mesh, nf, &format!("{placement:?}"));
         assert!(d.degenerate_fixes > 0, "{placement:?}");
         let m = coarsen_metrics::measure(Some(&fan), &d.mesh, &Default::default()).unwrap();
@@ -423,7 +467,16 @@ fn a_boundary_loop_along_two_faces_has_no_dual_and_says_so() {
     faces.extend(quad.faces.iter().map(|f| f.map(|v| v + off)));
     let mesh = Mesh::new(positions, faces);
     let mut labels: Vec<u32> = (0..mesh.n_faces() as u32).map(|f| f % 20).collect();
-    let e = dual(&mesh, &mut labels, Placement::Projected, None, 5, 2).unwrap_err();
+    let e = dual(
+        &mesh,
+        &Topology::build(&mesh),
+        &mut labels,
+        Placement::Projected,
+        None,
+        5,
+        2,
+    )
+    .unwrap_err();
     assert!(matches!(e, DualError::NoDual(_)), "{e}");
     assert!(e.to_string().contains("runs along only 2 faces"), "{e}");
     let mut report = StageReport::default();

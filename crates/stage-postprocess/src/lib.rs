@@ -175,7 +175,7 @@ impl Stage for Postprocess {
             Some(t) => t,
             None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,
         };
-        let dual = coarsen_stage_dual::dual_with(
+        let dual = coarsen_stage_dual::dual(
             &fine,
             &topo,
             &mut labels,

@@ -205,7 +205,7 @@ impl SvecModel {
     /// The quadric Qᵢ of face `f` (unit-diagonal units).
     pub fn face_quadric(&self, f: Index) -> Quadric {
         let fi = f as usize;
-        plane_quadric(
+        Quadric::from_plane_offset(
             self.face[fi].normal,
             self.face[fi].offset,
             self.face[fi].weight,
@@ -217,7 +217,7 @@ impl SvecModel {
         let fi = f as usize;
         let s = self.face[fi].area;
         let plain = s * s / 9.0 * self.scale * self.scale;
-        plane_quadric(self.face[fi].normal, self.face[fi].offset, plain)
+        Quadric::from_plane_offset(self.face[fi].normal, self.face[fi].offset, plain)
     }
 
     /// Normal, area and corner angles of face `f` from the current positions.
@@ -371,24 +371,6 @@ impl SvecModel {
     }
 }
 
-/// `weight · (n·v + d)²`: the quadric of the plane n·v + d = 0 (unit `n`), computed as
-/// `Quadric::from_plane` does, so that a plane kept as (n, d) gives the same numbers.
-#[inline]
-fn plane_quadric(n: DVec3, d: f64, w: f64) -> Quadric {
-    Quadric {
-        a: [
-            w * n.x * n.x,
-            w * n.x * n.y,
-            w * n.x * n.z,
-            w * n.y * n.y,
-            w * n.y * n.z,
-            w * n.z * n.z,
-        ],
-        b: w * d * n,
-        c: w * d * d,
-    }
-}
-
 /// mean + `sigma` · standard deviation of `values` (∞ when empty).
 fn mean_plus_sigma(values: &[f64], sigma: f64) -> f64 {
     if values.is_empty() {
@@ -490,9 +472,9 @@ mod tests {
         let n = DVec3::new(0.3, -0.4, 0.5).normalize();
         let point = DVec3::new(1.7, -2.3, 0.9);
         let w = 0.37;
-        let q = plane_quadric(n, -n.dot(point), w);
+        let q = Quadric::from_plane_offset(n, -n.dot(point), w);
         assert_eq!(q, Quadric::from_plane(n, point, w));
-        assert_ne!(q, plane_quadric(n, -n.dot(point), 2.0 * w));
+        assert_ne!(q, Quadric::from_plane_offset(n, -n.dot(point), 2.0 * w));
     }
 
     #[test]
