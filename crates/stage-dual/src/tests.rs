@@ -4,6 +4,25 @@ use coarsen_shapes::{disk_with_holes, icosphere, plane_grid, torus};
 use coarsen_stage::{AttrValues, StageReport};
 use coarsen_stage_cvt::{ClusterCvt, CvtParams, EnergyKind, SplitMix64};
 
+/// [`dual`] of `mesh` with its own adjacency, placed without an input surface.
+fn dual_on(
+    mesh: &Mesh,
+    labels: &mut Vec<u32>,
+    placement: Placement,
+    rounds: u32,
+    relax_passes: u32,
+) -> Result<Dual, DualError> {
+    dual(
+        mesh,
+        &Topology::build(mesh),
+        labels,
+        placement,
+        None,
+        rounds,
+        relax_passes,
+    )
+}
+
 /// Clusters `mesh` into `n` and takes the dual with `placement`.
 fn coarsen(
     mesh: &Mesh,
@@ -163,16 +182,7 @@ fn a_bad_clustering_is_repaired_with_the_count_kept() {
     let mut labels: Vec<u32> = (0..sphere.n_faces())
         .map(|f| (sphere.face_centroid(f).z > 0.0) as u32)
         .collect();
-    let e = dual(
-        &sphere,
-        &Topology::build(&sphere),
-        &mut labels,
-        Placement::Projected,
-        None,
-        5,
-        2,
-    )
-    .unwrap_err();
+    let e = dual_on(&sphere, &mut labels, Placement::Projected, 5, 2).unwrap_err();
     assert!(matches!(e, DualError::TooFew(_)), "{e}");
     // Rings around the north pole (three annuli round a cap) above latitude-longitude
     // cells: the annuli are not discs and must be split, paid for by merges of cells.
@@ -192,16 +202,7 @@ fn a_bad_clustering_is_repaired_with_the_count_kept() {
         })
         .collect();
     let n = 36;
-    let d = dual(
-        &sphere,
-        &Topology::build(&sphere),
-        &mut labels,
-        Placement::Projected,
-        None,
-        40,
-        4,
-    )
-    .unwrap();
+    let d = dual_on(&sphere, &mut labels, Placement::Projected, 40, 4).unwrap();
     assert!(d.stats.repairs >= 3, "{:?}", d.stats);
     assert!(d.stats.first_problems.not_disc >= 3, "{:?}", d.stats);
     check_valid(&sphere, &d.mesh, n, "bands");
@@ -259,30 +260,12 @@ fn real_meshes_give_valid_duals_with_exact_counts() {
 fn too_few_clusters_for_the_topology_are_refused_up_front() {
     let sphere = icosphere(1.0, 2).unwrap();
     let mut labels: Vec<u32> = (0..sphere.n_faces() as u32).map(|f| f % 3).collect();
-    let e = dual(
-        &sphere,
-        &Topology::build(&sphere),
-        &mut labels,
-        Placement::Projected,
-        None,
-        5,
-        2,
-    )
-    .unwrap_err();
+    let e = dual_on(&sphere, &mut labels, Placement::Projected, 5, 2).unwrap_err();
     assert!(matches!(e, DualError::TooFew(_)), "{e}");
     assert!(e.to_string().contains("needs at least 4"), "{e}");
     let disk = disk_with_holes(2, 5, 2.0).unwrap();
     let mut labels: Vec<u32> = (0..disk.n_faces() as u32).map(|f| f % 8).collect();
-    let e = dual(
-        &disk,
-        &Topology::build(&disk),
-        &mut labels,
-        Placement::Projected,
-        None,
-        5,
-        2,
-    )
-    .unwrap_err();
+    let e = dual_on(&disk, &mut labels, Placement::Projected, 5, 2).unwrap_err();
     assert!(e.to_string().contains("needs at least 9"), "{e}");
 }
 
@@ -427,16 +410,8 @@ fn clusters_fanned_onto_a_straight_row_get_a_dual_without_flat_triangles() {
         Placement::Quadric,
     ] {
         let mut labels: Vec<u32> = (0..nf as u32).collect();
-        let d = dual(
-            &fan,
-            &Topology::build(&fan),
-            &mut labels,
-            placement,
-            None,
-            5,
-            2,
-        )
-        .unwrap_or_else(|e| panic!("{placement:?}: {e}"));
+        let d = dual_on(&fan, &mut labels, placement, 5, 2)
+            .unwrap_or_else(|e| panic!("{placement:?}: {e}"));
         check_valid(&fan, &d.mesh, nf, &format!("{placement:?}"));
         assert!(d.degenerate_fixes > 0, "{placement:?}");
         let m = coarsen_metrics::measure(Some(&fan), &d.mesh, &Default::default()).unwrap();
@@ -467,16 +442,7 @@ fn a_boundary_loop_along_two_faces_has_no_dual_and_says_so() {
     faces.extend(quad.faces.iter().map(|f| f.map(|v| v + off)));
     let mesh = Mesh::new(positions, faces);
     let mut labels: Vec<u32> = (0..mesh.n_faces() as u32).map(|f| f % 20).collect();
-    let e = dual(
-        &mesh,
-        &Topology::build(&mesh),
-        &mut labels,
-        Placement::Projected,
-        None,
-        5,
-        2,
-    )
-    .unwrap_err();
+    let e = dual_on(&mesh, &mut labels, Placement::Projected, 5, 2).unwrap_err();
     assert!(matches!(e, DualError::NoDual(_)), "{e}");
     assert!(e.to_string().contains("runs along only 2 faces"), "{e}");
     let mut report = StageReport::default();
