@@ -1,10 +1,10 @@
 //! Running a checked pipeline on a mesh.
 //!
-//! Before a stage that needs a manifold mesh, and before a collapse stage (one that records
-//! its collapses), non-manifold vertices (several face fans at one point) are split into one
-//! vertex per fan, with a warning in that stage's report. Edges of three or more faces stop
-//! a stage that needs a manifold mesh with [`RunError::NotManifold`]; a collapse stage gets
-//! a mesh with such edges as it is (its engine locks their vertices).
+//! Before a stage that needs a manifold mesh or asks for it (`Needs::split_fans`, the
+//! collapse stages), non-manifold vertices (several face fans at one point) are split into
+//! one vertex per fan, with a warning in that stage's report. Edges of three or more faces
+//! stop a stage that needs a manifold mesh with [`RunError::NotManifold`]; a stage that only
+//! asks for the split gets a mesh with such edges as it is.
 
 use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, sanity};
@@ -134,9 +134,7 @@ impl Pipeline {
                         error: StageError::Input(e.to_string()),
                     })
             };
-            // Collapse stages (those that record their collapses) lock what is not manifold,
-            // so they get the split too, and keep running with edges of three or more faces.
-            if contract.needs.manifold || s.stage.records_collapses() {
+            if contract.needs.manifold || contract.needs.split_fans {
                 let mut summary = summary_of(&mesh)?;
                 if summary.n_non_manifold_vertices > 0 && summary.n_non_manifold_edges == 0 {
                     // One vertex per face fan makes non-manifold vertices workable.

@@ -70,6 +70,7 @@ impl Stage for DropHigh {
             reads: vec![AttrRef::vertex(self.0.field.clone(), AttrKind::Scalar)],
             needs: Needs {
                 target: true,
+                split_fans: true,
                 ..Default::default()
             },
             ..Default::default()

@@ -171,8 +171,11 @@ impl Stage for SimplifySvec {
 
     fn contract(&self) -> Contract {
         Contract {
+            // The engine locks what is not manifold: pinched vertices split per fan let it
+            // work there.
             needs: Needs {
                 target: true,
+                split_fans: true,
                 ..Needs::default()
             },
             ..Contract::default()

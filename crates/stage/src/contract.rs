@@ -49,6 +49,9 @@ pub struct Needs {
     pub manifold: bool,
     /// The stage needs a run target (`--vertices`, `--faces`, `--ratio` or the pipeline's).
     pub target: bool,
+    /// Vertices where several face fans meet are split into one vertex per fan before the
+    /// stage; edges of three or more faces are left as they are (implied by `manifold`).
+    pub split_fans: bool,
 }
 
 /// A stage's declared data flow.
