@@ -167,19 +167,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 Sums::of(w, triangle::centroid(a, b, c))
             })
             .collect();
-        let nbr = (0..nf as u32)
-            .into_par_iter()
-            .map(|f| {
-                topo.face_edges(f).map(|e| {
-                    let ef = topo.edge_faces(e);
-                    if ef.len() == 2 {
-                        if ef[0] == f { ef[1] } else { ef[0] }
-                    } else {
-                        NONE
-                    }
-                })
-            })
-            .collect();
+        let nbr = face_neighbors(topo, nf);
         let closed = (0..topo.n_vertices() as u32)
             .into_par_iter()
             .map(|v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
@@ -202,12 +190,6 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// `tolerance` times its value (0, the default, stops only when nothing moves).
     pub fn set_tolerance(&mut self, tolerance: f64) {
         self.tolerance = tolerance;
-    }
-
-    /// The face across edge `i` (corner i → i+1) of face `f`, or `NONE`.
-    #[inline]
-    pub fn neighbor(&self, f: u32, i: usize) -> u32 {
-        self.nbr[f as usize][i]
     }
 
     /// The cluster of every face.
@@ -551,6 +533,27 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         }
         pieces.iter().map(|&p| p == 1).collect()
     }
+}
+
+/// Per face of `topo` (which has `n_faces` faces), the face across each edge (corner
+/// i → i+1) when the edge has exactly two faces, else `NONE`.
+pub fn face_neighbors(topo: &Topology, n_faces: usize) -> Vec<[u32; 3]> {
+    (0..n_faces as u32)
+        .into_par_iter()
+        .map(|f| {
+            topo.face_edges(f)
+                .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
+                    Some(&[a, b]) => {
+                        if a == f {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                    _ => NONE,
+                })
+        })
+        .collect()
 }
 
 /// Around vertex `v` (of `topo`, `closed` when its faces form one closed fan), the number

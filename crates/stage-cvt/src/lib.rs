@@ -60,7 +60,7 @@ pub mod engine;
 mod sweep;
 
 pub use energy::{Energy, Shu2009, Sums, Valette2004};
-pub use engine::{ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids};
+pub use engine::{ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids, face_neighbors};
 
 use coarsen_mesh::Topology;
 use coarsen_stage::params::check_range;
@@ -130,14 +130,6 @@ pub struct Clustering {
     pub n: usize,
     /// Passes, moves and energies.
     pub log: PassLog,
-}
-
-/// The energy named by `kind` with exponent `r`.
-pub fn make_energy(kind: EnergyKind, r: f64) -> Box<dyn Energy> {
-    match kind {
-        EnergyKind::Shu2009 => Box::new(Shu2009 { r }),
-        EnergyKind::Valette2004 => Box::new(Valette2004),
-    }
 }
 
 /// Clusters the faces of `mesh` into `n` connected clusters (seeding and minimisation);

@@ -2,7 +2,7 @@
 
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
-use coarsen_stage_cvt::{Clusterer, Valette2004};
+use coarsen_stage_cvt::{Clusterer, Valette2004, face_neighbors};
 use std::collections::VecDeque;
 
 /// Why a dual triangulation could not be made.
@@ -537,26 +537,6 @@ pub(crate) fn repaired_dual(
         }
     }
     Err(DualError::Unrepaired("no rounds".into()))
-}
-
-/// Per face, the face across each edge (corner i → i+1) when the edge has two faces, else
-/// `NONE`.
-fn face_neighbors(topo: &Topology, n_faces: usize) -> Vec<[u32; 3]> {
-    (0..n_faces as u32)
-        .map(|f| {
-            topo.face_edges(f)
-                .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
-                    Some(&[a, b]) => {
-                        if a == f {
-                            b
-                        } else {
-                            a
-                        }
-                    }
-                    _ => NONE,
-                })
-        })
-        .collect()
 }
 
 /// Relabels `labels` to `0..m` in order of first use; returns m.
