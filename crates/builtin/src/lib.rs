@@ -50,6 +50,7 @@ pub const PIPELINES: &[(&str, &str)] = &[
         include_str!("../../../pipelines/curvature.toml"),
     ),
     ("demo", include_str!("../../../pipelines/demo.toml")),
+    ("goal", include_str!("../../../pipelines/goal.toml")),
     ("metrics", include_str!("../../../pipelines/metrics.toml")),
     ("qem", include_str!("../../../pipelines/qem.toml")),
     ("refine", include_str!("../../../pipelines/refine.toml")),
