@@ -161,15 +161,20 @@ pub(crate) fn count_flipped(
 /// The indexes of an input surface that [`Facing`] reads: its adjacency and face hierarchy.
 /// Owns no reference to the mesh, so a run can build it once and share it.
 pub struct SurfaceIndex {
-    topo: Topology,
+    topo: Arc<Topology>,
     bvh: Bvh,
 }
 
 impl SurfaceIndex {
     /// Indexes `input` (its faces and adjacency).
     pub fn new(input: &Mesh) -> Self {
+        SurfaceIndex::with_topology(input, Arc::new(Topology::build(input)))
+    }
+
+    /// Indexes the faces of `input`, whose adjacency `topo` was built earlier.
+    pub fn with_topology(input: &Mesh, topo: Arc<Topology>) -> Self {
         SurfaceIndex {
-            topo: Topology::build(input),
+            topo,
             bvh: Bvh::build(&input.positions, &input.faces),
         }
     }

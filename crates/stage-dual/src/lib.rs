@@ -657,14 +657,20 @@ impl Stage for DualStage {
         let topo = cx
             .topology(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        let facing = match cx.original.n_faces() {
+            0 => None,
+            _ => Some(Facing::with_index(
+                cx.original,
+                cx.input_index_with_topology(SurfaceIndex::with_topology)
+                    .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?,
+            )),
+        };
         let d = dual(
             &mesh,
             &topo,
             &mut labels,
             p.placement,
-            (cx.original.n_faces() > 0)
-                .then(|| Facing::with_index(cx.original, cx.input_index(SurfaceIndex::new)))
-                .as_ref(),
+            facing.as_ref(),
             p.max_repair_rounds,
             p.relax_passes,
         )

@@ -165,12 +165,14 @@ impl Stage for Postprocess {
         let log = log.unwrap_or_default();
         // 3. Dual again.
         // One index of the run's input serves the dual's placement and the projection.
-        let facing = (p.project && cx.original.n_faces() > 0).then(|| {
-            coarsen_metrics::Facing::with_index(
+        let facing = match p.project && cx.original.n_faces() > 0 {
+            false => None,
+            true => Some(coarsen_metrics::Facing::with_index(
                 cx.original,
-                cx.input_index(coarsen_metrics::SurfaceIndex::new),
-            )
-        });
+                cx.input_index_with_topology(coarsen_metrics::SurfaceIndex::with_topology)
+                    .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?,
+            )),
+        };
         let topo = match level_topo {
             Some(t) => t,
             None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,

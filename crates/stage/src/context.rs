@@ -186,6 +186,27 @@ impl<'a> Context<'a> {
         }
     }
 
+    /// Like [`Context::input_index`], for a value built from the run input and its
+    /// adjacency ([`Context::input_topology`]).
+    pub fn input_index_with_topology<T: std::any::Any + Send + Sync>(
+        &self,
+        build: impl FnOnce(&Mesh, std::sync::Arc<coarsen_mesh::Topology>) -> T,
+    ) -> Result<std::sync::Arc<T>, coarsen_mesh::TopologyError> {
+        let topo = self.input_topology()?;
+        Ok(self.input_index(|m| build(m, topo)))
+    }
+
+    /// The adjacency of the run input ([`Context::original`]), built at most once per run
+    /// (and not at all when the adjacency kept between stages is the input's).
+    pub fn input_topology(
+        &self,
+    ) -> Result<std::sync::Arc<coarsen_mesh::Topology>, coarsen_mesh::TopologyError> {
+        match self.shared {
+            Some(s) => s.input_topology(self.original),
+            None => coarsen_mesh::Topology::try_build(self.original).map(std::sync::Arc::new),
+        }
+    }
+
     /// The run target, checked, and as a count: vertex targets stay vertex counts; face
     /// targets and ratios become face counts (a ratio counts the run input's faces,
     /// wherever the stage stands). Errors name the stage.

@@ -22,6 +22,7 @@ struct Adjacency {
 pub struct Shared {
     input: Mutex<Vec<(TypeId, Entry)>>,
     adjacency: Mutex<Option<Adjacency>>,
+    input_topology: Mutex<Option<Arc<Topology>>>,
 }
 
 impl Shared {
@@ -43,6 +44,31 @@ impl Shared {
         let v = Arc::new(build());
         input.push((key, Arc::clone(&v) as Entry));
         v
+    }
+
+    /// The adjacency of the run input `input`: built once per run, or taken from the
+    /// adjacency kept for the next stage when that was built from the input's faces.
+    pub fn input_topology(&self, input: &Mesh) -> Result<Arc<Topology>, TopologyError> {
+        let mut slot = self
+            .input_topology
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if let Some(t) = slot.as_ref() {
+            return Ok(Arc::clone(t));
+        }
+        let kept = self
+            .adjacency
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_ref()
+            .filter(|a| a.n_vertices == input.n_vertices() && a.faces == input.faces)
+            .map(|a| Arc::clone(&a.topology));
+        let t = match kept {
+            Some(t) => t,
+            None => Arc::new(Topology::try_build(input)?),
+        };
+        *slot = Some(Arc::clone(&t));
+        Ok(t)
     }
 
     /// Drops the adjacency kept for the next stage (before a stage that keeps its own, so
@@ -106,6 +132,26 @@ mod tests {
         });
         let c = shared.input_index(|| "other type");
         assert_eq!((*a, *b, *c, builds), (7, 7, "other type", 1));
+    }
+
+    #[test]
+    fn the_input_topology_is_taken_from_the_kept_adjacency_when_the_faces_match() {
+        let shared = Shared::new();
+        let input = two_triangles();
+        let kept = shared.topology(&input).unwrap();
+        let t = shared.input_topology(&input).unwrap();
+        assert!(Arc::ptr_eq(&kept, &t));
+        // Once taken, it stays the input's even after the kept adjacency moves on.
+        let mut other = input.clone();
+        other.faces.pop();
+        shared.topology(&other).unwrap();
+        assert!(Arc::ptr_eq(&shared.input_topology(&input).unwrap(), &t));
+
+        let fresh = Shared::new();
+        fresh.topology(&other).unwrap();
+        let built = fresh.input_topology(&input).unwrap();
+        assert_eq!(built.n_faces(), 2);
+        assert!(Arc::ptr_eq(&fresh.input_topology(&input).unwrap(), &built));
     }
 
     #[test]
