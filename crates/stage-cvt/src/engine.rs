@@ -264,7 +264,9 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             });
         }
         // Faces of each component along the Morton curve (CSR by component).
+        // Keys are distinct (the face is one), so the parallel sort is deterministic.
         let mut order: Vec<(u32, u64, u32)> = (0..nf)
+            .into_par_iter()
             .map(|f| {
                 (
                     comp[f],
@@ -273,7 +275,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 )
             })
             .collect();
-        order.sort_unstable();
+        order.par_sort_unstable();
         let mut off = vec![0usize; nc + 1];
         comp.iter().for_each(|&c| off[c as usize + 1] += 1);
         for i in 0..nc {
