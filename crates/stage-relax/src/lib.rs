@@ -780,8 +780,14 @@ impl Stage for Relax {
     }
 
     fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
-        let surface = (self.0.project && cx.original.n_faces() > 0)
-            .then(|| Surface::with_index(cx.original, cx.input_index(SurfaceIndex::new)));
+        let surface = match self.0.project && cx.original.n_faces() > 0 {
+            false => None,
+            true => Some(Surface::with_index(
+                cx.original,
+                cx.input_index_with_topology(SurfaceIndex::with_topology)
+                    .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?,
+            )),
+        };
         let r = relax(&mut mesh, surface.as_ref(), &self.0);
         cx.report.figure("moved", &r.moved);
         cx.report.figure("flipped", &r.flipped);
