@@ -47,22 +47,26 @@ fn farthest(input: &coarsen_mesh::Mesh, out: &coarsen_mesh::Mesh) {
     ] {
         let index = coarsen_metrics::Facing::new(to);
         let topo = coarsen_mesh::Topology::build(from);
-        let mut d: Vec<(f64, usize, bool)> = (0..from.n_vertices())
+        let mut d: Vec<(f64, usize, bool, coarsen_geom::DVec3)> = (0..from.n_vertices())
             .map(|v| (from.positions[v], v, topo.is_boundary_vertex(v as u32)))
-            .chain((0..from.n_faces()).map(|f| (from.face_centroid(f), usize::MAX - f, false)))
+            .chain((0..from.n_faces()).flat_map(|f| {
+                // A barycentric grid of 10 points inside each face.
+                let [a, b, c] = from.corners(f);
+                (0..4)
+                    .flat_map(move |i| (0..4 - i).map(move |j| (i, j)))
+                    .map(move |(i, j)| {
+                        let (u, v) = ((i as f64 + 0.5) / 4.5, (j as f64 + 0.5) / 4.5);
+                        (a + u * (b - a) + v * (c - a), usize::MAX - f, false)
+                    })
+            }))
             .map(|(p, i, b)| {
                 let q = index.bvh().closest_point(p).unwrap().point;
-                (100.0 * p.distance(q) / diag, i, b)
+                (100.0 * p.distance(q) / diag, i, b, p)
             })
             .collect();
         d.sort_by(|a, b| b.0.total_cmp(&a.0));
         println!("{name}:");
-        for (x, i, b) in d.iter().take(8) {
-            let p = if *i > from.n_vertices() {
-                from.face_centroid(usize::MAX - i)
-            } else {
-                from.positions[*i]
-            };
+        for (x, i, b, p) in d.iter().take(8) {
             println!(
                 "  {x:.3} % at {p:.4} {}",
                 if *b {
@@ -98,6 +102,8 @@ fn main() {
             "flips" => p.flips = v.parse().unwrap(),
             "floor_deg" => p.floor_deg = v.parse().unwrap(),
             "rebalance" => p.rebalance = v.parse().unwrap(),
+            "fit" => p.fit = v.parse().unwrap(),
+            "max_dev_pct" => p.max_dev_pct = v.parse().unwrap(),
             "fidelity" => fidelity = v.parse().unwrap(),
             "where" => locate = v.parse().unwrap(),
             _ => panic!("unknown key {k}"),
@@ -114,11 +120,12 @@ fn main() {
     let r = relax(&mut m, Some(&surface), &p);
     let t2 = t.elapsed().as_secs_f64();
     println!(
-        "index {t1:.3} s, relax {:.3} s; moved {:?} flipped {:?} rebalanced {}",
+        "index {t1:.3} s, relax {:.3} s; moved {:?} flipped {:?} rebalanced {} fitted {}",
         t2 - t1,
         r.moved,
         r.flipped,
-        r.rebalanced
+        r.rebalanced,
+        r.fitted
     );
     show("after ", &input, &m, fidelity);
     if let Some(o) = out {

@@ -31,17 +31,28 @@
 //! had) is collapsed; its vertex index is reused, so the vertex count stays exact and
 //! attributes follow through `Mesh::rebuilt`.
 //!
+//! With `fit` > 0, after rebalancing, the input points farthest from the mesh (its
+//! vertices, edge midpoints and points inside its faces; beyond `max_dev_pct` when set) get
+//! a vertex: a split at that point paired with the collapse that moves the surface least
+//! elsewhere, or a nearby vertex pulled there; new angles may dip to 0.8 of the floor (or of
+//! the smallest angle) for the sweeps to lift.
+//!
+//! With `max_dev_pct` > 0 the sweeps keep fidelity: a move or a flip is refused when an
+//! input point near the faces it changes would end farther than that bound from them (or,
+//! if already farther, farther than it was).
+//!
 //! The report gives `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep),
-//! `rebalanced` (split/collapse pairs) and `min_angle_before` / `min_angle_after` in
-//! degrees.
+//! `rebalanced` (split/collapse pairs), `fitted` (fidelity edits, when `fit` is on) and
+//! `min_angle_before` / `min_angle_after` in degrees.
 
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
 use coarsen_metrics::{Facing, SurfaceIndex};
-use coarsen_spatial::closest_point_on_segment;
+use coarsen_spatial::{Bvh, closest_point_on_segment, closest_point_on_triangle};
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, params,
 };
+use rayon::prelude::*;
 use std::sync::Arc;
 
 params! {
@@ -65,6 +76,15 @@ params! {
         /// joining two boundary points (a narrow strip between holes gets a middle row) and
         /// collapses a short edge elsewhere, so the vertex count stays. 0 = none.
         pub rebalance: u32 = 0,
+        /// At most this many fidelity edits before the sweeps (after rebalancing): where the
+        /// input lies farthest from the mesh (beyond `max_dev_pct`) a new vertex goes there
+        /// and an edge is collapsed where that moves the surface least, or a nearby vertex
+        /// is pulled there; the vertex count stays. 0 = none.
+        pub fit: u32 = 0,
+        /// Moves and flips may not leave a point of the input farther than this from the
+        /// mesh (percent of the input's bounding-box diagonal), nor one already farther,
+        /// farther still; `fit` works on the points beyond it. 0 = no bound.
+        pub max_dev_pct: f64 = 0.0,
     }
 }
 
@@ -76,6 +96,8 @@ impl Params for RelaxParams {
         coarsen_stage::params::check_range(&mut v, "max_turn_deg", self.max_turn_deg, 0.0, 90.0);
         coarsen_stage::params::check_range(&mut v, "floor_deg", self.floor_deg, 0.0, 60.0);
         coarsen_stage::params::check_range(&mut v, "rebalance", self.rebalance, 0, 100_000);
+        coarsen_stage::params::check_range(&mut v, "fit", self.fit, 0, 100_000);
+        coarsen_stage::params::check_range(&mut v, "max_dev_pct", self.max_dev_pct, 0.0, 100.0);
         v
     }
 }
@@ -89,6 +111,8 @@ pub struct Relaxed {
     pub flipped: Vec<usize>,
     /// Rebalancing pairs made (one split and one collapse each).
     pub rebalanced: usize,
+    /// Fidelity edits made (split/collapse pairs at far input points, and pulls).
+    pub fitted: usize,
     /// Smallest angle of the mesh before, in degrees.
     pub min_angle_before: f64,
     /// Smallest angle of the mesh after, in degrees.
@@ -127,6 +151,7 @@ fn fan_shape(
 
 /// The surface vertices are kept on: the input mesh, its face index and its boundary edges.
 pub struct Surface<'a> {
+    mesh: &'a Mesh,
     facing: Facing<'a>,
     boundary: Vec<[DVec3; 2]>,
 }
@@ -145,7 +170,11 @@ impl<'a> Surface<'a> {
             .filter(|&e| t.is_boundary_edge(e))
             .map(|e| t.edge(e).map(|v| mesh.positions[v as usize]))
             .collect();
-        Surface { facing, boundary }
+        Surface {
+            mesh,
+            facing,
+            boundary,
+        }
     }
 
     /// The nearest point of the surface.
@@ -175,12 +204,14 @@ impl<'a> Surface<'a> {
 /// One sweep of edge flips over `mesh` (in edge order, each face flipped at most once):
 /// the interior edge a–b of faces abc and bad becomes c–d when the smallest angle of the
 /// two faces grows, c–d is not an edge yet, neither new face turns by more than `cos_turn`
-/// from the face it replaces, and both agree with `surface`. `topo` is `mesh`'s adjacency
-/// before the sweep. Returns the flips made.
+/// from the face it replaces, both agree with `surface`, and the input points `watch` keeps
+/// near the two faces stay near the new ones. `topo` is `mesh`'s adjacency before the sweep.
+/// Returns the flips made.
 fn flip_sweep(
     mesh: &mut Mesh,
     topo: &Topology,
     surface: Option<&Surface<'_>>,
+    watch: Option<&Watch>,
     cos_turn: f64,
     floor: f64,
 ) -> usize {
@@ -242,7 +273,12 @@ fn flip_sweep(
             n_old.iter().all(|o| n.dot(*o) >= cos_turn)
                 && surface.is_none_or(|s| s.agrees(p(f[0]), p(f[1]), p(f[2])))
         });
-        if !ok {
+        if !ok
+            || watch.is_some_and(|w| {
+                let tris = new.map(|f| f.map(p));
+                !w.allows(ef, &tris)
+            })
+        {
             continue;
         }
         let (f1, f2) = (ef[0] as usize, ef[1] as usize);
@@ -275,6 +311,18 @@ fn after_edge(mesh: &Mesh, f: u32, x: u32, y: u32) -> Option<u32> {
     (0..3)
         .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
         .map(|i| t[(i + 2) % 3])
+}
+
+/// Half of each of two vertices' origins.
+fn blend_origins(x: &[(u32, f64)], y: &[(u32, f64)]) -> Vec<(u32, f64)> {
+    let mut out: Vec<(u32, f64)> = Vec::new();
+    for &(v, w) in x.iter().chain(y) {
+        match out.iter_mut().find(|(u, _)| *u == v) {
+            Some(e) => e.1 += 0.5 * w,
+            None => out.push((v, 0.5 * w)),
+        }
+    }
+    out
 }
 
 /// A planned collapse of edge `keep`–`gone` into `keep` at `at`, freeing the faces `freed`.
@@ -582,6 +630,649 @@ fn rebalance(
     done
 }
 
+/// Points of the input whose distance to `mesh` is watched (true: on the boundary): its
+/// used vertices, edge midpoints, face centroids and the points halfway from each centroid
+/// to a corner; only those farther than `min_dist` from `mesh`.
+fn input_samples(surface: &Surface<'_>, mesh: &Mesh, min_dist: f64) -> Vec<(DVec3, bool)> {
+    let input = surface.mesh;
+    let t = surface.facing.topology();
+    let mut samples: Vec<(DVec3, bool)> = (0..input.n_vertices() as u32)
+        .filter(|&v| !t.is_isolated_vertex(v))
+        .map(|v| (input.positions[v as usize], t.is_boundary_vertex(v)))
+        .collect();
+    samples.extend((0..t.n_edges() as u32).map(|e| {
+        let [a, b] = t.edge(e);
+        let mid = input.positions[a as usize].lerp(input.positions[b as usize], 0.5);
+        (mid, t.is_boundary_edge(e))
+    }));
+    for f in 0..input.n_faces() {
+        let [a, b, c] = input.corners(f);
+        let g = (a + b + c) / 3.0;
+        samples.extend([g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(c, 0.5)].map(|q| (q, false)));
+    }
+    if mesh.n_faces() == 0 {
+        return samples;
+    }
+    let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+    // In parallel; `collect` keeps the order, so the result is the same on any thread count.
+    samples
+        .into_par_iter()
+        .filter(|(q, _)| {
+            bvh.closest_point(*q)
+                .is_none_or(|h| h.distance() > min_dist)
+        })
+        .collect()
+}
+
+/// Input points nearer the mesh than this fraction of `max_dev_pct` are not watched (a
+/// move or a flip changes the surface too little to take them beyond it).
+const WATCH_FROM: f64 = 0.5;
+
+/// The input points the sweeps keep near the mesh (`max_dev_pct`), grouped by the mesh
+/// face nearest to each.
+struct Watch {
+    /// The points.
+    samples: Vec<DVec3>,
+    /// The bound.
+    tol: f64,
+    /// Where each face's points start in `ids` (one more entry than faces).
+    offsets: Vec<u32>,
+    /// Point indices, face by face.
+    ids: Vec<u32>,
+    /// Each point's distance to the mesh when grouped.
+    dist: Vec<f64>,
+}
+
+impl Watch {
+    /// The points `samples` (from [`input_samples`]), kept within `tol`.
+    fn new(samples: &[(DVec3, bool)], tol: f64) -> Watch {
+        Watch {
+            samples: samples.iter().map(|x| x.0).collect(),
+            tol,
+            offsets: Vec::new(),
+            ids: Vec::new(),
+            dist: Vec::new(),
+        }
+    }
+
+    /// Groups the points by their nearest face of `mesh`.
+    fn assign(&mut self, mesh: &Mesh) {
+        let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+        let near: Vec<(u32, f64)> = self
+            .samples
+            .par_iter()
+            .map(|&q| {
+                bvh.closest_point(q)
+                    .map_or((u32::MAX, 0.0), |h| (h.face, h.distance()))
+            })
+            .collect();
+        let mut counts = vec![0u32; mesh.n_faces() + 1];
+        for &(f, _) in &near {
+            if (f as usize) < mesh.n_faces() {
+                counts[f as usize + 1] += 1;
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let mut fill = counts.clone();
+        self.ids = vec![0; counts[mesh.n_faces()] as usize];
+        for (i, &(f, _)) in near.iter().enumerate() {
+            if (f as usize) < mesh.n_faces() {
+                self.ids[fill[f as usize] as usize] = i as u32;
+                fill[f as usize] += 1;
+            }
+        }
+        self.offsets = counts;
+        self.dist = near.into_iter().map(|x| x.1).collect();
+    }
+
+    /// True when every point grouped on `faces` stays within the bound (or within its
+    /// distance when grouped) of the triangles `tris` that replace them.
+    fn allows(&self, faces: &[u32], tris: &[[DVec3; 3]]) -> bool {
+        faces.iter().all(|&f| {
+            let (a, b) = (self.offsets[f as usize], self.offsets[f as usize + 1]);
+            self.ids[a as usize..b as usize].iter().all(|&i| {
+                let limit = self.tol.max(self.dist[i as usize]) * (1.0 + 1e-9);
+                distance_to(self.samples[i as usize], tris) <= limit
+            })
+        })
+    }
+}
+
+/// [`fit`] splits, in one round, only where the input lies at least this fraction of the
+/// round's largest distance from the mesh.
+const FIT_BAND: f64 = 0.7;
+/// A collapse made by [`fit`] may move the surface by at most this fraction of the distance
+/// its split removes (or by `max_dev_pct`, whichever is larger).
+const FIT_TRADE: f64 = 0.5;
+/// Without `max_dev_pct`, [`fit`] works on the input points farther from the mesh than
+/// this fraction of the farthest.
+const FIT_FROM: f64 = 0.5;
+/// [`fit`]'s new faces keep at least this fraction of the smaller of `floor_deg` and the
+/// mesh's smallest angle (the sweeps after it lift them again).
+const FIT_GUARD: f64 = 0.8;
+
+/// Distance from `p` to the nearest of the triangles `tris` (infinite when there is none).
+fn distance_to(p: DVec3, tris: &[[DVec3; 3]]) -> f64 {
+    tris.iter()
+        .map(|[a, b, c]| closest_point_on_triangle(p, *a, *b, *c).0.distance(p))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// True when the centroid or an edge midpoint of one of `tris` lies farther than `bound`
+/// from the input surface.
+fn leaves_input(surface: &Surface<'_>, tris: &[[DVec3; 3]], bound: f64) -> bool {
+    tris.iter().any(|[a, b, c]| {
+        [
+            (*a + *b + *c) / 3.0,
+            a.lerp(*b, 0.5),
+            b.lerp(*c, 0.5),
+            c.lerp(*a, 0.5),
+        ]
+        .into_iter()
+        .any(|x| surface.project(x).is_none_or(|y| y.distance(x) > bound))
+    })
+}
+
+/// How far collapsing edge `e` into `at` moves the surface: the larger distance from its two
+/// ends to the faces left around `at`.
+fn collapse_error(
+    mesh: &Mesh,
+    topo: &Topology,
+    e: u32,
+    at: DVec3,
+    tris: &mut Vec<[DVec3; 3]>,
+) -> f64 {
+    let [a, b] = topo.edge(e);
+    tris.clear();
+    for v in [a, b] {
+        for &f in topo.vertex_faces(v) {
+            let t = mesh.faces[f as usize];
+            if t.contains(&a) && t.contains(&b) {
+                continue;
+            }
+            tris.push(t.map(|w| {
+                if w == a || w == b {
+                    at
+                } else {
+                    mesh.positions[w as usize]
+                }
+            }));
+        }
+    }
+    let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+    distance_to(pa, tris).max(distance_to(pb, tris))
+}
+
+/// The faces replacing the one face of boundary edge `e` when it is split at a new vertex
+/// `m` at `at`, and the face they replace; `None` when a new face turns by more than
+/// `cos_turn`, has no area or faces away from `surface`.
+fn plan_boundary_split(
+    mesh: &Mesh,
+    topo: &Topology,
+    surface: &Surface<'_>,
+    e: u32,
+    m: u32,
+    at: DVec3,
+    cos_turn: f64,
+) -> Option<([u32; 1], [[u32; 3]; 2])> {
+    let &[f] = topo.edge_faces(e) else {
+        return None;
+    };
+    let [c, d] = topo.edge(e);
+    let (c, d, x) = match after_edge(mesh, f, c, d) {
+        Some(x) => (c, d, x),
+        None => (d, c, after_edge(mesh, f, d, c)?),
+    };
+    let new = [[c, m, x], [m, d, x]];
+    let [p, q, r] = mesh.corners(f as usize);
+    let n_old = triangle::normal(p, q, r);
+    for t in &new {
+        let [a, b, c] = t.map(|w| {
+            if w == m {
+                at
+            } else {
+                mesh.positions[w as usize]
+            }
+        });
+        if triangle::normal(a, b, c).dot(n_old) < cos_turn.min(0.0)
+            || triangle::area(a, b, c) <= 0.0
+            || !surface.agrees(a, b, c)
+        {
+            return None;
+        }
+    }
+    Some(([f], new))
+}
+
+/// Moves the end of one of `edges` (nearest to `p` first) nearest to `p`, on the same
+/// side of the boundary as `p`, to `p` or halfway there on the input, when no face around
+/// it gets an angle below `guard`, turns by more than `cos_turn` or faces away from
+/// `surface`, and neither its old place nor the new faces end farther than `back` from the
+/// other surface. Marks the vertices of its faces in `touched`. True when a vertex moved.
+#[allow(clippy::too_many_arguments)]
+fn pull(
+    mesh: &mut Mesh,
+    topo: &Topology,
+    surface: &Surface<'_>,
+    edges: &[(f64, u32)],
+    p: DVec3,
+    on_boundary: bool,
+    back: f64,
+    guard: f64,
+    cos_turn: f64,
+    touched: &mut [bool],
+    tris: &mut Vec<[DVec3; 3]>,
+) -> bool {
+    let mut normals = Vec::new();
+    for &(_, e) in edges {
+        let mut ends = topo.edge(e);
+        let pos = |w: u32| mesh.positions[w as usize];
+        if pos(ends[1]).distance(p) < pos(ends[0]).distance(p) {
+            ends.swap(0, 1);
+        }
+        for w in ends {
+            let fan = topo.vertex_faces(w);
+            if touched[w as usize]
+                || topo.is_boundary_vertex(w) != on_boundary
+                || topo.n_vertex_fans(w) != 1
+                || fan
+                    .iter()
+                    .any(|&f| mesh.faces[f as usize].iter().any(|&x| touched[x as usize]))
+            {
+                continue;
+            }
+            let old = pos(w);
+            let half = old.lerp(p, 0.5);
+            let half = if on_boundary {
+                surface.project_boundary(half)
+            } else {
+                surface.project(half)
+            };
+            normals.clear();
+            normals.extend(fan.iter().map(|&f| {
+                let [a, b, c] = mesh.corners(f as usize);
+                triangle::normal(a, b, c)
+            }));
+            for q in std::iter::once(p).chain(half) {
+                let Some((worst, _)) = fan_shape(mesh, fan, w, q, &normals, cos_turn) else {
+                    continue;
+                };
+                if worst < guard {
+                    continue;
+                }
+                tris.clear();
+                tris.extend(
+                    fan.iter()
+                        .map(|&f| mesh.faces[f as usize].map(|x| if x == w { q } else { pos(x) })),
+                );
+                if distance_to(old, tris) > back
+                    || leaves_input(surface, tris, back)
+                    || tris.iter().any(|[a, b, c]| !surface.agrees(*a, *b, *c))
+                {
+                    continue;
+                }
+                mesh.positions[w as usize] = q;
+                for &f in fan {
+                    for x in mesh.faces[f as usize] {
+                        touched[x as usize] = true;
+                    }
+                }
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Up to `max_pairs` times, in rounds, for the input points (see [`input_samples`])
+/// farthest from `mesh` and beyond `tol`: puts a new vertex at the point (splitting the
+/// nearest edge of its nearest face, or the nearest boundary edge for a point of the input
+/// boundary, at the point or halfway to the edge's midpoint on the input) and collapses the
+/// edge whose collapse moves the surface least (at most `tol` or [`FIT_TRADE`] of the
+/// distance gained); where no split fits, pulls a nearby vertex there instead (see
+/// [`pull`]). No new face gets an angle below [`FIT_GUARD`] of `floor` or the mesh's
+/// smallest angle, whichever is lower, turns by more than `cos_turn` or faces away from the
+/// input. Within a round no vertex takes part twice. Attributes follow through
+/// [`Mesh::rebuilt`]. Returns the edits made (pairs and pulls).
+fn fit(
+    mesh: &mut Mesh,
+    surface: &Surface<'_>,
+    max_pairs: u32,
+    cos_turn: f64,
+    floor: f64,
+    tol: f64,
+    samples: &[(DVec3, bool)],
+) -> usize {
+    let carry = !mesh.vertex_attrs.is_empty() || !mesh.face_attrs.is_empty();
+    let before = carry.then(|| mesh.clone());
+    let mut v_from: Vec<Vec<(u32, f64)>> = Vec::new();
+    let mut f_from: Vec<u32> = Vec::new();
+    if carry {
+        v_from = (0..mesh.n_vertices() as u32)
+            .map(|v| vec![(v, 1.0)])
+            .collect();
+        f_from = (0..mesh.n_faces() as u32).collect();
+    }
+    let smallest = (0..mesh.n_faces())
+        .map(|f| {
+            let [a, b, c] = mesh.corners(f);
+            triangle::min_angle(a, b, c)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let guard = FIT_GUARD
+        * if floor > 0.0 {
+            floor.min(smallest)
+        } else {
+            smallest
+        };
+    // Points no split, collapse or pull could bring nearer: left alone from then on.
+    let mut given_up = vec![false; samples.len()];
+    // The points looked at: after the first round, only those that were beyond `tol` (the
+    // edits keep the others within it), or without a bound beyond [`FIT_FROM`] of the
+    // farthest.
+    let mut active: Vec<u32> = (0..samples.len() as u32).collect();
+    let mut first = true;
+    let mut tris = Vec::new();
+    let mut done = 0;
+    while done < max_pairs as usize {
+        let Ok(topo) = Topology::try_build(mesh) else {
+            break;
+        };
+        let n_edges = topo.n_edges();
+        if n_edges == 0 || mesh.n_faces() == 0 {
+            break;
+        }
+        let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+        let mut far: Vec<(f64, u32, u32)> = active
+            .par_iter()
+            .filter(|&&i| !given_up[i as usize])
+            .filter_map(|&i| {
+                bvh.closest_point(samples[i as usize].0)
+                    .map(|h| (h.distance(), i, h.face))
+            })
+            .collect();
+        if std::mem::take(&mut first) {
+            let d_max = far.iter().map(|x| x.0).fold(0.0, f64::max);
+            let keep = if tol > 0.0 { tol } else { FIT_FROM * d_max };
+            far.retain(|x| x.0 > keep);
+            active = far.iter().map(|x| x.1).collect();
+            active.sort_unstable();
+        }
+        far.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        let Some(&(d_max, _, _)) = far.first() else {
+            break;
+        };
+        if d_max.is_nan() || d_max <= tol {
+            break;
+        }
+        let len = |e: u32| {
+            let [a, b] = topo.edge(e);
+            mesh.positions[a as usize].distance(mesh.positions[b as usize])
+        };
+        let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
+        let mut ends: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
+        let mut boundary_edges = Vec::new();
+        for e in 0..n_edges as u32 {
+            if topo.is_boundary_edge(e) {
+                let [a, b] = topo.edge(e);
+                ends[a as usize].push(b);
+                ends[b as usize].push(a);
+                boundary_edges.push(e);
+            }
+        }
+        // Collapse candidates, least surface moved first (at the edge's midpoint).
+        let mut collapses: Vec<(f64, f64, u32)> = (0..n_edges as u32)
+            .map(|e| (len(e), e))
+            .filter(|&(l, _)| l < mean)
+            .map(|(l, e)| {
+                let [a, b] = topo.edge(e);
+                let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
+                (collapse_error(mesh, &topo, e, mid, &mut tris), l, e)
+            })
+            .collect();
+        collapses.sort_by(|x, y| {
+            x.0.total_cmp(&y.0)
+                .then(x.1.total_cmp(&y.1))
+                .then(x.2.cmp(&y.2))
+        });
+        let mut touched = vec![false; mesh.n_vertices()];
+        let mut made = 0;
+        for &(d, iv, f) in far
+            .iter()
+            .take_while(|x| x.0 >= FIT_BAND * d_max && x.0 > tol)
+        {
+            if done >= max_pairs as usize {
+                break;
+            }
+            let face = mesh.faces[f as usize];
+            if face.iter().any(|&w| touched[w as usize]) {
+                continue;
+            }
+            let (p, on_boundary) = samples[iv as usize];
+            // The edges to split, nearest to `p` first.
+            let seg = |e: u32| {
+                let [a, b] = topo.edge(e);
+                closest_point_on_segment(p, mesh.positions[a as usize], mesh.positions[b as usize])
+                    .0
+                    .distance(p)
+            };
+            let mut edges: Vec<(f64, u32)> = if on_boundary {
+                boundary_edges.iter().map(|&e| (seg(e), e)).collect()
+            } else {
+                topo.face_edges(f)
+                    .into_iter()
+                    .filter(|&e| topo.edge_faces(e).len() == 2)
+                    .map(|e| (seg(e), e))
+                    .collect()
+            };
+            edges.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            if on_boundary {
+                edges.truncate(2);
+            }
+            const M: u32 = u32::MAX;
+            let mut plan = None;
+            'edges: for &(_, s) in &edges {
+                let [c, dd] = topo.edge(s);
+                let around: Vec<u32> = topo
+                    .edge_faces(s)
+                    .iter()
+                    .flat_map(|&g| mesh.faces[g as usize])
+                    .collect();
+                if around.iter().any(|&w| touched[w as usize]) {
+                    continue;
+                }
+                let mid = mesh.positions[c as usize].lerp(mesh.positions[dd as usize], 0.5);
+                let half = p.lerp(mid, 0.5);
+                let half = if on_boundary {
+                    surface.project_boundary(half)
+                } else {
+                    surface.project(half)
+                };
+                for at in std::iter::once(p).chain(half) {
+                    let split = if on_boundary {
+                        plan_boundary_split(mesh, &topo, surface, s, M, at, cos_turn)
+                            .map(|(o, n)| (o.to_vec(), n.to_vec()))
+                    } else {
+                        plan_split(mesh, &topo, Some(surface), s, M, at, cos_turn)
+                            .map(|(o, n)| (o.to_vec(), n.to_vec()))
+                    };
+                    let Some((old, new)) = split else {
+                        continue;
+                    };
+                    let shape_ok = new.iter().all(|t| {
+                        let [a, b, c] = t.map(|w| {
+                            if w == M {
+                                at
+                            } else {
+                                mesh.positions[w as usize]
+                            }
+                        });
+                        triangle::min_angle(a, b, c) >= guard
+                    }) && {
+                        tris.clear();
+                        tris.extend(new.iter().map(|t| {
+                            t.map(|w| {
+                                if w == M {
+                                    at
+                                } else {
+                                    mesh.positions[w as usize]
+                                }
+                            })
+                        }));
+                        !leaves_input(surface, &tris, tol.max(FIT_TRADE * d))
+                    };
+                    if shape_ok {
+                        plan = Some((s, at, old, new, around.clone()));
+                        break 'edges;
+                    }
+                }
+            }
+            let Some((s, at, old, new, around)) = plan else {
+                // No split fits here: pull the nearest end of the nearest edge towards `p`.
+                if pull(
+                    mesh,
+                    &topo,
+                    surface,
+                    &edges,
+                    p,
+                    on_boundary,
+                    tol.max(FIT_TRADE * d),
+                    guard,
+                    cos_turn,
+                    &mut touched,
+                    &mut tris,
+                ) {
+                    done += 1;
+                    made += 1;
+                } else {
+                    given_up[iv as usize] = true;
+                }
+                continue;
+            };
+            // Distance the split removes (the far point's distance is at most this after).
+            let gain = d - at.distance(p);
+            let mut chosen = None;
+            for &(err, _, k) in &collapses {
+                if err > tol.max(FIT_TRADE * gain) {
+                    break;
+                }
+                let [a, b] = topo.edge(k);
+                if touched[a as usize]
+                    || touched[b as usize]
+                    || around.contains(&a)
+                    || around.contains(&b)
+                {
+                    continue;
+                }
+                let Some(col) =
+                    plan_collapse(mesh, &topo, &ends, Some(surface), k, cos_turn, floor)
+                else {
+                    continue;
+                };
+                if collapse_error(mesh, &topo, k, col.at, &mut tris) > tol.max(FIT_TRADE * gain)
+                    || leaves_input(surface, &tris, tol.max(FIT_TRADE * gain))
+                {
+                    continue;
+                }
+                chosen = Some(col);
+                break;
+            }
+            let Some(col) = chosen else {
+                given_up[iv as usize] = true;
+                continue;
+            };
+            let [c, dd] = topo.edge(s);
+            let new: Vec<[u32; 3]> = new
+                .iter()
+                .map(|t| t.map(|w| if w == M { col.gone } else { w }))
+                .collect();
+            for v in [col.keep, col.gone] {
+                for &g in topo.vertex_faces(v) {
+                    for w in mesh.faces[g as usize] {
+                        touched[w as usize] = true;
+                    }
+                }
+            }
+            for &w in &around {
+                touched[w as usize] = true;
+            }
+            if carry {
+                if col.at != mesh.positions[col.keep as usize] {
+                    v_from[col.keep as usize] =
+                        blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+                }
+                v_from[col.gone as usize] =
+                    blend_origins(&v_from[c as usize], &v_from[dd as usize]);
+            }
+            // Each new face's parent in the mesh `fit` started from.
+            let parents: Vec<u32> = (0..new.len())
+                .map(|i| old[i * old.len() / new.len()])
+                .map(|g| if carry { f_from[g as usize] } else { g })
+                .collect();
+            for &g in topo.vertex_faces(col.gone) {
+                for w in &mut mesh.faces[g as usize] {
+                    if *w == col.gone {
+                        *w = col.keep;
+                    }
+                }
+            }
+            mesh.positions[col.keep as usize] = col.at;
+            mesh.positions[col.gone as usize] = at;
+            // The split's faces and the collapse's freed ones take the new faces; a slot
+            // left over is removed, a face left over is appended (then the face indices
+            // change: the round ends).
+            let mut slots: Vec<u32> = old.iter().chain(&col.freed).copied().collect();
+            let reindexed = slots.len() != new.len();
+            for (i, t) in new.into_iter().enumerate() {
+                let parent = parents[i];
+                match slots.get(i) {
+                    Some(&g) => {
+                        mesh.faces[g as usize] = t;
+                        if carry {
+                            f_from[g as usize] = parent;
+                        }
+                    }
+                    None => {
+                        mesh.faces.push(t);
+                        if carry {
+                            f_from.push(parent);
+                        }
+                    }
+                }
+            }
+            let mut extra = slots.split_off(parents.len().min(slots.len()));
+            extra.sort_unstable_by(|x, y| y.cmp(x));
+            for g in extra {
+                mesh.faces.swap_remove(g as usize);
+                if carry {
+                    f_from.swap_remove(g as usize);
+                }
+            }
+            done += 1;
+            made += 1;
+            if reindexed {
+                break;
+            }
+        }
+        if made == 0 && !far.iter().any(|x| x.0 > tol && !given_up[x.1 as usize]) {
+            break;
+        }
+    }
+    if let Some(before) = before.filter(|_| done > 0) {
+        let mut vo = VertexOrigins::with_capacity(v_from.len());
+        for src in v_from {
+            vo.push_blend(src);
+        }
+        let fo = FaceOrigins::from_parents(f_from);
+        let positions = std::mem::take(&mut mesh.positions);
+        let faces = std::mem::take(&mut mesh.faces);
+        *mesh = before.rebuilt(positions, faces, &vo, &fo).0;
+    }
+    done
+}
+
 /// Relaxes the vertices of `mesh` in place (see the crate docs), keeping them on `surface`
 /// when given.
 pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParams) -> Relaxed {
@@ -598,15 +1289,43 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         ..Relaxed::default()
     };
     let cos_turn = params.max_turn_deg.to_radians().cos();
+    let surface_on = surface.filter(|_| params.project);
+    let tol = surface_on.map_or(0.0, |s| {
+        0.01 * params.max_dev_pct * s.mesh.bbox().diagonal()
+    });
     if params.rebalance > 0 {
         out.rebalanced = rebalance(
             mesh,
-            surface.filter(|_| params.project),
+            surface_on,
             params.rebalance,
             cos_turn,
             params.floor_deg.to_radians(),
         );
     }
+    // The input points `fit` and the bound look at.
+    let samples = match surface_on {
+        Some(s) if params.fit > 0 || params.max_dev_pct > 0.0 => {
+            input_samples(s, mesh, WATCH_FROM * tol)
+        }
+        _ => Vec::new(),
+    };
+    if params.fit > 0
+        && let Some(sf) = surface_on
+    {
+        out.fitted = fit(
+            mesh,
+            sf,
+            params.fit,
+            cos_turn,
+            params.floor_deg.to_radians(),
+            tol,
+            &samples,
+        );
+    }
+    let mut watch = surface_on
+        .filter(|_| params.max_dev_pct > 0.0)
+        .map(|_| Watch::new(&samples, tol));
+    drop(samples);
     let Ok(topo) = Topology::try_build(mesh) else {
         out.min_angle_after = out.min_angle_before;
         return out;
@@ -622,12 +1341,17 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     }
     let mut normals = Vec::new();
     let mut topo = topo;
+    let mut tris = Vec::new();
     for _ in 0..params.sweeps {
+        if let Some(w) = watch.as_mut() {
+            w.assign(mesh);
+        }
         if params.flips {
             let flipped = flip_sweep(
                 mesh,
                 &topo,
                 surface,
+                watch.as_ref(),
                 cos_turn,
                 params.floor_deg.to_radians(),
             );
@@ -743,7 +1467,25 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                     y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1))
                 }
             });
-            if let Some(&(_, q)) = ranked.iter().find(|(_, q)| agrees(*q)) {
+            let close = |q: DVec3, tris: &mut Vec<[DVec3; 3]>| {
+                watch.as_ref().is_none_or(|w| {
+                    tris.clear();
+                    tris.extend(fan.iter().map(|&f| {
+                        mesh.faces[f as usize].map(|x| {
+                            if x == v {
+                                q
+                            } else {
+                                mesh.positions[x as usize]
+                            }
+                        })
+                    }));
+                    w.allows(fan, tris)
+                })
+            };
+            if let Some(&(_, q)) = ranked
+                .iter()
+                .find(|(_, q)| agrees(*q) && close(*q, &mut tris))
+            {
                 mesh.positions[v as usize] = q;
                 moved += 1;
             }
@@ -763,7 +1505,7 @@ pub struct Relax(RelaxParams);
 impl Stage for Relax {
     type Params = RelaxParams;
     const KIND: &'static str = "relax";
-    const SUMMARY: &'static str = "Tangential relaxation on the input surface: vertex moves and edge flips that raise the smallest angle (or, above `floor_deg`, the shape), optional split/collapse rebalancing; no face flipped, vertex count kept.";
+    const SUMMARY: &'static str = "Tangential relaxation on the input surface: vertex moves and edge flips that raise the smallest angle (or, above `floor_deg`, the shape), optional split/collapse rebalancing, fidelity edits where the input is farthest and a bound on its distance; no face flipped, vertex count kept.";
 
     fn new(params: RelaxParams) -> Self {
         Relax(params)
@@ -792,6 +1534,9 @@ impl Stage for Relax {
         cx.report.figure("moved", &r.moved);
         cx.report.figure("flipped", &r.flipped);
         cx.report.figure("rebalanced", r.rebalanced);
+        if self.0.fit > 0 {
+            cx.report.figure("fitted", r.fitted);
+        }
         cx.report.figure("min_angle_before", r.min_angle_before);
         cx.report.figure("min_angle_after", r.min_angle_after);
         Ok(mesh)
@@ -1057,5 +1802,177 @@ mod tests {
             r.min_angle_after >= r.min_angle_before.min(40.0) - 1e-9,
             "{r:?}"
         );
+    }
+
+    /// The largest distance from a vertex of `from` to the surface of `to`.
+    fn farthest_vertex(from: &Mesh, to: &Mesh) -> f64 {
+        let bvh = Bvh::build(&to.positions, &to.faces);
+        from.positions
+            .iter()
+            .map(|&p| bvh.closest_point(p).unwrap().distance())
+            .fold(0.0, f64::max)
+    }
+
+    /// Height of a narrow bump (0.02 high) centred at (`cx`, 0).
+    fn bump(p: DVec3, cx: f64) -> f64 {
+        let r2 = (p.x - cx).powi(2) + p.y.powi(2);
+        0.02 * (-r2 / (0.03 * 0.03)).exp()
+    }
+
+    /// A flat grid of `n × n` cells, 1 wide, with every vertex lifted onto the bump at
+    /// (`cx`, 0).
+    fn bumped_grid(n: u32, cx: f64) -> Mesh {
+        let mut m = coarsen_shapes::plane_grid(n, n, 1.0).unwrap();
+        for p in &mut m.positions {
+            p.z = bump(*p, cx);
+        }
+        m
+    }
+
+    /// `fit` puts a vertex on a bump the coarse mesh misses: the input's farthest point
+    /// comes much nearer, the vertex count, the boundary loop and the orientation stay.
+    #[test]
+    fn fitting_puts_a_vertex_where_the_input_is_farthest() {
+        let original = bumped_grid(64, 0.0625);
+        let surface = Surface::new(&original);
+        let mut m = bumped_grid(8, 0.0625);
+        let before = farthest_vertex(&original, &m);
+        let params = RelaxParams {
+            fit: 4,
+            sweeps: 0,
+            floor_deg: 30.0,
+            ..RelaxParams::default()
+        };
+        let r = relax(&mut m, Some(&surface), &params);
+        assert!(r.fitted > 0, "{r:?}");
+        let after = farthest_vertex(&original, &m);
+        assert!(after < 0.8 * before, "{before} → {after}");
+        assert_eq!(m.n_vertices(), 81);
+        let t = Topology::build(&m);
+        assert!(t.is_manifold() && t.is_consistently_oriented());
+        assert_eq!(t.n_boundary_loops(), 1);
+        assert!((0..81).all(|v| !t.is_isolated_vertex(v)));
+        for f in 0..m.n_faces() {
+            assert!(m.face_normal(f).z > 0.5, "face {f} turned");
+        }
+        // Without `fit` the bump stays missed.
+        let mut plain = bumped_grid(8, 0.0625);
+        relax(
+            &mut plain,
+            Some(&surface),
+            &RelaxParams {
+                sweeps: 0,
+                ..RelaxParams::default()
+            },
+        );
+        assert!(farthest_vertex(&original, &plain) > 0.9 * before);
+    }
+
+    /// With `max_dev_pct`, relaxing keeps a coarse vertex on the top of a bump (the input
+    /// stays within the bound there) while still lifting the smallest angle elsewhere;
+    /// without it the vertex slides off and the bump's top ends farther away.
+    #[test]
+    fn a_deviation_bound_keeps_the_input_near() {
+        let original = bumped_grid(64, 0.0);
+        let surface = Surface::new(&original);
+        let top = DVec3::new(0.0, 0.0, 0.02);
+        let mut m = bumped_grid(8, 0.0);
+        let topo = Topology::build(&m);
+        // Jitter the interior vertices in the plane, all but the one on the top.
+        for (v, p) in m.positions.iter_mut().enumerate() {
+            if !topo.is_boundary_vertex(v as u32) && p.truncate() != coarsen_geom::DVec2::ZERO {
+                let t = (v as f64 * 12.9898).sin() * 0.03;
+                p.x += t;
+                p.y -= 0.7 * t;
+                p.z = bump(*p, 0.0);
+            }
+        }
+        let to_top = |m: &Mesh| farthest_vertex(&Mesh::new(vec![top], vec![]), m);
+        assert!(to_top(&m) < 1e-12);
+        let tol_pct = 0.05;
+        let tol = 0.01 * tol_pct * original.bbox().diagonal();
+        let (mut free, mut bound) = (m.clone(), m);
+        let params = RelaxParams {
+            floor_deg: 40.0,
+            ..RelaxParams::default()
+        };
+        relax(&mut free, Some(&surface), &params);
+        let r = relax(
+            &mut bound,
+            Some(&surface),
+            &RelaxParams {
+                max_dev_pct: tol_pct,
+                ..params
+            },
+        );
+        assert!(r.min_angle_after > r.min_angle_before, "{r:?}");
+        assert!(
+            to_top(&free) > tol,
+            "{}: the case shows nothing",
+            to_top(&free)
+        );
+        assert!(to_top(&bound) <= tol, "{} > {tol}", to_top(&bound));
+    }
+
+    /// Attributes follow `fit`'s edits: one value per vertex and per face, each face label
+    /// one of the labels it started with.
+    #[test]
+    fn fitting_carries_attributes() {
+        let original = bumped_grid(64, 0.0625);
+        let surface = Surface::new(&original);
+        let mut m = bumped_grid(8, 0.0625);
+        let xs = m.positions.iter().map(|p| p.x).collect();
+        m.vertex_attrs
+            .insert("x", coarsen_mesh::AttrValues::Scalar(xs));
+        let n_faces = m.n_faces() as u32;
+        m.face_attrs.insert(
+            "id",
+            coarsen_mesh::AttrValues::Label((0..n_faces).collect()),
+        );
+        let params = RelaxParams {
+            fit: 4,
+            sweeps: 0,
+            floor_deg: 30.0,
+            ..RelaxParams::default()
+        };
+        let r = relax(&mut m, Some(&surface), &params);
+        assert!(r.fitted > 0, "{r:?}");
+        assert_eq!(m.vertex_attrs.scalar("x").unwrap().len(), m.n_vertices());
+        let ids = m.face_attrs.label("id").unwrap();
+        assert_eq!(ids.len(), m.n_faces());
+        assert!(ids.iter().all(|&i| i < n_faces));
+    }
+
+    /// `fit` and the bound give the same bytes on any thread count.
+    #[test]
+    fn fitting_is_deterministic_across_thread_counts() {
+        let original = bumped_grid(64, 0.0625);
+        let params = RelaxParams {
+            fit: 4,
+            floor_deg: 30.0,
+            max_dev_pct: 0.5,
+            ..RelaxParams::default()
+        };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let surface = Surface::new(&original);
+                let mut m = bumped_grid(8, 0.0625);
+                relax(&mut m, Some(&surface), &params);
+                m
+            })
+        };
+        let (a, b) = (run(1), run(3));
+        assert_eq!(a.faces, b.faces);
+        let bits = |m: &Mesh| {
+            m.positions
+                .iter()
+                .flat_map(|p| p.to_array().map(f64::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&a), bits(&b));
     }
 }
