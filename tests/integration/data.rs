@@ -247,3 +247,40 @@ fn messy_meshes_go_through_every_pipeline_without_a_crash() {
         }
     }
 }
+
+/// Boundary curvature in its own one-sided ("geodesic") form is extreme where the bunny's
+/// scan has tiny faces at a hole: the adaptive pipeline then makes clusters of one or two
+/// tiny faces whose vertices fall in a row, and the post-process's dual had no valid
+/// triangulation ("lies on a degenerate triangle", the run failed). The post-process now
+/// keeps the coarse mesh with a warning: the run writes a valid mesh of the exact count.
+#[test]
+fn extreme_boundary_curvature_keeps_the_coarse_mesh_with_a_warning() {
+    let Some(dir) = shared_data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("geodesic.ply");
+    let input = dir.join("stanford-bunny.obj");
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            "adaptive-cvt",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--vertices",
+            "5000",
+            "--set",
+            "curvature.boundary=geodesic",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let log = stdout(&o);
+    assert!(log.contains("the coarse mesh is kept"), "{log}");
+    let m = coarsen_io::read_path(&out, &Default::default())
+        .unwrap()
+        .mesh;
+    assert_eq!(m.n_vertices(), 5000);
+    let s = Topology::build(&m).summary(&m);
+    assert!(s.manifold && s.consistently_oriented, "{s:?}");
+    assert_eq!(s.n_boundary_loops, 5);
+}

@@ -4,6 +4,9 @@
 //! onto the nearest point of the run's input surface, so the resampling does not drift from
 //! the original. It reuses the `subdivide`/refine split, `cluster.cvt` and `dual` crates; it
 //! copies none of them.
+//!
+//! When the finest clustering has no valid dual that its repairs can reach, the coarse mesh
+//! is returned as it came, with a warning and the report figure `kept_coarse`.
 
 use coarsen_mesh::{Topology, sanity};
 use coarsen_stage::{
@@ -177,7 +180,7 @@ impl Stage for Postprocess {
             Some(t) => t,
             None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,
         };
-        let dual = coarsen_stage_dual::dual(
+        let dual = match coarsen_stage_dual::dual(
             &fine,
             &topo,
             &mut labels,
@@ -185,14 +188,26 @@ impl Stage for Postprocess {
             facing.as_ref(),
             40,
             8,
-        )
-        .map_err(|e| match e {
-            coarsen_stage_dual::DualError::TooFew(_) => StageError::Param {
-                name: "target",
-                message: format!("`{}`: {e}", Self::KIND),
-            },
-            e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
-        })?;
+        ) {
+            Ok(d) => d,
+            // The coarse mesh is a valid result already: a fine clustering without a valid
+            // dual (e.g. clusters of a few tiny faces whose vertices fall in a row) leaves
+            // it as it came, said in a warning, rather than failing the run.
+            Err(e @ coarsen_stage_dual::DualError::Unrepaired(_)) => {
+                cx.report.warn(format!(
+                    "the re-clustered mesh has no valid dual ({e}): the coarse mesh is kept as it came"
+                ));
+                cx.report.figure("kept_coarse", true);
+                return Ok(coarse);
+            }
+            Err(e @ coarsen_stage_dual::DualError::TooFew(_)) => {
+                return Err(StageError::Param {
+                    name: "target",
+                    message: format!("`{}`: {e}", Self::KIND),
+                });
+            }
+            Err(e) => return Err(StageError::Input(format!("`{}`: {e}", Self::KIND))),
+        };
         drop(topo);
         let mut out = dual.mesh;
         // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
