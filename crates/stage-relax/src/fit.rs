@@ -1,0 +1,651 @@
+//! Fidelity edits (a split where the input is farthest, paired with the least-moving
+//! collapse) and the watch that bounds how far the sweeps may leave the input.
+
+use super::*;
+
+/// Points of the input whose distance to `mesh` is watched (true: on the boundary): its
+/// used vertices, edge midpoints, face centroids and the points halfway from each centroid
+/// to a corner; only those farther than `min_dist` from `mesh`.
+pub(crate) fn input_samples(
+    surface: &Surface<'_>,
+    mesh: &Mesh,
+    min_dist: f64,
+) -> Vec<(DVec3, bool)> {
+    let input = surface.mesh;
+    let t = surface.facing.topology();
+    let mut samples: Vec<(DVec3, bool)> = (0..input.n_vertices() as u32)
+        .filter(|&v| !t.is_isolated_vertex(v))
+        .map(|v| (input.positions[v as usize], t.is_boundary_vertex(v)))
+        .collect();
+    samples.extend((0..t.n_edges() as u32).map(|e| {
+        let [a, b] = t.edge(e);
+        let mid = input.positions[a as usize].lerp(input.positions[b as usize], 0.5);
+        (mid, t.is_boundary_edge(e))
+    }));
+    for f in 0..input.n_faces() {
+        let [a, b, c] = input.corners(f);
+        let g = (a + b + c) / 3.0;
+        samples.extend([g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(c, 0.5)].map(|q| (q, false)));
+    }
+    if mesh.n_faces() == 0 {
+        return samples;
+    }
+    let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+    // In parallel; `collect` keeps the order, so the result is the same on any thread count.
+    samples
+        .into_par_iter()
+        .filter(|(q, _)| {
+            bvh.closest_point(*q)
+                .is_none_or(|h| h.distance() > min_dist)
+        })
+        .collect()
+}
+
+/// Input points nearer the mesh than this fraction of `max_dev_pct` are not watched (a
+/// move or a flip changes the surface too little to take them beyond it).
+pub(crate) const WATCH_FROM: f64 = 0.5;
+
+/// The input points the sweeps keep near the mesh (`max_dev_pct`), grouped by the mesh
+/// face nearest to each.
+pub(crate) struct Watch {
+    /// The points.
+    pub(crate) samples: Vec<DVec3>,
+    /// The bound.
+    pub(crate) tol: f64,
+    /// Where each face's points start in `ids` (one more entry than faces).
+    pub(crate) offsets: Vec<u32>,
+    /// Point indices, face by face.
+    pub(crate) ids: Vec<u32>,
+    /// Each point's distance to the mesh when grouped.
+    pub(crate) dist: Vec<f64>,
+}
+
+impl Watch {
+    /// The points `samples` (from [`input_samples`]), kept within `tol`.
+    pub(crate) fn new(samples: &[(DVec3, bool)], tol: f64) -> Watch {
+        Watch {
+            samples: samples.iter().map(|x| x.0).collect(),
+            tol,
+            offsets: Vec::new(),
+            ids: Vec::new(),
+            dist: Vec::new(),
+        }
+    }
+
+    /// Groups the points by their nearest face of `mesh`.
+    pub(crate) fn assign(&mut self, mesh: &Mesh) {
+        let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+        let near: Vec<(u32, f64)> = self
+            .samples
+            .par_iter()
+            .map(|&q| {
+                bvh.closest_point(q)
+                    .map_or((u32::MAX, 0.0), |h| (h.face, h.distance()))
+            })
+            .collect();
+        let mut counts = vec![0u32; mesh.n_faces() + 1];
+        for &(f, _) in &near {
+            if (f as usize) < mesh.n_faces() {
+                counts[f as usize + 1] += 1;
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let mut fill = counts.clone();
+        self.ids = vec![0; counts[mesh.n_faces()] as usize];
+        for (i, &(f, _)) in near.iter().enumerate() {
+            if (f as usize) < mesh.n_faces() {
+                self.ids[fill[f as usize] as usize] = i as u32;
+                fill[f as usize] += 1;
+            }
+        }
+        self.offsets = counts;
+        self.dist = near.into_iter().map(|x| x.1).collect();
+    }
+
+    /// True when every point grouped on `faces` stays within the bound (or within its
+    /// distance when grouped) of the triangles `tris` that replace them.
+    pub(crate) fn allows(&self, faces: &[u32], tris: &[[DVec3; 3]]) -> bool {
+        faces.iter().all(|&f| {
+            let (a, b) = (self.offsets[f as usize], self.offsets[f as usize + 1]);
+            self.ids[a as usize..b as usize].iter().all(|&i| {
+                let limit = self.tol.max(self.dist[i as usize]) * (1.0 + 1e-9);
+                distance_to(self.samples[i as usize], tris) <= limit
+            })
+        })
+    }
+}
+
+/// [`fit`] splits, in one round, only where the input lies at least this fraction of the
+/// round's largest distance from the mesh.
+pub(crate) const FIT_BAND: f64 = 0.7;
+/// A collapse made by [`fit`] may move the surface by at most this fraction of the distance
+/// its split removes (or by `max_dev_pct`, whichever is larger).
+pub(crate) const FIT_TRADE: f64 = 0.5;
+/// Without `max_dev_pct`, [`fit`] works on the input points farther from the mesh than
+/// this fraction of the farthest.
+pub(crate) const FIT_FROM: f64 = 0.5;
+/// [`fit`]'s new faces keep at least this fraction of the smaller of `floor_deg` and the
+/// mesh's smallest angle (the sweeps after it lift them again).
+pub(crate) const FIT_GUARD: f64 = 0.8;
+
+/// Distance from `p` to the nearest of the triangles `tris` (infinite when there is none).
+pub(crate) fn distance_to(p: DVec3, tris: &[[DVec3; 3]]) -> f64 {
+    tris.iter()
+        .map(|[a, b, c]| closest_point_on_triangle(p, *a, *b, *c).0.distance(p))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// True when the centroid or an edge midpoint of one of `tris` lies farther than `bound`
+/// from the input surface.
+pub(crate) fn leaves_input(surface: &Surface<'_>, tris: &[[DVec3; 3]], bound: f64) -> bool {
+    tris.iter().any(|[a, b, c]| {
+        [
+            (*a + *b + *c) / 3.0,
+            a.lerp(*b, 0.5),
+            b.lerp(*c, 0.5),
+            c.lerp(*a, 0.5),
+        ]
+        .into_iter()
+        .any(|x| surface.project(x).is_none_or(|y| y.distance(x) > bound))
+    })
+}
+
+/// How far collapsing edge `e` into `at` moves the surface: the larger distance from its two
+/// ends to the faces left around `at`.
+pub(crate) fn collapse_error(
+    mesh: &Mesh,
+    topo: &Topology,
+    e: u32,
+    at: DVec3,
+    tris: &mut Vec<[DVec3; 3]>,
+) -> f64 {
+    let [a, b] = topo.edge(e);
+    tris.clear();
+    for v in [a, b] {
+        for &f in topo.vertex_faces(v) {
+            let t = mesh.faces[f as usize];
+            if t.contains(&a) && t.contains(&b) {
+                continue;
+            }
+            tris.push(t.map(|w| {
+                if w == a || w == b {
+                    at
+                } else {
+                    mesh.positions[w as usize]
+                }
+            }));
+        }
+    }
+    let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+    distance_to(pa, tris).max(distance_to(pb, tris))
+}
+
+/// The faces replacing the one face of boundary edge `e` when it is split at a new vertex
+/// `m` at `at`, and the face they replace; `None` when a new face turns by more than
+/// `cos_turn`, has no area or faces away from `surface`.
+pub(crate) fn plan_boundary_split(
+    mesh: &Mesh,
+    topo: &Topology,
+    surface: &Surface<'_>,
+    e: u32,
+    m: u32,
+    at: DVec3,
+    cos_turn: f64,
+) -> Option<([u32; 1], [[u32; 3]; 2])> {
+    let &[f] = topo.edge_faces(e) else {
+        return None;
+    };
+    let [c, d] = topo.edge(e);
+    let (c, d, x) = match after_edge(mesh, f, c, d) {
+        Some(x) => (c, d, x),
+        None => (d, c, after_edge(mesh, f, d, c)?),
+    };
+    let new = [[c, m, x], [m, d, x]];
+    let [p, q, r] = mesh.corners(f as usize);
+    let n_old = triangle::normal(p, q, r);
+    for t in &new {
+        let [a, b, c] = t.map(|w| {
+            if w == m {
+                at
+            } else {
+                mesh.positions[w as usize]
+            }
+        });
+        if triangle::normal(a, b, c).dot(n_old) < cos_turn.min(0.0)
+            || triangle::area(a, b, c) <= 0.0
+            || !surface.agrees(a, b, c)
+        {
+            return None;
+        }
+    }
+    Some(([f], new))
+}
+
+/// Moves the end of one of `edges` (nearest to `p` first) nearest to `p`, on the same
+/// side of the boundary as `p`, to `p` or halfway there on the input, when no face around
+/// it gets an angle below `guard`, turns by more than `cos_turn` or faces away from
+/// `surface`, and neither its old place nor the new faces end farther than `back` from the
+/// other surface. Marks the vertices of its faces in `touched`. True when a vertex moved.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn pull(
+    mesh: &mut Mesh,
+    topo: &Topology,
+    surface: &Surface<'_>,
+    edges: &[(f64, u32)],
+    p: DVec3,
+    on_boundary: bool,
+    back: f64,
+    guard: f64,
+    cos_turn: f64,
+    touched: &mut [bool],
+    tris: &mut Vec<[DVec3; 3]>,
+) -> bool {
+    let mut normals = Vec::new();
+    for &(_, e) in edges {
+        let mut ends = topo.edge(e);
+        let pos = |w: u32| mesh.positions[w as usize];
+        if pos(ends[1]).distance(p) < pos(ends[0]).distance(p) {
+            ends.swap(0, 1);
+        }
+        for w in ends {
+            let fan = topo.vertex_faces(w);
+            if touched[w as usize]
+                || topo.is_boundary_vertex(w) != on_boundary
+                || topo.n_vertex_fans(w) != 1
+                || fan
+                    .iter()
+                    .any(|&f| mesh.faces[f as usize].iter().any(|&x| touched[x as usize]))
+            {
+                continue;
+            }
+            let old = pos(w);
+            let half = old.lerp(p, 0.5);
+            let half = if on_boundary {
+                surface.project_boundary(half)
+            } else {
+                surface.project(half)
+            };
+            normals.clear();
+            normals.extend(fan.iter().map(|&f| {
+                let [a, b, c] = mesh.corners(f as usize);
+                triangle::normal(a, b, c)
+            }));
+            for q in std::iter::once(p).chain(half) {
+                let Some((worst, _)) = fan_shape(mesh, fan, w, q, &normals, cos_turn) else {
+                    continue;
+                };
+                if worst < guard {
+                    continue;
+                }
+                tris.clear();
+                tris.extend(
+                    fan.iter()
+                        .map(|&f| mesh.faces[f as usize].map(|x| if x == w { q } else { pos(x) })),
+                );
+                if distance_to(old, tris) > back
+                    || leaves_input(surface, tris, back)
+                    || tris.iter().any(|[a, b, c]| !surface.agrees(*a, *b, *c))
+                {
+                    continue;
+                }
+                mesh.positions[w as usize] = q;
+                for &f in fan {
+                    for x in mesh.faces[f as usize] {
+                        touched[x as usize] = true;
+                    }
+                }
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Up to `max_pairs` times, in rounds, for the input points (see [`input_samples`])
+/// farthest from `mesh` and beyond `tol`: puts a new vertex at the point (splitting the
+/// nearest edge of its nearest face, or the nearest boundary edge for a point of the input
+/// boundary, at the point or halfway to the edge's midpoint on the input) and collapses the
+/// edge whose collapse moves the surface least (at most `tol` or [`FIT_TRADE`] of the
+/// distance gained); where no split fits, pulls a nearby vertex there instead (see
+/// [`pull`]). No new face gets an angle below [`FIT_GUARD`] of `floor` or the mesh's
+/// smallest angle, whichever is lower, turns by more than `cos_turn` or faces away from the
+/// input. Within a round no vertex takes part twice. Attributes follow through
+/// [`Mesh::rebuilt`]. Returns the edits made (pairs and pulls).
+pub(crate) fn fit(
+    mesh: &mut Mesh,
+    surface: &Surface<'_>,
+    max_pairs: u32,
+    cos_turn: f64,
+    floor: f64,
+    tol: f64,
+    samples: &[(DVec3, bool)],
+) -> usize {
+    let carry = !mesh.vertex_attrs.is_empty() || !mesh.face_attrs.is_empty();
+    let before = carry.then(|| mesh.clone());
+    let mut v_from: Vec<Vec<(u32, f64)>> = Vec::new();
+    let mut f_from: Vec<u32> = Vec::new();
+    if carry {
+        v_from = (0..mesh.n_vertices() as u32)
+            .map(|v| vec![(v, 1.0)])
+            .collect();
+        f_from = (0..mesh.n_faces() as u32).collect();
+    }
+    let smallest = (0..mesh.n_faces())
+        .map(|f| {
+            let [a, b, c] = mesh.corners(f);
+            triangle::min_angle(a, b, c)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let guard = FIT_GUARD
+        * if floor > 0.0 {
+            floor.min(smallest)
+        } else {
+            smallest
+        };
+    // Points no split, collapse or pull could bring nearer: left alone from then on.
+    let mut given_up = vec![false; samples.len()];
+    // The points looked at: after the first round, only those that were beyond `tol` (the
+    // edits keep the others within it), or without a bound beyond [`FIT_FROM`] of the
+    // farthest.
+    let mut active: Vec<u32> = (0..samples.len() as u32).collect();
+    let mut first = true;
+    let mut tris = Vec::new();
+    let mut done = 0;
+    while done < max_pairs as usize {
+        let Ok(topo) = Topology::try_build(mesh) else {
+            break;
+        };
+        let n_edges = topo.n_edges();
+        if n_edges == 0 || mesh.n_faces() == 0 {
+            break;
+        }
+        let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+        let mut far: Vec<(f64, u32, u32)> = active
+            .par_iter()
+            .filter(|&&i| !given_up[i as usize])
+            .filter_map(|&i| {
+                bvh.closest_point(samples[i as usize].0)
+                    .map(|h| (h.distance(), i, h.face))
+            })
+            .collect();
+        if std::mem::take(&mut first) {
+            let d_max = far.iter().map(|x| x.0).fold(0.0, f64::max);
+            let keep = if tol > 0.0 { tol } else { FIT_FROM * d_max };
+            far.retain(|x| x.0 > keep);
+            active = far.iter().map(|x| x.1).collect();
+            active.sort_unstable();
+        }
+        far.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        let Some(&(d_max, _, _)) = far.first() else {
+            break;
+        };
+        if d_max.is_nan() || d_max <= tol {
+            break;
+        }
+        let len = |e: u32| {
+            let [a, b] = topo.edge(e);
+            mesh.positions[a as usize].distance(mesh.positions[b as usize])
+        };
+        let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
+        let mut ends: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
+        let mut boundary_edges = Vec::new();
+        for e in 0..n_edges as u32 {
+            if topo.is_boundary_edge(e) {
+                let [a, b] = topo.edge(e);
+                ends[a as usize].push(b);
+                ends[b as usize].push(a);
+                boundary_edges.push(e);
+            }
+        }
+        // Collapse candidates, least surface moved first (at the edge's midpoint).
+        let mut collapses: Vec<(f64, f64, u32)> = (0..n_edges as u32)
+            .map(|e| (len(e), e))
+            .filter(|&(l, _)| l < mean)
+            .map(|(l, e)| {
+                let [a, b] = topo.edge(e);
+                let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
+                (collapse_error(mesh, &topo, e, mid, &mut tris), l, e)
+            })
+            .collect();
+        collapses.sort_by(|x, y| {
+            x.0.total_cmp(&y.0)
+                .then(x.1.total_cmp(&y.1))
+                .then(x.2.cmp(&y.2))
+        });
+        let mut touched = vec![false; mesh.n_vertices()];
+        let mut made = 0;
+        for &(d, iv, f) in far
+            .iter()
+            .take_while(|x| x.0 >= FIT_BAND * d_max && x.0 > tol)
+        {
+            if done >= max_pairs as usize {
+                break;
+            }
+            let face = mesh.faces[f as usize];
+            if face.iter().any(|&w| touched[w as usize]) {
+                continue;
+            }
+            let (p, on_boundary) = samples[iv as usize];
+            // The edges to split, nearest to `p` first.
+            let seg = |e: u32| {
+                let [a, b] = topo.edge(e);
+                closest_point_on_segment(p, mesh.positions[a as usize], mesh.positions[b as usize])
+                    .0
+                    .distance(p)
+            };
+            let mut edges: Vec<(f64, u32)> = if on_boundary {
+                boundary_edges.iter().map(|&e| (seg(e), e)).collect()
+            } else {
+                topo.face_edges(f)
+                    .into_iter()
+                    .filter(|&e| topo.edge_faces(e).len() == 2)
+                    .map(|e| (seg(e), e))
+                    .collect()
+            };
+            edges.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            if on_boundary {
+                edges.truncate(2);
+            }
+            const M: u32 = u32::MAX;
+            let mut plan = None;
+            'edges: for &(_, s) in &edges {
+                let [c, dd] = topo.edge(s);
+                let around: Vec<u32> = topo
+                    .edge_faces(s)
+                    .iter()
+                    .flat_map(|&g| mesh.faces[g as usize])
+                    .collect();
+                if around.iter().any(|&w| touched[w as usize]) {
+                    continue;
+                }
+                let mid = mesh.positions[c as usize].lerp(mesh.positions[dd as usize], 0.5);
+                let half = p.lerp(mid, 0.5);
+                let half = if on_boundary {
+                    surface.project_boundary(half)
+                } else {
+                    surface.project(half)
+                };
+                for at in std::iter::once(p).chain(half) {
+                    let split = if on_boundary {
+                        plan_boundary_split(mesh, &topo, surface, s, M, at, cos_turn)
+                            .map(|(o, n)| (o.to_vec(), n.to_vec()))
+                    } else {
+                        plan_split(mesh, &topo, Some(surface), s, M, at, cos_turn)
+                            .map(|(o, n)| (o.to_vec(), n.to_vec()))
+                    };
+                    let Some((old, new)) = split else {
+                        continue;
+                    };
+                    let shape_ok = new.iter().all(|t| {
+                        let [a, b, c] = t.map(|w| {
+                            if w == M {
+                                at
+                            } else {
+                                mesh.positions[w as usize]
+                            }
+                        });
+                        triangle::min_angle(a, b, c) >= guard
+                    }) && {
+                        tris.clear();
+                        tris.extend(new.iter().map(|t| {
+                            t.map(|w| {
+                                if w == M {
+                                    at
+                                } else {
+                                    mesh.positions[w as usize]
+                                }
+                            })
+                        }));
+                        !leaves_input(surface, &tris, tol.max(FIT_TRADE * d))
+                    };
+                    if shape_ok {
+                        plan = Some((s, at, old, new, around.clone()));
+                        break 'edges;
+                    }
+                }
+            }
+            let Some((s, at, old, new, around)) = plan else {
+                // No split fits here: pull the nearest end of the nearest edge towards `p`.
+                if pull(
+                    mesh,
+                    &topo,
+                    surface,
+                    &edges,
+                    p,
+                    on_boundary,
+                    tol.max(FIT_TRADE * d),
+                    guard,
+                    cos_turn,
+                    &mut touched,
+                    &mut tris,
+                ) {
+                    done += 1;
+                    made += 1;
+                } else {
+                    given_up[iv as usize] = true;
+                }
+                continue;
+            };
+            // Distance the split removes (the far point's distance is at most this after).
+            let gain = d - at.distance(p);
+            let mut chosen = None;
+            for &(err, _, k) in &collapses {
+                if err > tol.max(FIT_TRADE * gain) {
+                    break;
+                }
+                let [a, b] = topo.edge(k);
+                if touched[a as usize]
+                    || touched[b as usize]
+                    || around.contains(&a)
+                    || around.contains(&b)
+                {
+                    continue;
+                }
+                let Some(col) =
+                    plan_collapse(mesh, &topo, &ends, Some(surface), k, cos_turn, floor)
+                else {
+                    continue;
+                };
+                if collapse_error(mesh, &topo, k, col.at, &mut tris) > tol.max(FIT_TRADE * gain)
+                    || leaves_input(surface, &tris, tol.max(FIT_TRADE * gain))
+                {
+                    continue;
+                }
+                chosen = Some(col);
+                break;
+            }
+            let Some(col) = chosen else {
+                given_up[iv as usize] = true;
+                continue;
+            };
+            let [c, dd] = topo.edge(s);
+            let new: Vec<[u32; 3]> = new
+                .iter()
+                .map(|t| t.map(|w| if w == M { col.gone } else { w }))
+                .collect();
+            for v in [col.keep, col.gone] {
+                for &g in topo.vertex_faces(v) {
+                    for w in mesh.faces[g as usize] {
+                        touched[w as usize] = true;
+                    }
+                }
+            }
+            for &w in &around {
+                touched[w as usize] = true;
+            }
+            if carry {
+                if col.at != mesh.positions[col.keep as usize] {
+                    v_from[col.keep as usize] =
+                        blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+                }
+                v_from[col.gone as usize] =
+                    blend_origins(&v_from[c as usize], &v_from[dd as usize]);
+            }
+            // Each new face's parent in the mesh `fit` started from.
+            let parents: Vec<u32> = (0..new.len())
+                .map(|i| old[i * old.len() / new.len()])
+                .map(|g| if carry { f_from[g as usize] } else { g })
+                .collect();
+            for &g in topo.vertex_faces(col.gone) {
+                for w in &mut mesh.faces[g as usize] {
+                    if *w == col.gone {
+                        *w = col.keep;
+                    }
+                }
+            }
+            mesh.positions[col.keep as usize] = col.at;
+            mesh.positions[col.gone as usize] = at;
+            // The split's faces and the collapse's freed ones take the new faces; a slot
+            // left over is removed, a face left over is appended (then the face indices
+            // change: the round ends).
+            let mut slots: Vec<u32> = old.iter().chain(&col.freed).copied().collect();
+            let reindexed = slots.len() != new.len();
+            for (i, t) in new.into_iter().enumerate() {
+                let parent = parents[i];
+                match slots.get(i) {
+                    Some(&g) => {
+                        mesh.faces[g as usize] = t;
+                        if carry {
+                            f_from[g as usize] = parent;
+                        }
+                    }
+                    None => {
+                        mesh.faces.push(t);
+                        if carry {
+                            f_from.push(parent);
+                        }
+                    }
+                }
+            }
+            let mut extra = slots.split_off(parents.len().min(slots.len()));
+            extra.sort_unstable_by(|x, y| y.cmp(x));
+            for g in extra {
+                mesh.faces.swap_remove(g as usize);
+                if carry {
+                    f_from.swap_remove(g as usize);
+                }
+            }
+            done += 1;
+            made += 1;
+            if reindexed {
+                break;
+            }
+        }
+        if made == 0 && !far.iter().any(|x| x.0 > tol && !given_up[x.1 as usize]) {
+            break;
+        }
+    }
+    if let Some(before) = before.filter(|_| done > 0) {
+        let mut vo = VertexOrigins::with_capacity(v_from.len());
+        for src in v_from {
+            vo.push_blend(src);
+        }
+        let fo = FaceOrigins::from_parents(f_from);
+        let positions = std::mem::take(&mut mesh.positions);
+        let faces = std::mem::take(&mut mesh.faces);
+        *mesh = before.rebuilt(positions, faces, &vo, &fo).0;
+    }
+    done
+}

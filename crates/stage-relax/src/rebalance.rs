@@ -1,0 +1,337 @@
+//! Split/collapse pairs that move vertices from short edges to long ones, the vertex
+//! count kept.
+
+use super::*;
+
+/// An edge longer than this many mean edge lengths, joining two boundary vertices through
+/// the interior, is split by [`rebalance`].
+pub(crate) const SPLIT_RATIO: f64 = 1.5;
+/// Any interior edge longer than this many mean edge lengths is split by [`rebalance`].
+pub(crate) const LONG_RATIO: f64 = 1.6;
+/// An edge shorter than this many mean edge lengths may be collapsed by [`rebalance`].
+pub(crate) const COLLAPSE_RATIO: f64 = 0.8;
+
+/// The third corner of face `f` after the directed edge `x → y`, if `f` has that edge.
+pub(crate) fn after_edge(mesh: &Mesh, f: u32, x: u32, y: u32) -> Option<u32> {
+    let t = mesh.faces[f as usize];
+    (0..3)
+        .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
+        .map(|i| t[(i + 2) % 3])
+}
+
+/// Half of each of two vertices' origins.
+pub(crate) fn blend_origins(x: &[(u32, f64)], y: &[(u32, f64)]) -> Vec<(u32, f64)> {
+    let mut out: Vec<(u32, f64)> = Vec::new();
+    for &(v, w) in x.iter().chain(y) {
+        match out.iter_mut().find(|(u, _)| *u == v) {
+            Some(e) => e.1 += 0.5 * w,
+            None => out.push((v, 0.5 * w)),
+        }
+    }
+    out
+}
+
+/// A planned collapse of edge `keep`–`gone` into `keep` at `at`, freeing the faces `freed`.
+pub(crate) struct Collapse {
+    pub(crate) keep: u32,
+    pub(crate) gone: u32,
+    pub(crate) at: DVec3,
+    pub(crate) freed: Vec<u32>,
+}
+
+/// Plans the collapse of edge `e` when it keeps the mesh manifold with its boundary loops
+/// (link condition, no interior edge between two boundary vertices, no loop below four
+/// vertices) and no remaining face around it turns by more than `cos_turn`, faces away
+/// from `surface` or gets a smaller angle than `floor` (radians) or the smallest angle it
+/// had around the edge, whichever is lower.
+pub(crate) fn plan_collapse(
+    mesh: &Mesh,
+    topo: &Topology,
+    ends: &[Vec<u32>],
+    surface: Option<&Surface<'_>>,
+    e: u32,
+    cos_turn: f64,
+    floor: f64,
+) -> Option<Collapse> {
+    let [a, b] = topo.edge(e);
+    let ef = topo.edge_faces(e);
+    if topo.n_vertex_fans(a) != 1 || topo.n_vertex_fans(b) != 1 || ef.is_empty() {
+        return None;
+    }
+    let opposite: Vec<u32> = ef
+        .iter()
+        .filter_map(|&f| {
+            mesh.faces[f as usize]
+                .into_iter()
+                .find(|&w| w != a && w != b)
+        })
+        .collect();
+    let common = topo
+        .vertex_neighbors(a)
+        .iter()
+        .filter(|w| topo.vertex_neighbors(b).contains(w))
+        .count();
+    if common != opposite.len() {
+        return None;
+    }
+    let (ba, bb) = (topo.is_boundary_vertex(a), topo.is_boundary_vertex(b));
+    let (keep, gone, at) = if topo.is_boundary_edge(e) {
+        if ends[a as usize]
+            .iter()
+            .any(|w| ends[b as usize].contains(w))
+        {
+            return None;
+        }
+        let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
+        let at = match surface {
+            Some(s) => s.project_boundary(mid)?,
+            None => mid,
+        };
+        (a.min(b), a.max(b), at)
+    } else {
+        match (ba, bb) {
+            (true, true) => return None,
+            (true, false) => (a, b, mesh.positions[a as usize]),
+            (false, true) => (b, a, mesh.positions[b as usize]),
+            (false, false) => {
+                let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
+                let at = surface.and_then(|s| s.project(mid)).unwrap_or(mid);
+                (a.min(b), a.max(b), at)
+            }
+        }
+    };
+    let mut before = f64::INFINITY;
+    let mut after = f64::INFINITY;
+    for &v in &[a, b] {
+        for &f in topo.vertex_faces(v) {
+            let t = mesh.faces[f as usize];
+            let old = t.map(|w| mesh.positions[w as usize]);
+            before = before.min(triangle::min_angle(old[0], old[1], old[2]));
+            if ef.contains(&f) || (v == b && t.contains(&a)) {
+                continue;
+            }
+            let new = t.map(|w| {
+                if w == a || w == b {
+                    at
+                } else {
+                    mesh.positions[w as usize]
+                }
+            });
+            let n_old = triangle::normal(old[0], old[1], old[2]);
+            let n_new = triangle::normal(new[0], new[1], new[2]);
+            if n_new.dot(n_old) < cos_turn
+                || surface.is_some_and(|s| !s.agrees(new[0], new[1], new[2]))
+            {
+                return None;
+            }
+            after = after.min(triangle::min_angle(new[0], new[1], new[2]));
+        }
+    }
+    (after >= before.min(floor)).then(|| Collapse {
+        keep,
+        gone,
+        at,
+        freed: ef.to_vec(),
+    })
+}
+
+/// The faces replacing the two faces of interior edge `e` when it is split at a new vertex
+/// `m` at `at`, and the two faces they replace; `None` when a new face turns by more than
+/// `cos_turn` from the face it comes from or faces away from `surface`.
+pub(crate) fn plan_split(
+    mesh: &Mesh,
+    topo: &Topology,
+    surface: Option<&Surface<'_>>,
+    e: u32,
+    m: u32,
+    at: DVec3,
+    cos_turn: f64,
+) -> Option<([u32; 2], [[u32; 3]; 4])> {
+    let ef = topo.edge_faces(e);
+    let &[f1, f2] = ef else {
+        return None;
+    };
+    let [c, d] = topo.edge(e);
+    let (f1, f2) = if after_edge(mesh, f1, c, d).is_some() {
+        (f1, f2)
+    } else {
+        (f2, f1)
+    };
+    let x = after_edge(mesh, f1, c, d)?;
+    let y = after_edge(mesh, f2, d, c)?;
+    let new = [[c, m, x], [m, d, x], [d, m, y], [m, c, y]];
+    let pos = |w: u32| {
+        if w == m {
+            at
+        } else {
+            mesh.positions[w as usize]
+        }
+    };
+    for (i, t) in new.iter().enumerate() {
+        let parent = if i < 2 { f1 } else { f2 };
+        let [p, q, r] = mesh.corners(parent as usize);
+        let [a, b, c] = t.map(pos);
+        if triangle::normal(a, b, c).dot(triangle::normal(p, q, r)) < cos_turn.min(0.0)
+            || triangle::area(a, b, c) <= 0.0
+            || surface.is_some_and(|s| !s.agrees(a, b, c))
+        {
+            return None;
+        }
+    }
+    Some(([f1, f2], new))
+}
+
+/// Up to `max_pairs` times: splits the longest interior edge joining two boundary vertices
+/// (longer than [`SPLIT_RATIO`] mean edges: the middle of a narrow strip between boundary
+/// loops) at its midpoint on `surface`, and collapses the shortest edge (shorter than
+/// [`COLLAPSE_RATIO`] mean edges) that can go without touching it (see [`plan_collapse`]);
+/// the collapsed vertex's index is the new vertex, so the vertex count stays. Attributes
+/// follow through [`Mesh::rebuilt`] (a split vertex blends its edge's ends, a collapsed
+/// one its edge's). Returns the pairs made.
+pub(crate) fn rebalance(
+    mesh: &mut Mesh,
+    surface: Option<&Surface<'_>>,
+    max_pairs: u32,
+    cos_turn: f64,
+    floor: f64,
+) -> usize {
+    let carry = !mesh.vertex_attrs.is_empty() || !mesh.face_attrs.is_empty();
+    let before = carry.then(|| mesh.clone());
+    // Where each vertex and face comes from in `before` (weighted vertices, parent face).
+    let mut v_from: Vec<Vec<(u32, f64)>> = Vec::new();
+    let mut f_from: Vec<u32> = Vec::new();
+    if carry {
+        v_from = (0..mesh.n_vertices() as u32)
+            .map(|v| vec![(v, 1.0)])
+            .collect();
+        f_from = (0..mesh.n_faces() as u32).collect();
+    }
+    let blend = |x: &[(u32, f64)], y: &[(u32, f64)]| {
+        let mut out: Vec<(u32, f64)> = Vec::new();
+        for &(v, w) in x.iter().chain(y) {
+            match out.iter_mut().find(|(u, _)| *u == v) {
+                Some(e) => e.1 += 0.5 * w,
+                None => out.push((v, 0.5 * w)),
+            }
+        }
+        out
+    };
+    let mut done = 0;
+    while done < max_pairs as usize {
+        let Ok(topo) = Topology::try_build(mesh) else {
+            break;
+        };
+        let n_edges = topo.n_edges();
+        if n_edges == 0 {
+            break;
+        }
+        let len = |e: u32| {
+            let [a, b] = topo.edge(e);
+            mesh.positions[a as usize].distance(mesh.positions[b as usize])
+        };
+        let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
+        let mut ends: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
+        for e in 0..n_edges as u32 {
+            if topo.is_boundary_edge(e) {
+                let [a, b] = topo.edge(e);
+                ends[a as usize].push(b);
+                ends[b as usize].push(a);
+            }
+        }
+        let mut splits: Vec<(f64, u32)> = (0..n_edges as u32)
+            .filter(|&e| topo.edge_faces(e).len() == 2)
+            .map(|e| {
+                let [a, b] = topo.edge(e);
+                let bridge = topo.is_boundary_vertex(a) && topo.is_boundary_vertex(b);
+                (len(e), e, bridge)
+            })
+            .filter(|&(l, _, bridge)| l > if bridge { SPLIT_RATIO } else { LONG_RATIO } * mean)
+            .map(|(l, e, _)| (l, e))
+            .collect();
+        splits.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        let mut collapses: Vec<(f64, u32)> = (0..n_edges as u32)
+            .map(|e| (len(e), e))
+            .filter(|&(l, _)| l < COLLAPSE_RATIO * mean)
+            .collect();
+        collapses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        let mut made = false;
+        'pair: for &(_, s) in &splits {
+            let [c, d] = topo.edge(s);
+            let mid = mesh.positions[c as usize].lerp(mesh.positions[d as usize], 0.5);
+            let at = surface.and_then(|sf| sf.project(mid)).unwrap_or(mid);
+            let around: Vec<u32> = topo
+                .edge_faces(s)
+                .iter()
+                .flat_map(|&f| mesh.faces[f as usize])
+                .collect();
+            for &(_, k) in &collapses {
+                let [a, b] = topo.edge(k);
+                if around.contains(&a) || around.contains(&b) {
+                    continue;
+                }
+                let Some(col) = plan_collapse(mesh, &topo, &ends, surface, k, cos_turn, floor)
+                else {
+                    continue;
+                };
+                let Some((old, new)) = plan_split(mesh, &topo, surface, s, col.gone, at, cos_turn)
+                else {
+                    continue 'pair;
+                };
+                if carry {
+                    if col.at != mesh.positions[col.keep as usize] {
+                        v_from[col.keep as usize] =
+                            blend(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+                    }
+                    v_from[col.gone as usize] = blend(&v_from[c as usize], &v_from[d as usize]);
+                    let parents = [old[0], old[0], old[1], old[1]].map(|f| f_from[f as usize]);
+                    let slots = [old[0], old[1]]
+                        .into_iter()
+                        .chain(col.freed.iter().copied());
+                    for (i, f) in slots.enumerate() {
+                        f_from[f as usize] = parents[i];
+                    }
+                    if col.freed.len() == 1 {
+                        f_from.push(parents[3]);
+                    }
+                }
+                // Collapse: `gone` becomes `keep`; its edge's faces are freed.
+                for &f in topo.vertex_faces(col.gone) {
+                    for w in &mut mesh.faces[f as usize] {
+                        if *w == col.gone {
+                            *w = col.keep;
+                        }
+                    }
+                }
+                mesh.positions[col.keep as usize] = col.at;
+                mesh.positions[col.gone as usize] = at;
+                // The split's two faces and the collapse's freed ones (two, or one on the
+                // boundary: then the last new face is appended).
+                let mut slots = vec![old[0], old[1]];
+                slots.extend(&col.freed);
+                for (i, t) in new.into_iter().enumerate() {
+                    match slots.get(i) {
+                        Some(&f) => mesh.faces[f as usize] = t,
+                        None => mesh.faces.push(t),
+                    }
+                }
+                done += 1;
+                made = true;
+                break 'pair;
+            }
+        }
+        if !made {
+            break;
+        }
+    }
+    if let Some(before) = before.filter(|_| done > 0) {
+        let mut vo = VertexOrigins::with_capacity(v_from.len());
+        for src in v_from {
+            vo.push_blend(src);
+        }
+        let fo = FaceOrigins::from_parents(f_from);
+        let positions = std::mem::take(&mut mesh.positions);
+        let faces = std::mem::take(&mut mesh.faces);
+        *mesh = before.rebuilt(positions, faces, &vo, &fo).0;
+    }
+    done
+}
