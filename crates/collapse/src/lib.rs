@@ -89,9 +89,17 @@
 //!   merged into it (O(1) per face), tested while that region is coherent (the sum at least
 //!   half the region's area). This keeps faces from cutting a sharp crease and leaning over
 //!   it. A face may still end nearest to *another* part of the input that faces the other
-//!   way (a thin part, two sheets close together); only a spatial query would see that;
+//!   way (a thin part, two sheets close together); only a spatial query sees that: see
+//!   *facing* below;
 //! * **quality** (only with [`Options::min_quality`] > 0) — a kept face whose quality
 //!   (Frey–Borouchaki Q) would end below the minimum *and* below its current quality;
+//! * **facing** (only through [`LiveMesh::collapse_guarded`]) — a kept face fails the
+//!   caller's [`FaceGuard`], asked last, once every other check passed. The engine knows no
+//!   spatial index: the stages pass the metrics' flipped-face test against the run input,
+//!   behind the cheap gate of [`Gated`] (a face is tested when the input merged into its
+//!   corners is not coherent — it wraps around a thin part — or when it turns by more than
+//!   45°), so that the test costs little where it cannot fail. Each face is given as a
+//!   [`Reshape`]: its corners before and after, and that coherence.
 //! * **boundary** and **locked** — counted when a candidate is ranked, per the table above.
 //!
 //! # Targets
@@ -114,6 +122,7 @@
 //! No hash map, no threads, no randomness: the same input gives the same output bytes.
 
 mod faces;
+mod guard;
 mod live;
 mod progressive;
 mod qem;
@@ -123,6 +132,7 @@ mod ring;
 #[cfg(test)]
 mod fixtures;
 
+pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, NoGuard, Reshape};
 pub use live::{LiveMesh, MAX_FACES, Summary};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel};
@@ -273,6 +283,8 @@ pub struct Refusals {
     pub degenerate: u64,
     /// A kept face would fall below the minimum quality.
     pub quality: u64,
+    /// A kept face would fail the run's [`FaceGuard`] (e.g. face away from the input).
+    pub facing: u64,
     /// The boundary rules forbid the merge.
     pub boundary: u64,
     /// A locked vertex is involved.
@@ -289,6 +301,7 @@ impl Refusals {
             ("flip", self.flip),
             ("degenerate", self.degenerate),
             ("quality", self.quality),
+            ("facing", self.facing),
             ("boundary", self.boundary),
             ("locked", self.locked),
             ("model", self.model),
@@ -326,8 +339,8 @@ impl Outcome {
             )),
             StopReason::Exhausted => Some(format!(
                 "target ({target}) not reached: stopped at {at}; every remaining collapse is refused \
-                 (link {}, flip {}, degenerate {}, quality {}, boundary {}, locked {}, model {})",
-                r.link, r.flip, r.degenerate, r.quality, r.boundary, r.locked, r.model
+                 (link {}, flip {}, degenerate {}, quality {}, facing {}, boundary {}, locked {}, model {})",
+                r.link, r.flip, r.degenerate, r.quality, r.facing, r.boundary, r.locked, r.model
             )),
         }
     }

@@ -5,8 +5,8 @@ use crate::progressive::{ChangedFace, DeletedFace, Progressive, Step, fingerprin
 use crate::queue::{Entry, Queue};
 use crate::ring::{RingShape, ring_shape};
 use crate::{
-    CollapseError, CollapseRecord, CostModel, Goal, Index, Merge, NONE, Options, Outcome, Plan,
-    Reach, Refusals, StopReason, Unit, VertexKind,
+    CollapseError, CollapseRecord, CostModel, FaceGuard, Goal, Index, Merge, NONE, NoGuard,
+    Options, Outcome, Plan, Reach, Refusals, Reshape, StopReason, Unit, VertexKind,
 };
 use coarsen_geom::{Aabb, DVec3, is_finite, triangle};
 use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};
@@ -43,6 +43,7 @@ enum Refusal {
     Flip,
     Degenerate,
     Quality,
+    Facing,
     Boundary,
     Locked,
     Model,
@@ -55,6 +56,7 @@ impl Refusals {
             Refusal::Flip => &mut self.flip,
             Refusal::Degenerate => &mut self.degenerate,
             Refusal::Quality => &mut self.quality,
+            Refusal::Facing => &mut self.facing,
             Refusal::Boundary => &mut self.boundary,
             Refusal::Locked => &mut self.locked,
             Refusal::Model => &mut self.model,
@@ -598,6 +600,19 @@ impl LiveMesh {
         opts: &Options,
         progress: &mut dyn FnMut(usize),
     ) -> Outcome {
+        self.collapse_guarded(model, &mut NoGuard, opts, progress)
+    }
+
+    /// [`LiveMesh::collapse`] with `guard` as one more check: a collapse is refused (as
+    /// `facing`) when a face it reshapes fails the guard. The guard runs last, only on
+    /// collapses every other check allows.
+    pub fn collapse_guarded<M: CostModel, G: FaceGuard>(
+        &mut self,
+        model: &mut M,
+        guard: &mut G,
+        opts: &Options,
+        progress: &mut dyn FnMut(usize),
+    ) -> Outcome {
         let unit = model.unit();
         let reach = model.reach();
         let mut out = Outcome {
@@ -672,6 +687,11 @@ impl LiveMesh {
             }
             // Refused candidates wait until a collapse touches one of their vertices.
             if let Err(r) = self.check(verts, plan.position, opts.min_quality, &mut s) {
+                out.refused.count(r);
+                q.park(e);
+                continue;
+            }
+            if let Err(r) = self.guard(guard, verts, plan.position, &s) {
                 out.refused.count(r);
                 q.park(e);
                 continue;
@@ -903,6 +923,56 @@ impl LiveMesh {
                 if q_new < min_quality && q_new < triangle::quality(old[0], old[1], old[2]) {
                     return Err(Refusal::Quality);
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// The guard's verdict on the faces [`LiveMesh::check`] just passed (in `s.kept_faces`)
+    /// with their moved corner at `p`; faces that were degenerate are not asked.
+    fn guard<G: FaceGuard>(
+        &self,
+        guard: &mut G,
+        verts: &[Index],
+        p: DVec3,
+        s: &Scratch,
+    ) -> Result<(), Refusal> {
+        let coherence = |normal: DVec3, area: f64| {
+            if area > 0.0 {
+                normal.length() / area
+            } else {
+                1.0
+            }
+        };
+        let merged_normal: DVec3 = verts.iter().map(|&v| self.region_normal[v as usize]).sum();
+        let merged_area: f64 = verts.iter().map(|&v| self.region_area[v as usize]).sum();
+        let merged = coherence(merged_normal, merged_area);
+        for &(f, c) in &s.kept_faces {
+            let face = self.faces[f as usize];
+            let old = face.map(|v| self.pos[v as usize]);
+            if triangle::cross(old[0], old[1], old[2]).length() <= self.min_cross {
+                continue;
+            }
+            let mut new = old;
+            new[c] = p;
+            let mut least = merged;
+            let (mut normal, mut area) = (merged_normal, merged_area);
+            for (k, &v) in face.iter().enumerate() {
+                if k != c {
+                    let v = v as usize;
+                    least = least.min(coherence(self.region_normal[v], self.region_area[v]));
+                    normal += self.region_normal[v];
+                    area += self.region_area[v];
+                }
+            }
+            least = least.min(coherence(normal, area));
+            let r = Reshape {
+                old,
+                new,
+                coherence: least,
+            };
+            if !guard.allows(&r) {
+                return Err(Refusal::Facing);
             }
         }
         Ok(())
@@ -1462,6 +1532,51 @@ mod tests {
         let (again, outcome2) = qem(&mesh, Goal::Vertices(6));
         assert_eq!(out, again);
         assert_eq!(outcome, outcome2);
+    }
+
+    /// Refuses every reshape whose moved corner lands above `z`.
+    struct Below(f64);
+
+    impl FaceGuard for Below {
+        fn allows(&mut self, r: &Reshape) -> bool {
+            r.new.iter().all(|p| p.z <= self.0)
+        }
+    }
+
+    #[test]
+    fn a_guard_refuses_collapses_and_is_counted() {
+        let sphere = coarsen_shapes::icosphere(1.0, 2).unwrap();
+        let goal = Options::new(Goal::Vertices(40));
+        // A guard that allows everything changes nothing.
+        let (plain, plain_outcome) = qem(&sphere, Goal::Vertices(40));
+        let mut live = LiveMesh::new(&sphere).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let outcome = live.collapse_guarded(&mut model, &mut NoGuard, &goal, &mut |_| {});
+        assert_eq!(live.to_mesh(&sphere).unwrap().0, plain);
+        assert_eq!(outcome, plain_outcome);
+        // Faces may not reach above z = 0.5: the cap stays as it was, the rest coarsens.
+        let mut live = LiveMesh::new(&sphere).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let outcome = live.collapse_guarded(&mut model, &mut Below(0.5), &goal, &mut |_| {});
+        live.check_invariants().unwrap();
+        assert!(outcome.refused.facing > 0);
+        assert_eq!(
+            outcome.refused.by_reason()["facing"],
+            outcome.refused.facing
+        );
+        let (out, _) = live.to_mesh(&sphere).unwrap();
+        let top = |m: &Mesh| m.positions.iter().filter(|p| p.z > 0.5).count();
+        assert!(top(&out) <= top(&sphere));
+        assert!(out.n_vertices() < sphere.n_vertices());
+        // The input's faces above z = 0.5 were all refused a reshape: they survive as
+        // they were.
+        let kept: Vec<[DVec3; 3]> = (0..out.n_faces()).map(|f| out.corners(f)).collect();
+        for f in 0..sphere.n_faces() {
+            let c = sphere.corners(f);
+            if c.iter().any(|p| p.z > 0.5) && c.iter().all(|p| p.z > 0.5) {
+                assert!(kept.contains(&c), "input face {f} was reshaped");
+            }
+        }
     }
 
     #[test]

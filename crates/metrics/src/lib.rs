@@ -9,6 +9,8 @@
 //!   [`fidelity`](mod@fidelity) module docs).
 //! * [`validity()`] — counts, manifoldness, components, boundary loops, genus, degenerate
 //!   and turned-over faces ([`Validity`]).
+//! * [`feature_edges()`] — distance from the input's sharp feature edges to the output
+//!   ([`FeatureEdges`]).
 //! * [`measure`] — all three at once, sharing the spatial index and topology, as a
 //!   [`MetricsReport`] that serialises to JSON and prints as a Markdown table.
 //!
@@ -33,7 +35,9 @@
 //! ```
 
 pub mod error;
+pub mod features;
 pub mod fidelity;
+mod grid;
 mod prepare;
 pub mod quality;
 #[cfg(test)]
@@ -41,7 +45,9 @@ mod test_meshes;
 pub mod validity;
 
 pub use error::{MAX_COORDINATE, MetricsError, Role};
+pub use features::{FeatureEdges, FeatureOptions, feature_edges, sharp_edges};
 pub use fidelity::{Fidelity, FidelityOptions, fidelity};
+pub use grid::GridFacing;
 pub use quality::{Quality, quality};
 pub use validity::{Facing, SurfaceIndex, Validity, validity};
 

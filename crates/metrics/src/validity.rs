@@ -99,17 +99,38 @@ pub(crate) fn validity_of(
 /// (unnormalised): the face's own inside it, the summed normals of the faces around the
 /// edge or vertex it lies on (a weight of exactly 0 puts it on the opposite edge).
 fn surface_normal(mesh: &Mesh, topo: &Topology, face: u32, bary: [f64; 3]) -> DVec3 {
-    let face_cross = |f: u32| {
-        let [a, b, c] = mesh.corners(f as usize);
-        triangle::cross(a, b, c)
+    let vertex_normal = |v: u32| -> DVec3 {
+        topo.vertex_faces(v)
+            .iter()
+            .map(|&f| face_cross(mesh, f))
+            .sum()
     };
-    let vertex_normal =
-        |v: u32| -> DVec3 { topo.vertex_faces(v).iter().map(|&f| face_cross(f)).sum() };
     let edge_normal = |a: u32, b: u32| {
         topo.find_edge(a, b).map_or(DVec3::ZERO, |e| {
-            topo.edge_faces(e).iter().map(|&f| face_cross(f)).sum()
+            topo.edge_faces(e)
+                .iter()
+                .map(|&f| face_cross(mesh, f))
+                .sum()
         })
     };
+    surface_normal_with(mesh, face, bary, vertex_normal, edge_normal)
+}
+
+/// Face `f`'s cross product (twice its area along its normal).
+pub(crate) fn face_cross(mesh: &Mesh, f: u32) -> DVec3 {
+    let [a, b, c] = mesh.corners(f as usize);
+    triangle::cross(a, b, c)
+}
+
+/// [`surface_normal`] with the summed normals around a vertex and along an edge given.
+pub(crate) fn surface_normal_with(
+    mesh: &Mesh,
+    face: u32,
+    bary: [f64; 3],
+    vertex_normal: impl Fn(u32) -> DVec3,
+    edge_normal: impl Fn(u32, u32) -> DVec3,
+) -> DVec3 {
+    let face_cross = |f: u32| face_cross(mesh, f);
     let [p, q, r] = mesh.faces[face as usize];
     let n = match bary.map(|w| w != 0.0) {
         [true, false, false] => vertex_normal(p),

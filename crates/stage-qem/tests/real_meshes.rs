@@ -108,3 +108,24 @@ fn messy_meshes_simplify_without_error() {
         );
     }
 }
+
+#[test]
+fn no_face_turns_against_the_input_at_the_paper_ratios() {
+    // The cow (thin legs, ears, tail) had 6–7 flipped faces and the spot one before the
+    // facing guard.
+    for name in [
+        "stanford-bunny.obj",
+        "rocker-arm.obj",
+        "fandisk.obj",
+        "spot.obj",
+        "cow.obj",
+    ] {
+        let Some(mesh) = load(name) else { return };
+        for ratio in [0.7, 0.95] {
+            let (out, report) = simplify(&mesh, Target::Ratio(ratio));
+            let validity = coarsen_metrics::validity(Some(&mesh), &out).unwrap();
+            assert_eq!(validity.n_flipped, Some(0), "{name} {ratio}");
+            assert!(report.get("facing_tests").is_some(), "{name} {ratio}");
+        }
+    }
+}

@@ -73,6 +73,7 @@
 //! | `max_error` | `0` (none) | stop before the first collapse costing more |
 //! | `min_quality` | `0` (off) | refuse collapses leaving a triangle below this quality and below its previous quality |
 //! | `target_scale` | `1` | stop at this multiple of the target's count, for a later stage to finish (`svec-then-cvt`) |
+//! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
 //!
 //! The report gives `collapses` (`triangle_collapses` + `edge_collapses`),
 //! `feature_collapses`, `feature_threshold`, `refused` by reason, `sve` (metrics.md: the
@@ -80,6 +81,15 @@
 //! `max_cost`, the final `vertices` and `faces`, why the run `stop`ped, the
 //! `locked_vertices` and the `boundary_loops` before and after, and a warning whenever
 //! the target was not reached.
+//!
+//! **Facing guard** (`facing_guard`): besides the engine's own flip checks, a collapse is
+//! refused (`refused.facing`) when a face it reshapes would point away (> 90°) from the run
+//! input's surface at the input point nearest the face's centroid — the metrics' flipped-face
+//! test, on `coarsen_metrics::GridFacing`, a light index of the input built on the first face
+//! tested. Only faces past the engine's gate are tested (`coarsen_collapse::Gated`: their
+//! corners' merged input wraps around a thin part, or they turn by more than 45°); the report
+//! gives how many (`facing_tests`). On the cow's thin legs, ears and tail this removes the
+//! faces that ended nearest to the part's other side.
 //!
 //! ```
 //! use coarsen_stage::{Context, Stage, StageReport, Target};
@@ -97,12 +107,18 @@ mod model;
 
 pub use model::{SvecModel, SvecOptions};
 
-use coarsen_collapse::{Goal, LiveMesh, Options, Outcome, Refusals, StopReason, Summary, Unit};
+use coarsen_collapse::{
+    FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, Refusals, StopReason,
+    Summary, Unit,
+};
+use coarsen_metrics::GridFacing;
+use coarsen_stage::DVec3;
 use coarsen_stage::params::check_range;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     TargetCount, params,
 };
+use std::cell::OnceCell;
 
 params! {
     /// Parameters of `simplify.svec`.
@@ -125,6 +141,11 @@ params! {
         /// Stop at this multiple of the run target's vertex or face count (e.g. 4 leaves
         /// four times as many for a later stage to take to the target); 1 reaches it.
         pub target_scale: f64 = 1.0,
+        /// Refuse collapses that would turn a face away from the run input's surface
+        /// nearest it (the metrics' flipped-face test), tested where the engine's gate says
+        /// a face could fail (thin parts, sharp turns); `false` leaves only the engine's own
+        /// flip checks.
+        pub facing_guard: bool = true,
     }
 }
 
@@ -156,6 +177,7 @@ struct Totals {
     edge_collapses: usize,
     feature_collapses: usize,
     feature_threshold: f64,
+    guarded: GuardCounts,
 }
 
 impl Stage for SimplifySvec {
@@ -206,9 +228,19 @@ impl Stage for SimplifySvec {
             Goal::Faces(n) => before.faces.saturating_sub(n) / 4,
         };
         progress.begin(Self::KIND, to_remove as u64);
-        let totals = simplify(&mut live, p, goal, &mut |n| {
-            progress.advance(n as u64, "collapses")
-        });
+        let mut advance = |n: usize| progress.advance(n as u64, "collapses");
+        let totals = if p.facing_guard {
+            let input = InputFacing {
+                input: cx.original,
+                facing: OnceCell::new(),
+            };
+            let mut guard = Gated::standard(|a, b, c| input.allows(a, b, c));
+            let mut totals = simplify(&mut live, p, goal, &mut guard, &mut advance);
+            totals.guarded = guard.counts;
+            totals
+        } else {
+            simplify(&mut live, p, goal, &mut NoGuard, &mut advance)
+        };
         progress.end();
         let after = live.summary();
         let (out, carry) = live
@@ -228,10 +260,11 @@ impl Stage for SimplifySvec {
 }
 
 /// Triangle collapses until one more could overshoot `goal`, then edge collapses to it.
-fn simplify(
+fn simplify<G: FaceGuard>(
     live: &mut LiveMesh,
     p: &SvecParams,
     goal: Goal,
+    guard: &mut G,
     progress: &mut dyn FnMut(usize),
 ) -> Totals {
     let mut model = SvecModel::new(
@@ -252,14 +285,14 @@ fn simplify(
         min_quality: p.min_quality,
         keep_log: false,
     };
-    let mut outcome = live.collapse(&mut model, &opts, progress);
+    let mut outcome = live.collapse_guarded(&mut model, guard, &opts, progress);
     let triangle_collapses = outcome.collapses;
     let mut edge_collapses = 0;
     if !matches!(outcome.stop, StopReason::MaxError { .. }) {
         model.set_unit(Unit::Edge);
         opts.goal = goal;
         let done = outcome.collapses;
-        let finish = live.collapse(&mut model, &opts, &mut |n| progress(done + n));
+        let finish = live.collapse_guarded(&mut model, guard, &opts, &mut |n| progress(done + n));
         edge_collapses = finish.collapses;
         outcome = join(outcome, finish);
     }
@@ -269,6 +302,22 @@ fn simplify(
         edge_collapses,
         feature_collapses: model.feature_collapses(),
         feature_threshold: model.feature_threshold(),
+        guarded: GuardCounts::default(),
+    }
+}
+
+/// The metrics' facing test against the run input; its (light) index is built on the first
+/// face the gate lets through.
+struct InputFacing<'a> {
+    input: &'a Mesh,
+    facing: OnceCell<GridFacing<'a>>,
+}
+
+impl InputFacing<'_> {
+    /// True when triangle `abc` does not point away from the input surface nearest it.
+    fn allows(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+        let facing = self.facing.get_or_init(|| GridFacing::new(self.input));
+        !facing.faces_away(a, b, c)
     }
 }
 
@@ -280,6 +329,7 @@ fn join(mut a: Outcome, b: Outcome) -> Outcome {
         flip: x.flip + y.flip,
         degenerate: x.degenerate + y.degenerate,
         quality: x.quality + y.quality,
+        facing: x.facing + y.facing,
         boundary: x.boundary + y.boundary,
         locked: x.locked + y.locked,
         model: x.model + y.model,
@@ -312,6 +362,9 @@ fn report(
         r.figure("feature_threshold", t.feature_threshold);
     }
     r.figure("refused", by_reason);
+    if p.facing_guard {
+        r.figure("facing_tests", t.guarded.tested);
+    }
     r.figure("sve", o.sve);
     r.figure("max_cost", o.max_cost);
     r.figure("vertices", after.vertices);

@@ -90,6 +90,7 @@ fn needs_a_target_and_checks_its_parameters() {
         max_error: -2.0,
         min_quality: 3.0,
         target_scale: 0.5,
+        facing_guard: true,
     };
     let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
     assert_eq!(
