@@ -284,3 +284,34 @@ fn extreme_boundary_curvature_keeps_the_coarse_mesh_with_a_warning() {
     assert!(s.manifold && s.consistently_oriented, "{s:?}");
     assert_eq!(s.n_boundary_loops, 5);
 }
+
+/// The cow's ears and tail and the teapot's rims are thinner than a cluster: a coarse face
+/// there can lie nearer the opposite sheet and face away from the input (18 and 31 such
+/// faces through adaptive-cvt before the post-process's dual learnt to turn them round).
+#[test]
+fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
+    let Some(dir) = shared_data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    for (file, n) in [("cow.obj", "1000"), ("teapot.obj", "1200")] {
+        let input = dir.join(file);
+        let out = tmp.path().join(format!("{file}.ply"));
+        let (input, out) = (input.to_str().unwrap(), out.to_str().unwrap());
+        let o = run_cli(
+            EXE,
+            &[
+                "run",
+                "adaptive-cvt",
+                input,
+                "-o",
+                out,
+                "--vertices",
+                n,
+                "-q",
+            ],
+        );
+        assert!(o.status.success(), "{file}: {}", stderr(&o));
+        let m = run_cli(EXE, &["metrics", "--json", input, out]);
+        let j: serde_json::Value = serde_json::from_str(&stdout(&m)).unwrap();
+        assert_eq!(j["validity"]["n_flipped"], 0, "{file}");
+    }
+}

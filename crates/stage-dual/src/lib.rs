@@ -50,6 +50,13 @@
 //!   10⁻³ of the quadric's trace stay at it), and falling back to the projected centroid
 //!   when the point leaves the cluster's bounding box enlarged by half its diagonal.
 //!
+//! Where a part of the input is thinner than a cluster (a cow's ears, a teapot's rim), an
+//! output face can lie nearer the opposite sheet and face away from it — the metrics count it
+//! as flipped. With `fix_facing` (on by default) each vertex of such a face tries points of its
+//! cluster's faces and moves to one where fewer of its faces do so (none flat), keeping the
+//! largest smallest angle. Pipelines whose post-process re-triangulates turn it off here: the
+//! post-process's own dual always does it, on the mesh that is kept.
+//!
 //! Vertex attributes are carried to each output vertex as the area-weighted blend of its
 //! cluster's vertices; face attributes do not survive.
 //!
@@ -98,6 +105,10 @@ params! {
         pub max_repair_rounds: u32 = 40,
         /// Minimisation passes after each repair round (0 = none).
         pub relax_passes: u32 = 8,
+        /// Move the vertices of faces that face away from the input surface nearest them
+        /// (a part thinner than a cluster) to points of their clusters where fewer do
+        /// (off where a post-process re-triangulates anyway: it fixes its own).
+        pub fix_facing: bool = true,
     }
 }
 
@@ -121,7 +132,9 @@ pub struct Dual {
 /// The dual triangulation of `mesh` clustered by `labels` (`0..n`): repairs the clustering
 /// where needed (the repaired labels are written back), places the vertices (projecting
 /// onto the indexed `surface`, or onto `mesh` itself when `None`), carries the vertex
-/// attributes. `topo` is `mesh`'s adjacency.
+/// attributes. `topo` is `mesh`'s adjacency; with `fix_facing`, faces facing away from
+/// the surface get their vertices moved where fewer do (see [`DualParams`]).
+#[allow(clippy::too_many_arguments)]
 pub fn dual(
     mesh: &Mesh,
     topo: &Topology,
@@ -130,6 +143,7 @@ pub fn dual(
     surface: Option<&Facing<'_>>,
     max_repair_rounds: u32,
     relax_passes: u32,
+    fix_facing: bool,
 ) -> Result<Dual, DualError> {
     if let Some(f) = (0..mesh.n_faces() as u32).find(|&f| topo.is_skipped_face(f)) {
         return Err(DualError::NotManifold(format!("face {f} repeats a vertex")));
@@ -224,7 +238,10 @@ pub fn dual(
     let still: Vec<u32> = {
         let mut v: Vec<u32> = faces
             .iter()
-            .filter(|f| flat(f, &positions))
+            .filter(|f| {
+                let [a, b, c] = f.map(|i| positions[i as usize]);
+                flat(f, &positions) || (fix_facing && facing.faces_away(a, b, c))
+            })
             .flatten()
             .copied()
             .collect();
@@ -233,9 +250,12 @@ pub fn dual(
         v
     };
     if !still.is_empty() {
-        // Centroids in a row (e.g. thin clusters along a straight strip): each vertex of a
-        // flat triangle tries points of its cluster's faces and takes, of those that leave
-        // none of its triangles flat, the one with the fewest facing away (nearest first).
+        // Centroids in a row (e.g. thin clusters along a straight strip), or a face across a
+        // part thinner than a cluster (nearest the opposite sheet): each vertex of such a
+        // triangle tries points of its cluster's faces. Against flat triangles it takes, of
+        // those that leave none of its triangles flat, the one with the fewest facing away
+        // (nearest first); against faces facing away, one that leaves fewer facing away and
+        // none flat, the one whose triangles keep the largest smallest angle.
         let mut involved = vec![false; n];
         still.iter().for_each(|&c| involved[c as usize] = true);
         let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
@@ -263,7 +283,7 @@ pub fn dual(
             };
             let here = positions[c as usize];
             let now = score(&positions);
-            if now.0 == 0 {
+            if now.0 == 0 && now.1 == 0 {
                 continue;
             }
             // Each face's centroid, and the points halfway from it to the face's corners
@@ -282,15 +302,29 @@ pub fn dual(
                 })
                 .collect();
             cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let mut best: Option<((usize, usize), DVec3)> = None;
+            let mut best: Option<((usize, usize), DVec3, f64)> = None;
             for (_, _, p) in cand {
                 positions[c as usize] = p;
                 let sc = score(&positions);
-                if sc.0 == 0 && best.is_none_or(|(b, _)| sc.1 < b.1) {
-                    best = Some((sc, p));
+                if sc.0 > 0 || (now.0 == 0 && sc.1 >= now.1) {
+                    continue;
+                }
+                // Flat triangles: the nearest of the fewest facing away (angles not looked at).
+                let shape = match now.0 {
+                    0 => around[c as usize]
+                        .iter()
+                        .map(|&i| {
+                            let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
+                            coarsen_geom::triangle::min_angle(a, b, cc)
+                        })
+                        .fold(f64::INFINITY, f64::min),
+                    _ => 0.0,
+                };
+                if best.is_none_or(|(b, _, w)| sc.1 < b.1 || (sc.1 == b.1 && shape > w)) {
+                    best = Some((sc, p, shape));
                 }
             }
-            positions[c as usize] = best.map_or(here, |(_, p)| p);
+            positions[c as usize] = best.map_or(here, |(_, p, _)| p);
             moved += best.is_some() as usize;
         }
     }
@@ -673,6 +707,7 @@ impl Stage for DualStage {
             facing.as_ref(),
             p.max_repair_rounds,
             p.relax_passes,
+            p.fix_facing,
         )
         .map_err(|e| match e {
             DualError::Unrepaired(_) => StageError::Internal(format!("`{}`: {e}", Self::KIND)),

@@ -20,6 +20,7 @@ fn dual_on(
         None,
         rounds,
         relax_passes,
+        true,
     )
 }
 

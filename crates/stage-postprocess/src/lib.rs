@@ -188,6 +188,7 @@ impl Stage for Postprocess {
             facing.as_ref(),
             40,
             8,
+            true,
         ) {
             Ok(d) => d,
             // The coarse mesh is a valid result already: a fine clustering without a valid
