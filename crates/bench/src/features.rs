@@ -1,10 +1,11 @@
-//! Issue #6's feature-edge rows: how far the output of each simplifier lies from the
-//! fandisk's sharp feature edges (`coarsen_metrics::feature_edges`), at paper 2's 70 %.
+//! The feature-edge rows (issues #5 and #6): how far the output of each simplifier lies
+//! from the fandisk's sharp feature edges (`coarsen_metrics::feature_edges`), at paper 2's
+//! 70 %, and how much `quadric` placement recovers for the CVT pipelines.
 
 use anyhow::Result;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::{FeatureOptions, feature_edges, fidelity};
-use coarsen_pipeline::{Overrides, Pipeline, RunOptions};
+use coarsen_pipeline::{Overrides, Pipeline, RunOptions, parse_set};
 use coarsen_stage::{Registry, Target};
 use std::fmt::Write as _;
 
@@ -14,13 +15,38 @@ pub const MESH: &str = "fandisk.obj";
 /// The share of faces the simplifiers remove.
 const RATIO: f64 = 0.7;
 
-/// Runs `pipeline` on `input` to `target`; the output mesh.
-fn run(registry: &Registry, pipeline: &str, input: &Mesh, target: Target) -> Result<Mesh> {
+/// The rows: shipped pipeline and `--set` overrides.
+const ROWS: &[(&str, &[&str])] = &[
+    ("qem", &[]),
+    ("svec", &[]),
+    ("uniform-cvt", &[]),
+    ("adaptive-cvt", &[]),
+    (
+        "adaptive-cvt",
+        &[
+            "dual.placement=\"quadric\"",
+            "postprocess.placement=\"quadric\"",
+        ],
+    ),
+    ("goal", &[]),
+];
+
+/// Runs `pipeline` with `sets` on `input` to `target`; the output mesh.
+fn run(
+    registry: &Registry,
+    pipeline: &str,
+    sets: &[&str],
+    input: &Mesh,
+    target: Target,
+) -> Result<Mesh> {
     let text = coarsen_builtin::pipeline(pipeline)
         .ok_or_else(|| anyhow::anyhow!("pipeline `{pipeline}` is not shipped"))?;
     let overrides = Overrides {
         target: Some(target),
-        ..Default::default()
+        sets: sets
+            .iter()
+            .map(|s| parse_set(s).map_err(|e| anyhow::anyhow!(e)))
+            .collect::<Result<_>>()?,
     };
     let p = Pipeline::parse(text, pipeline, registry, &overrides)
         .map_err(|d| anyhow::anyhow!(d.to_string()))?;
@@ -31,8 +57,9 @@ fn run(registry: &Registry, pipeline: &str, input: &Mesh, target: Target) -> Res
     Ok(p.run(input.clone(), opts)?.0)
 }
 
-/// The section: `qem` and `svec` at 70 % removed, then the CVT pipelines at the vertex
-/// count `qem` reached, each with the distance from the input's feature edges to it.
+/// The section: `qem` and `svec` at 70 % removed, then the CVT pipelines (paper 1's also
+/// with `quadric` placement, issue #5) at the vertex count `qem` reached, each with the
+/// distance from the input's feature edges to it.
 pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
     let opts = FeatureOptions::default();
     let mut s = String::new();
@@ -44,19 +71,23 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
     let mut rows = String::new();
     let mut vertices = None;
     let mut edges = None;
-    for pipeline in ["qem", "svec", "uniform-cvt", "adaptive-cvt"] {
+    for &(pipeline, sets) in ROWS {
+        let label = match sets {
+            [] => format!("`{pipeline}`"),
+            _ => format!("`{pipeline}` {}", sets.join(" ").replace('"', "")),
+        };
         let target = match (pipeline, vertices) {
             ("qem" | "svec", _) => Target::Ratio(RATIO),
             (_, Some(v)) => Target::Vertices(v),
             (_, None) => continue,
         };
-        eprintln!("features · {pipeline}");
-        let out = match run(registry, pipeline, input, target) {
+        eprintln!("features · {label}");
+        let out = match run(registry, pipeline, sets, input, target) {
             Ok(out) => out,
             Err(e) => {
                 let _ = writeln!(
                     rows,
-                    "| `{pipeline}` | failed: {} | | | | | |",
+                    "| {label} | failed: {} | | | | | |",
                     e.to_string().replace('|', "/")
                 );
                 continue;
@@ -70,7 +101,7 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
         edges = Some((f.n_edges, f.length_pct, f.n_samples));
         let _ = writeln!(
             rows,
-            "| `{pipeline}` | {} | {} | {:.4} | {:.4} | {:.4} |",
+            "| {label} | {} | {} | {:.4} | {:.4} | {:.4} |",
             out.n_vertices(),
             out.n_faces(),
             f.max_pct,

@@ -10,6 +10,7 @@
 
 mod cases;
 mod features;
+mod levers;
 mod scale;
 mod speed;
 
@@ -166,6 +167,10 @@ fn tables(data: &Path, out: &Path, with_scale: bool, with_speed: bool) -> Result
     }
     let mut text = render(&rows, &outcomes);
     text.push_str(&feature_section(data)?);
+    text.push_str(&levers::section(
+        &coarsen_builtin::registry()?,
+        &load(&data.join(levers::MESH))?,
+    )?);
     if with_speed {
         text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
     }
