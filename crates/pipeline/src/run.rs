@@ -12,6 +12,10 @@ use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageRe
 use std::sync::Mutex;
 use std::time::Instant;
 
+/// The words of the warning a stage's report carries when the runner split the mesh's
+/// non-manifold vertices before it (one vertex per face fan).
+pub const SPLIT_FANS_NOTE: &str = "split into one vertex per face fan";
+
 /// What every stage's output must satisfy: valid indices, finite values, no face repeating
 /// a vertex, no duplicate face, no face of exactly zero area — the same bar as load-time
 /// hygiene, so an input that hygiene kept never fails it by itself.
@@ -143,7 +147,7 @@ impl Pipeline {
                     let after = summary_of(&mesh)?;
                     if copies > 0 {
                         split_note = Some(format!(
-                            "{} non-manifold vertices split into one vertex per face fan ({copies} copies added)",
+                            "{} non-manifold vertices {SPLIT_FANS_NOTE} ({copies} copies added)",
                             summary.n_non_manifold_vertices - after.n_non_manifold_vertices
                         ));
                     }
