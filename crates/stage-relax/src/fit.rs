@@ -638,14 +638,7 @@ pub(crate) fn fit(
         }
     }
     if let Some(before) = before.filter(|_| done > 0) {
-        let mut vo = VertexOrigins::with_capacity(v_from.len());
-        for src in v_from {
-            vo.push_blend(src);
-        }
-        let fo = FaceOrigins::from_parents(f_from);
-        let positions = std::mem::take(&mut mesh.positions);
-        let faces = std::mem::take(&mut mesh.faces);
-        *mesh = before.rebuilt(positions, faces, &vo, &fo).0;
+        carry_attributes(mesh, &before, v_from, f_from);
     }
     done
 }

@@ -486,6 +486,17 @@ mod tests {
     use super::*;
     use coarsen_stage::StageReport;
 
+    /// The mean of `f` over the faces of `m`.
+    fn mean_over_faces(m: &Mesh, f: impl Fn(DVec3, DVec3, DVec3) -> f64) -> f64 {
+        (0..m.n_faces())
+            .map(|t| {
+                let [a, b, c] = m.corners(t);
+                f(a, b, c)
+            })
+            .sum::<f64>()
+            / m.n_faces() as f64
+    }
+
     /// A sphere whose vertices were pushed around on its surface: relaxing lifts its
     /// smallest angle, keeps every vertex on the sphere and flips nothing.
     #[test]
@@ -570,15 +581,7 @@ mod tests {
                 *p += DVec3::new(t, -t, 0.0);
             }
         }
-        let mean_min_angle = |m: &Mesh| {
-            (0..m.n_faces())
-                .map(|f| {
-                    let [a, b, c] = m.corners(f);
-                    triangle::min_angle(a, b, c)
-                })
-                .sum::<f64>()
-                / m.n_faces() as f64
-        };
+        let mean_min_angle = |m: &Mesh| mean_over_faces(m, triangle::min_angle);
         let before = mean_min_angle(&m);
         let r = relax(&mut m, Some(&surface), &RelaxParams::default());
         assert!(r.min_angle_after >= r.min_angle_before, "{r:?}");
@@ -717,15 +720,7 @@ mod tests {
             let t = (i as f64 * 12.9898).sin() * 0.05;
             *p = (*p + DVec3::new(t, -t, 0.5 * t)).normalize();
         }
-        let mean_quality = |m: &Mesh| {
-            (0..m.n_faces())
-                .map(|f| {
-                    let [a, b, c] = m.corners(f);
-                    triangle::quality(a, b, c)
-                })
-                .sum::<f64>()
-                / m.n_faces() as f64
-        };
+        let mean_quality = |m: &Mesh| mean_over_faces(m, triangle::quality);
         let (mut plain, mut even) = (m.clone(), m);
         relax(&mut plain, Some(&surface), &RelaxParams::default());
         let params = RelaxParams {

@@ -19,6 +19,24 @@ pub(crate) fn after_edge(mesh: &Mesh, f: u32, x: u32, y: u32) -> Option<u32> {
         .map(|i| t[(i + 2) % 3])
 }
 
+/// Gives the edited `mesh` the attributes of `before`, the mesh the edits started from:
+/// each vertex blends the vertices `v_from` names, each face copies the face `f_from` names.
+pub(crate) fn carry_attributes(
+    mesh: &mut Mesh,
+    before: &Mesh,
+    v_from: Vec<Vec<(u32, f64)>>,
+    f_from: Vec<u32>,
+) {
+    let mut vo = VertexOrigins::with_capacity(v_from.len());
+    for src in v_from {
+        vo.push_blend(src);
+    }
+    let fo = FaceOrigins::from_parents(f_from);
+    let positions = std::mem::take(&mut mesh.positions);
+    let faces = std::mem::take(&mut mesh.faces);
+    *mesh = before.rebuilt(positions, faces, &vo, &fo).0;
+}
+
 /// Half of each of two vertices' origins.
 pub(crate) fn blend_origins(x: &[(u32, f64)], y: &[(u32, f64)]) -> Vec<(u32, f64)> {
     let mut out: Vec<(u32, f64)> = Vec::new();
@@ -206,16 +224,6 @@ pub(crate) fn rebalance(
             .collect();
         f_from = (0..mesh.n_faces() as u32).collect();
     }
-    let blend = |x: &[(u32, f64)], y: &[(u32, f64)]| {
-        let mut out: Vec<(u32, f64)> = Vec::new();
-        for &(v, w) in x.iter().chain(y) {
-            match out.iter_mut().find(|(u, _)| *u == v) {
-                Some(e) => e.1 += 0.5 * w,
-                None => out.push((v, 0.5 * w)),
-            }
-        }
-        out
-    };
     let mut done = 0;
     while done < max_pairs as usize {
         let Ok(topo) = Topology::try_build(mesh) else {
@@ -280,9 +288,10 @@ pub(crate) fn rebalance(
                 if carry {
                     if col.at != mesh.positions[col.keep as usize] {
                         v_from[col.keep as usize] =
-                            blend(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+                            blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
                     }
-                    v_from[col.gone as usize] = blend(&v_from[c as usize], &v_from[d as usize]);
+                    v_from[col.gone as usize] =
+                        blend_origins(&v_from[c as usize], &v_from[d as usize]);
                     let parents = [old[0], old[0], old[1], old[1]].map(|f| f_from[f as usize]);
                     let slots = [old[0], old[1]]
                         .into_iter()
@@ -324,14 +333,7 @@ pub(crate) fn rebalance(
         }
     }
     if let Some(before) = before.filter(|_| done > 0) {
-        let mut vo = VertexOrigins::with_capacity(v_from.len());
-        for src in v_from {
-            vo.push_blend(src);
-        }
-        let fo = FaceOrigins::from_parents(f_from);
-        let positions = std::mem::take(&mut mesh.positions);
-        let faces = std::mem::take(&mut mesh.faces);
-        *mesh = before.rebuilt(positions, faces, &vo, &fo).0;
+        carry_attributes(mesh, &before, v_from, f_from);
     }
     done
 }
