@@ -322,16 +322,12 @@ pub(crate) fn fit(
     tol: f64,
     samples: &[(DVec3, bool)],
 ) -> usize {
-    let carry = !mesh.vertex_attrs.is_empty() || !mesh.face_attrs.is_empty();
-    let before = carry.then(|| mesh.clone());
-    let mut v_from: Vec<Vec<(u32, f64)>> = Vec::new();
-    let mut f_from: Vec<u32> = Vec::new();
-    if carry {
-        v_from = (0..mesh.n_vertices() as u32)
-            .map(|v| vec![(v, 1.0)])
-            .collect();
-        f_from = (0..mesh.n_faces() as u32).collect();
-    }
+    let Origins {
+        before,
+        mut v_from,
+        mut f_from,
+    } = Origins::start(mesh);
+    let carry = before.is_some();
     let smallest = (0..mesh.n_faces())
         .map(|f| {
             let [a, b, c] = mesh.corners(f);

@@ -486,6 +486,16 @@ mod tests {
     use super::*;
     use coarsen_stage::StageReport;
 
+    /// Four fitting edits, no sweeps.
+    fn fit_only() -> RelaxParams {
+        RelaxParams {
+            fit: 4,
+            sweeps: 0,
+            floor_deg: 30.0,
+            ..RelaxParams::default()
+        }
+    }
+
     /// The mean of `f` over the faces of `m`.
     fn mean_over_faces(m: &Mesh, f: impl Fn(DVec3, DVec3, DVec3) -> f64) -> f64 {
         (0..m.n_faces())
@@ -768,12 +778,7 @@ mod tests {
         let surface = Surface::new(&original);
         let mut m = bumped_grid(8, 0.0625);
         let before = farthest_vertex(&original, &m);
-        let params = RelaxParams {
-            fit: 4,
-            sweeps: 0,
-            floor_deg: 30.0,
-            ..RelaxParams::default()
-        };
+        let params = fit_only();
         let r = relax(&mut m, Some(&surface), &params);
         assert!(r.fitted > 0, "{r:?}");
         let after = farthest_vertex(&original, &m);
@@ -860,13 +865,7 @@ mod tests {
             "id",
             coarsen_mesh::AttrValues::Label((0..n_faces).collect()),
         );
-        let params = RelaxParams {
-            fit: 4,
-            sweeps: 0,
-            floor_deg: 30.0,
-            ..RelaxParams::default()
-        };
-        let r = relax(&mut m, Some(&surface), &params);
+        let r = relax(&mut m, Some(&surface), &fit_only());
         assert!(r.fitted > 0, "{r:?}");
         assert_eq!(m.vertex_attrs.scalar("x").unwrap().len(), m.n_vertices());
         let ids = m.face_attrs.label("id").unwrap();

@@ -19,6 +19,37 @@ pub(crate) fn after_edge(mesh: &Mesh, f: u32, x: u32, y: u32) -> Option<u32> {
         .map(|i| t[(i + 2) % 3])
 }
 
+/// Where each vertex and face of an edited mesh comes from in the mesh the edits started
+/// from (weighted vertices, parent face); kept only when that mesh has attributes to carry.
+pub(crate) struct Origins {
+    /// The mesh the edits started from, when it has attributes.
+    pub(crate) before: Option<Mesh>,
+    /// Per vertex, the vertices of `before` it blends.
+    pub(crate) v_from: Vec<Vec<(u32, f64)>>,
+    /// Per face, its face in `before`.
+    pub(crate) f_from: Vec<u32>,
+}
+
+impl Origins {
+    /// Every vertex and face of `mesh` its own origin (nothing kept without attributes).
+    pub(crate) fn start(mesh: &Mesh) -> Origins {
+        if mesh.vertex_attrs.is_empty() && mesh.face_attrs.is_empty() {
+            return Origins {
+                before: None,
+                v_from: Vec::new(),
+                f_from: Vec::new(),
+            };
+        }
+        Origins {
+            before: Some(mesh.clone()),
+            v_from: (0..mesh.n_vertices() as u32)
+                .map(|v| vec![(v, 1.0)])
+                .collect(),
+            f_from: (0..mesh.n_faces() as u32).collect(),
+        }
+    }
+}
+
 /// Gives the edited `mesh` the attributes of `before`, the mesh the edits started from:
 /// each vertex blends the vertices `v_from` names, each face copies the face `f_from` names.
 pub(crate) fn carry_attributes(
@@ -213,17 +244,12 @@ pub(crate) fn rebalance(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let carry = !mesh.vertex_attrs.is_empty() || !mesh.face_attrs.is_empty();
-    let before = carry.then(|| mesh.clone());
-    // Where each vertex and face comes from in `before` (weighted vertices, parent face).
-    let mut v_from: Vec<Vec<(u32, f64)>> = Vec::new();
-    let mut f_from: Vec<u32> = Vec::new();
-    if carry {
-        v_from = (0..mesh.n_vertices() as u32)
-            .map(|v| vec![(v, 1.0)])
-            .collect();
-        f_from = (0..mesh.n_faces() as u32).collect();
-    }
+    let Origins {
+        before,
+        mut v_from,
+        mut f_from,
+    } = Origins::start(mesh);
+    let carry = before.is_some();
     let mut done = 0;
     while done < max_pairs as usize {
         let Ok(topo) = Topology::try_build(mesh) else {
