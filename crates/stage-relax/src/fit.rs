@@ -380,21 +380,12 @@ pub(crate) fn fit(
         if d_max.is_nan() || d_max <= tol {
             break;
         }
-        let len = |e: u32| {
-            let [a, b] = topo.edge(e);
-            mesh.positions[a as usize].distance(mesh.positions[b as usize])
-        };
+        let len = |e: u32| edge_length(mesh, &topo, e);
         let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
-        let mut ends: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
-        let mut boundary_edges = Vec::new();
-        for e in 0..n_edges as u32 {
-            if topo.is_boundary_edge(e) {
-                let [a, b] = topo.edge(e);
-                ends[a as usize].push(b);
-                ends[b as usize].push(a);
-                boundary_edges.push(e);
-            }
-        }
+        let ends = boundary_neighbours(&topo, mesh.n_vertices());
+        let boundary_edges: Vec<u32> = (0..n_edges as u32)
+            .filter(|&e| topo.is_boundary_edge(e))
+            .collect();
         // Collapse candidates, least surface moved first (at the edge's midpoint).
         let mut collapses: Vec<(f64, f64, u32)> = (0..n_edges as u32)
             .map(|e| (len(e), e))

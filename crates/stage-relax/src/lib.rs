@@ -209,6 +209,26 @@ impl<'a> Surface<'a> {
     }
 }
 
+/// The boundary neighbours of each of `n_vertices` vertices (two on a boundary loop, none
+/// inside).
+fn boundary_neighbours(topo: &Topology, n_vertices: usize) -> Vec<Vec<u32>> {
+    let mut ends: Vec<Vec<u32>> = vec![Vec::new(); n_vertices];
+    for e in 0..topo.n_edges() as u32 {
+        if topo.is_boundary_edge(e) {
+            let [a, b] = topo.edge(e);
+            ends[a as usize].push(b);
+            ends[b as usize].push(a);
+        }
+    }
+    ends
+}
+
+/// The length of edge `e` of `mesh` (`topo` its adjacency).
+fn edge_length(mesh: &Mesh, topo: &Topology, e: u32) -> f64 {
+    let [a, b] = topo.edge(e);
+    mesh.positions[a as usize].distance(mesh.positions[b as usize])
+}
+
 /// Relaxes the vertices of `mesh` in place (see the crate docs), keeping them on `surface`
 /// when given.
 pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParams) -> Relaxed {
@@ -267,14 +287,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         return out;
     };
     // The two boundary neighbours of each boundary vertex.
-    let mut ends: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
-    for e in 0..topo.n_edges() as u32 {
-        if topo.is_boundary_edge(e) {
-            let [a, b] = topo.edge(e);
-            ends[a as usize].push(b);
-            ends[b as usize].push(a);
-        }
-    }
+    let ends = boundary_neighbours(&topo, mesh.n_vertices());
     let mut normals = Vec::new();
     let mut topo = topo;
     let mut tris = Vec::new();

@@ -259,19 +259,9 @@ pub(crate) fn rebalance(
         if n_edges == 0 {
             break;
         }
-        let len = |e: u32| {
-            let [a, b] = topo.edge(e);
-            mesh.positions[a as usize].distance(mesh.positions[b as usize])
-        };
+        let len = |e: u32| edge_length(mesh, &topo, e);
         let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
-        let mut ends: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
-        for e in 0..n_edges as u32 {
-            if topo.is_boundary_edge(e) {
-                let [a, b] = topo.edge(e);
-                ends[a as usize].push(b);
-                ends[b as usize].push(a);
-            }
-        }
+        let ends = boundary_neighbours(&topo, mesh.n_vertices());
         let mut splits: Vec<(f64, u32)> = (0..n_edges as u32)
             .filter(|&e| topo.edge_faces(e).len() == 2)
             .map(|e| {
