@@ -8,7 +8,7 @@
 //! * a 1.3M-face icosphere down to 60 000 faces;
 //! * issue #6's speed bar: the bunny subdivided 1-to-4 three times (4.4M faces) down to
 //!   60 000 faces, once each, `simplify.qem` and `simplify.svec` against meshoptimizer
-//!   (`cargo bench -p coarsen-stage-qem -- --bench scale` runs only this case).
+//!   (`cargo bench -p coarsen-stage-qem --bench qem -- scale` runs only this case).
 //!
 //! coarsen's time covers the whole stage (adjacency, quadrics, collapses, compaction with
 //! attribute carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
