@@ -37,8 +37,9 @@ impl<'a> Prepared<'a> {
             .enumerate()
             .filter(|(_, (_, r))| **r)
         {
-            // Written so that NaN fails too.
-            let in_range = p.abs().max_element() <= MAX_COORDINATE;
+            // `max_element` passes a NaN by when another coordinate is a number: test
+            // finiteness first.
+            let in_range = p.is_finite() && p.abs().max_element() <= MAX_COORDINATE;
             if !in_range {
                 return Err(MetricsError::BadCoordinate {
                     mesh: role,
@@ -99,6 +100,18 @@ mod tests {
                 ..
             })
         ));
+        // NaN in one coordinate only (the others numbers).
+        for axis in 0..3 {
+            let mut m = tetrahedron();
+            m.positions[3][axis] = f64::NAN;
+            assert!(
+                matches!(
+                    Prepared::new(&m, Role::Input),
+                    Err(MetricsError::BadCoordinate { vertex: 3, .. })
+                ),
+                "NaN on axis {axis}"
+            );
+        }
         let mut m = tetrahedron();
         m.positions[1].x = 1e200;
         assert!(matches!(
