@@ -84,13 +84,14 @@ fn bytes(m: &Mesh) -> Vec<u8> {
 proptest! {
     #![proptest_config(config())]
 
-    /// On gently perturbed smooth shapes (0.1 % of the size; at 1 % the input itself folds,
-    /// and "facing away from the input" means little), no output face faces away from the
-    /// input. The voxel double torus is left out: a coarse triangle cutting one of its
-    /// right-angled corners can face away from the input face nearest its centroid (found
-    /// with `uniform-cvt` and `svec`; docs/robustness.md).
+    /// On gently perturbed shapes (0.1 % of the size; at 1 % the input itself folds, and
+    /// "facing away from the input" means little), no output face faces away from the
+    /// input. Also on the voxel double torus, where a coarse triangle cutting one of its
+    /// right-angled corners used to face away from the input face nearest its centroid
+    /// (`svec` before the collapse stages' facing guard, `uniform-cvt` before the
+    /// post-process's dual turned such faces round; docs/robustness.md).
     #[test]
-    fn coarsening_turns_no_face_away_from_the_input(kind in prop::sample::select(vec![0u8, 1, 3, 4]), seed in any::<u64>(), frac in 0.08f64..0.6) {
+    fn coarsening_turns_no_face_away_from_the_input(kind in 0u8..5, seed in any::<u64>(), frac in 0.08f64..0.6) {
         let input = shape_with(kind, seed, 0.001);
         let target = ((input.n_vertices() as f64 * frac) as u64).max(40);
         for name in COARSENERS {
