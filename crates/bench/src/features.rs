@@ -5,7 +5,6 @@
 use anyhow::Result;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::{FeatureOptions, feature_edges, fidelity};
-use coarsen_pipeline::{Overrides, Pipeline, RunOptions, parse_set};
 use coarsen_stage::{Registry, Target};
 use std::fmt::Write as _;
 
@@ -30,32 +29,6 @@ const ROWS: &[(&str, &[&str])] = &[
     ),
     ("goal", &[]),
 ];
-
-/// Runs `pipeline` with `sets` on `input` to `target`; the output mesh.
-fn run(
-    registry: &Registry,
-    pipeline: &str,
-    sets: &[&str],
-    input: &Mesh,
-    target: Target,
-) -> Result<Mesh> {
-    let text = coarsen_builtin::pipeline(pipeline)
-        .ok_or_else(|| anyhow::anyhow!("pipeline `{pipeline}` is not shipped"))?;
-    let overrides = Overrides {
-        target: Some(target),
-        sets: sets
-            .iter()
-            .map(|s| parse_set(s).map_err(|e| anyhow::anyhow!(e)))
-            .collect::<Result<_>>()?,
-    };
-    let p = Pipeline::parse(text, pipeline, registry, &overrides)
-        .map_err(|d| anyhow::anyhow!(d.to_string()))?;
-    let opts = RunOptions {
-        sanity: false,
-        ..Default::default()
-    };
-    Ok(p.run(input.clone(), opts)?.0)
-}
 
 /// The section: `qem` and `svec` at 70 % removed, then the CVT pipelines (paper 1's also
 /// with `quadric` placement, issue #5) at the vertex count `qem` reached, each with the
@@ -82,8 +55,8 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
             (_, None) => continue,
         };
         eprintln!("features · {label}");
-        let out = match run(registry, pipeline, sets, input, target) {
-            Ok(out) => out,
+        let out = match crate::run_shipped(registry, pipeline, sets, input, target) {
+            Ok((out, _)) => out,
             Err(e) => {
                 let _ = writeln!(
                     rows,

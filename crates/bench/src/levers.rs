@@ -2,10 +2,9 @@
 //! onto the input, the relaxations and their fidelity bound) does to the bunny at 5000
 //! vertices, as a shipped pipeline plus `--set`-style overrides, one row each.
 
-use anyhow::{Result, anyhow};
+use anyhow::Result;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::{MetricsOptions, measure};
-use coarsen_pipeline::{Overrides, Pipeline, RunOptions, parse_set};
 use coarsen_stage::{Registry, Target};
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -85,23 +84,8 @@ const ROWS: &[(&str, &str, &[&str])] = &[
 /// Runs `pipeline` with `sets` on `input` to the rows' vertex count; the output mesh and
 /// the seconds the run took (the input already loaded).
 fn run(registry: &Registry, pipeline: &str, sets: &[&str], input: &Mesh) -> Result<(Mesh, f64)> {
-    let text = coarsen_builtin::pipeline(pipeline)
-        .ok_or_else(|| anyhow!("pipeline `{pipeline}` is not shipped"))?;
-    let overrides = Overrides {
-        target: Some(Target::Vertices(VERTICES)),
-        sets: sets
-            .iter()
-            .map(|s| parse_set(s).map_err(|e| anyhow!(e)))
-            .collect::<Result<_>>()?,
-    };
-    let p = Pipeline::parse(text, pipeline, registry, &overrides)
-        .map_err(|d| anyhow!(d.to_string()))?;
-    let opts = RunOptions {
-        sanity: false,
-        ..Default::default()
-    };
     let t = Instant::now();
-    let out = p.run(input.clone(), opts)?.0;
+    let (out, _) = crate::run_shipped(registry, pipeline, sets, input, Target::Vertices(VERTICES))?;
     Ok((out, t.elapsed().as_secs_f64()))
 }
 

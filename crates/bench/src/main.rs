@@ -169,11 +169,12 @@ fn tables(data: &Path, out: &Path, with_scale: bool, with_speed: bool) -> Result
         rows.push((case, outcomes.len() - 1));
     }
     let mut text = render(&rows, &outcomes);
-    text.push_str(&feature_section(data)?);
-    text.push_str(&levers::section(
-        &coarsen_builtin::registry()?,
-        &load(&data.join(levers::MESH))?,
-    )?);
+    let loaded = |file: &str| match inputs.get(file) {
+        Some((m, _, _)) => Ok(m.clone()),
+        None => load(&data.join(file)),
+    };
+    text.push_str(&features::section(&registry, &loaded(features::MESH)?)?);
+    text.push_str(&levers::section(&registry, &loaded(levers::MESH)?)?);
     if with_speed {
         text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
     }
@@ -197,6 +198,33 @@ fn feature_section(data: &Path) -> Result<String> {
     let registry = coarsen_builtin::registry()?;
     let input = load(&data.join(features::MESH))?;
     features::section(&registry, &input)
+}
+
+/// Runs the shipped `pipeline` on `input` to `target` with `--set`-style overrides `sets`
+/// (the sections beside the tables); the output and the run's report.
+fn run_shipped(
+    registry: &Registry,
+    pipeline: &str,
+    sets: &[&str],
+    input: &Mesh,
+    target: Target,
+) -> Result<(Mesh, RunReport)> {
+    let text = coarsen_builtin::pipeline(pipeline)
+        .ok_or_else(|| anyhow::anyhow!("pipeline `{pipeline}` is not shipped"))?;
+    let overrides = Overrides {
+        target: Some(target),
+        sets: sets
+            .iter()
+            .map(|s| coarsen_pipeline::parse_set(s).map_err(|e| anyhow::anyhow!(e)))
+            .collect::<Result<_>>()?,
+    };
+    let p = Pipeline::parse(text, pipeline, registry, &overrides)
+        .map_err(|d| anyhow::anyhow!(d.to_string()))?;
+    let opts = RunOptions {
+        sanity: false,
+        ..Default::default()
+    };
+    Ok(p.run(input.clone(), opts)?)
 }
 
 fn load(path: &Path) -> Result<Mesh> {
