@@ -246,6 +246,31 @@ impl<'a> GridFacing<'a> {
     }
 }
 
+/// The facing test of [`GridFacing`] against an input whose grid is built on the first
+/// question only (a collapse stage whose gate may never ask one pays nothing).
+pub struct LazyGridFacing<'a> {
+    input: &'a Mesh,
+    grid: std::cell::OnceCell<GridFacing<'a>>,
+}
+
+impl<'a> LazyGridFacing<'a> {
+    /// `input`, not indexed yet.
+    pub fn new(input: &'a Mesh) -> Self {
+        LazyGridFacing {
+            input,
+            grid: std::cell::OnceCell::new(),
+        }
+    }
+
+    /// True when triangle `abc` does not point away from the input surface nearest it.
+    pub fn allows(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+        !self
+            .grid
+            .get_or_init(|| GridFacing::new(self.input))
+            .faces_away(a, b, c)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -47,7 +47,7 @@ pub mod validity;
 pub use error::{MAX_COORDINATE, MetricsError, Role};
 pub use features::{FeatureEdges, FeatureOptions, feature_edges, sharp_edges};
 pub use fidelity::{Fidelity, FidelityOptions, fidelity};
-pub use grid::GridFacing;
+pub use grid::{GridFacing, LazyGridFacing};
 pub use quality::{Quality, quality};
 pub use validity::{Facing, SurfaceIndex, Validity, validity};
 

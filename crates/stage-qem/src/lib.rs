@@ -52,14 +52,12 @@
 use coarsen_collapse::{
     Gated, Goal, GuardCounts, LiveMesh, Options, Outcome, QemOptions, QuadricModel, Summary,
 };
-use coarsen_metrics::GridFacing;
-use coarsen_stage::DVec3;
+use coarsen_metrics::LazyGridFacing;
 use coarsen_stage::params::check_range;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     TargetCount, params,
 };
-use std::cell::OnceCell;
 
 params! {
     /// Parameters of `simplify.qem`.
@@ -162,7 +160,7 @@ impl Stage for SimplifyQem {
         progress.begin(Self::KIND, to_remove as u64);
         let mut advance = |n: usize| progress.advance(n as u64, "collapses");
         let (outcome, guarded) = if p.facing_guard {
-            let input = InputFacing::new(cx.original);
+            let input = LazyGridFacing::new(cx.original);
             let mut guard = Gated::standard(|a, b, c| input.allows(a, b, c));
             let outcome = live.collapse_guarded(&mut model, &mut guard, &opts, &mut advance);
             (outcome, guard.counts)
@@ -188,29 +186,6 @@ impl Stage for SimplifyQem {
             cx.report.warn(w);
         }
         Ok(out)
-    }
-}
-
-/// The metrics' facing test against the run input; its (light) index is built on the first
-/// face the gate lets through.
-struct InputFacing<'a> {
-    input: &'a Mesh,
-    facing: OnceCell<GridFacing<'a>>,
-}
-
-impl<'a> InputFacing<'a> {
-    /// `input`, not indexed yet.
-    fn new(input: &'a Mesh) -> Self {
-        InputFacing {
-            input,
-            facing: OnceCell::new(),
-        }
-    }
-
-    /// True when triangle `abc` does not point away from the input surface nearest it.
-    fn allows(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
-        let facing = self.facing.get_or_init(|| GridFacing::new(self.input));
-        !facing.faces_away(a, b, c)
     }
 }
 

@@ -111,14 +111,12 @@ use coarsen_collapse::{
     FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, Refusals, StopReason,
     Summary, Unit,
 };
-use coarsen_metrics::GridFacing;
-use coarsen_stage::DVec3;
+use coarsen_metrics::LazyGridFacing;
 use coarsen_stage::params::check_range;
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     TargetCount, params,
 };
-use std::cell::OnceCell;
 
 params! {
     /// Parameters of `simplify.svec`.
@@ -230,10 +228,7 @@ impl Stage for SimplifySvec {
         progress.begin(Self::KIND, to_remove as u64);
         let mut advance = |n: usize| progress.advance(n as u64, "collapses");
         let totals = if p.facing_guard {
-            let input = InputFacing {
-                input: cx.original,
-                facing: OnceCell::new(),
-            };
+            let input = LazyGridFacing::new(cx.original);
             let mut guard = Gated::standard(|a, b, c| input.allows(a, b, c));
             let mut totals = simplify(&mut live, p, goal, &mut guard, &mut advance);
             totals.guarded = guard.counts;
@@ -303,21 +298,6 @@ fn simplify<G: FaceGuard>(
         feature_collapses: model.feature_collapses(),
         feature_threshold: model.feature_threshold(),
         guarded: GuardCounts::default(),
-    }
-}
-
-/// The metrics' facing test against the run input; its (light) index is built on the first
-/// face the gate lets through.
-struct InputFacing<'a> {
-    input: &'a Mesh,
-    facing: OnceCell<GridFacing<'a>>,
-}
-
-impl InputFacing<'_> {
-    /// True when triangle `abc` does not point away from the input surface nearest it.
-    fn allows(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
-        let facing = self.facing.get_or_init(|| GridFacing::new(self.input));
-        !facing.faces_away(a, b, c)
     }
 }
 
