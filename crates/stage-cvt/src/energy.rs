@@ -75,6 +75,24 @@ impl Sums {
     }
 }
 
+/// One face as the energies see it: its mass and centroid (half the memory of its
+/// [`Sums`], which the move tests read for every face they price).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FacePoint {
+    /// Mass w.
+    pub mass: f64,
+    /// Centroid y.
+    pub centroid: DVec3,
+}
+
+impl FacePoint {
+    /// The sums of this face alone ([`Sums::of`]).
+    #[inline]
+    pub fn sums(&self) -> Sums {
+        Sums::of(self.mass, self.centroid)
+    }
+}
+
 /// A clustering energy: per-face masses and a per-cluster term from the running sums.
 pub trait Energy: Send + Sync {
     /// The name a pipeline file gives the energy.

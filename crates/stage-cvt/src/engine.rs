@@ -4,7 +4,7 @@
 //! separate, like boundary edges). Clusters keep running [`Sums`], so a move test is O(1)
 //! in the energy plus a look at the fans of the moved face's three corners.
 
-use crate::energy::{Energy, Sums};
+use crate::energy::{Energy, FacePoint, Sums};
 use crate::sweep;
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::topology::NONE;
@@ -12,6 +12,10 @@ use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+
+/// Meshes with fewer faces keep their own face order inside the clusterer; bigger ones
+/// are renumbered along a Morton curve (see [`Clusterer`]).
+const LAYOUT_MIN_FACES: usize = 1 << 20;
 
 /// Parts the clusters are split into for the parallel sweep (fixed: the result must not
 /// depend on the thread count).
@@ -65,6 +69,14 @@ pub enum ClusterError {
         /// The cluster count.
         clusters: usize,
     },
+    /// A label column whose length is not the mesh's face count.
+    #[error("{labels} cluster labels given for a mesh of {faces} faces")]
+    LabelCount {
+        /// Labels given.
+        labels: usize,
+        /// Faces of the mesh.
+        faces: usize,
+    },
 }
 
 /// The figures of one minimisation.
@@ -108,16 +120,32 @@ impl SplitMix64 {
 /// A face clustering in progress over one mesh.
 ///
 /// Generic over the energy so that the move tests call it directly; `dyn Energy` works too.
+///
+/// Inside, on meshes of 2²⁰ faces or more, vertices are renumbered along a Morton curve of
+/// their positions and faces by their first corner on it (the *layout*; smaller meshes keep
+/// their order), so that the neighbours a move test reads lie close in memory; the public
+/// methods take and give faces in the mesh's own numbering.
 pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
-    topo: &'a Topology,
-    faces: &'a [[u32; 3]],
     energy: &'a E,
-    /// Per face: the face across each edge (corner i → i+1), or `NONE`.
+    /// Layout position → mesh face.
+    order: Vec<u32>,
+    /// Mesh face → layout position.
+    rank: Vec<u32>,
+    /// Per layout face: the layout face across each edge (corner i → i+1), or `NONE`.
     nbr: Vec<[u32; 3]>,
-    /// Per vertex: its faces form one closed fan.
+    /// Per layout face: its corners as layout vertices.
+    corners: Vec<[u32; 3]>,
+    /// Per layout vertex: its faces (layout numbering, in the adjacency's fan order) are
+    /// `fan[fan_off[v]..fan_off[v + 1]]`.
+    fan_off: Vec<u32>,
+    fan: Vec<u32>,
+    /// Per layout vertex: its faces form one closed fan.
     closed: Vec<bool>,
-    /// Per face: its sums alone.
-    face_sums: Vec<Sums>,
+    /// Per layout face: its mass and centroid.
+    face_sums: Vec<FacePoint>,
+    /// The layout runs along the Morton curve (else it is the mesh's own order).
+    curve: bool,
+    /// The cluster of every mesh face (mesh numbering).
     labels: Vec<u32>,
     sums: Vec<Sums>,
     /// Per cluster: its energy term, kept in step with `sums`.
@@ -134,6 +162,19 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         topo: &'a Topology,
         energy: &'a E,
         density: Option<&[f64]>,
+    ) -> Result<Self, ClusterError> {
+        let curve = mesh.n_faces() >= LAYOUT_MIN_FACES;
+        Self::with_layout(mesh, topo, energy, density, curve)
+    }
+
+    /// [`Clusterer::new`] with the layout along the Morton curve (`curve`) or in the
+    /// mesh's own order.
+    pub(crate) fn with_layout(
+        mesh: &'a Mesh,
+        topo: &'a Topology,
+        energy: &'a E,
+        density: Option<&[f64]>,
+        curve: bool,
     ) -> Result<Self, ClusterError> {
         let nf = mesh.n_faces();
         if let Some(face) = (0..nf).find(|&f| topo.is_skipped_face(f as u32)) {
@@ -155,30 +196,105 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         } else {
             1.0
         };
-        // Per face, in parallel: each entry depends on its own face alone.
-        let face_sums = (0..nf)
-            .into_par_iter()
-            .map(|f| {
-                let [a, b, c] = mesh.corners(f).map(|p| (p - center) * scale);
+        let nv = mesh.n_vertices();
+        let pos_of = |v: u32| (mesh.positions[v as usize] - center) * scale;
+        let (vorder, vmap, order) = if curve {
+            // The layout: vertices along a Morton curve of their positions (keys
+            // tie-broken by vertex, so the parallel sort is deterministic), faces by their
+            // first corner on that curve (ties in face order).
+            let mut keyed: Vec<(u64, u32)> = (0..nv as u32)
+                .into_par_iter()
+                .map(|v| (morton(pos_of(v)), v))
+                .collect();
+            keyed.par_sort_unstable();
+            let vorder: Vec<u32> = keyed.into_par_iter().map(|k| k.1).collect();
+            let mut vmap = vec![NONE; nv];
+            for (i, &v) in vorder.iter().enumerate() {
+                vmap[v as usize] = i as u32;
+            }
+            let first: Vec<u32> = mesh
+                .faces
+                .par_iter()
+                .map(|f| f.iter().map(|&v| vmap[v as usize]).min().unwrap_or(0))
+                .collect();
+            let mut at = vec![0u32; nv + 1];
+            for &k in &first {
+                at[k as usize + 1] += 1;
+            }
+            for i in 0..nv {
+                at[i + 1] += at[i];
+            }
+            let mut order = vec![0u32; nf];
+            for (f, &k) in first.iter().enumerate() {
+                order[at[k as usize] as usize] = f as u32;
+                at[k as usize] += 1;
+            }
+            (vorder, vmap, order)
+        } else {
+            // Small meshes keep their own order (their data stays in cache anyway).
+            (
+                (0..nv as u32).collect(),
+                (0..nv as u32).collect(),
+                (0..nf as u32).collect(),
+            )
+        };
+        let mut rank = vec![0u32; nf];
+        for (i, &f) in order.iter().enumerate() {
+            rank[f as usize] = i as u32;
+        }
+        let corners: Vec<[u32; 3]> = order
+            .par_iter()
+            .map(|&f| mesh.faces[f as usize].map(|v| vmap[v as usize]))
+            .collect();
+        drop(vmap);
+        // Face sums from the vertices in layout order (reads close in memory).
+        let pos: Vec<DVec3> = vorder.par_iter().map(|&v| pos_of(v)).collect();
+        let face_sums: Vec<FacePoint> = order
+            .par_iter()
+            .zip(corners.par_iter())
+            .map(|(&f, c)| {
+                let [a, b, c] = c.map(|v| pos[v as usize]);
                 let rho = density.map_or(1.0, |d| {
-                    mesh.faces[f].iter().map(|&v| d[v as usize]).sum::<f64>() / 3.0
+                    mesh.faces[f as usize]
+                        .iter()
+                        .map(|&v| d[v as usize])
+                        .sum::<f64>()
+                        / 3.0
                 });
                 let w = energy.face_mass(triangle::area(a, b, c), rho);
-                Sums::of(w, triangle::centroid(a, b, c))
+                FacePoint {
+                    mass: w,
+                    centroid: triangle::centroid(a, b, c),
+                }
             })
             .collect();
-        let nbr = face_neighbors(topo, nf);
-        let closed = (0..topo.n_vertices() as u32)
-            .into_par_iter()
-            .map(|v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
+        drop(pos);
+        let (fan_off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
+        let closed = vorder
+            .par_iter()
+            .map(|&v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
+            .collect();
+        let nbr: Vec<[u32; 3]> = order
+            .par_iter()
+            .map(|&f| {
+                topo.face_edges(f)
+                    .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
+                        Some(&[a, b]) => rank[if a == f { b } else { a } as usize],
+                        _ => NONE,
+                    })
+            })
             .collect();
         Ok(Clusterer {
-            topo,
-            faces: &mesh.faces,
             energy,
+            order,
+            rank,
             nbr,
+            corners,
+            fan_off,
+            fan,
             closed,
             face_sums,
+            curve,
             labels: vec![NONE; nf],
             sums: Vec::new(),
             terms: Vec::new(),
@@ -219,7 +335,17 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
 
     /// Connected components of faces over the adjacency: `(component per face, count)`.
     pub fn components(&self) -> (Vec<u32>, usize) {
-        let nf = self.faces.len();
+        let (comp, n) = self.layout_components();
+        let mut out = vec![0u32; comp.len()];
+        for (i, &c) in comp.iter().enumerate() {
+            out[self.order[i] as usize] = c;
+        }
+        (out, n)
+    }
+
+    /// [`Clusterer::components`] in the layout's numbering (of faces and components).
+    fn layout_components(&self) -> (Vec<u32>, usize) {
+        let nf = self.nbr.len();
         let mut comp = vec![NONE; nf];
         let mut n = 0u32;
         let mut stack = Vec::new();
@@ -244,45 +370,56 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
 
     /// Picks `n` seed faces (at least one per component, the rest in proportion to each
     /// component's mass) and grows them breadth-first until every face belongs to a
-    /// cluster. Within a component the faces are ordered along a Morton (Z-order) curve of
-    /// their centroids and the seeds are stratified by mass along it — one in each of the
+    /// cluster. Within a component the faces are ordered along a Morton (Z-order) curve
+    /// (the layout's order: by their first corner along the curve of the vertices) and the
+    /// seeds are stratified by mass along it — one in each of the
     /// component's equal-mass stretches, at a point jittered by a [`SplitMix64`] from
     /// `seed` — so the seeds start evenly spread and the minimisation has little to move.
     pub fn seed(&mut self, n: usize, seed: u64) -> Result<(), ClusterError> {
-        let nf = self.faces.len();
+        let nf = self.nbr.len();
         if n > nf {
             return Err(ClusterError::TooManyClusters {
                 clusters: n,
                 faces: nf,
             });
         }
-        let (comp, nc) = self.components();
+        let (comp, nc) = self.layout_components();
         if n < nc {
             return Err(ClusterError::TooFewClusters {
                 clusters: n,
                 components: nc,
             });
         }
-        // Faces of each component along the Morton curve (CSR by component).
-        // Keys are distinct (the face is one), so the parallel sort is deterministic.
-        let mut order: Vec<(u32, u64, u32)> = (0..nf)
-            .into_par_iter()
-            .map(|f| {
-                (
-                    comp[f],
-                    morton(self.face_sums[f].centroid_or_zero()),
-                    f as u32,
-                )
-            })
-            .collect();
-        order.par_sort_unstable();
+        // Faces of each component along the Morton curve, as a CSR by component.
         let mut off = vec![0usize; nc + 1];
         comp.iter().for_each(|&c| off[c as usize + 1] += 1);
         for i in 0..nc {
             off[i + 1] += off[i];
         }
-        let members: Vec<u32> = order.iter().map(|o| o.2).collect();
-        drop(order);
+        let members: Vec<u32> = if !self.curve {
+            // The mesh's own order: sort along the curve of the face centroids. Keys are
+            // distinct (the face is one), so the parallel sort is deterministic.
+            let mut keyed: Vec<(u32, u64, u32)> = (0..nf)
+                .into_par_iter()
+                .map(|f| {
+                    let y = self.face_sums[f].sums().centroid_or_zero();
+                    (comp[f], morton(y), f as u32)
+                })
+                .collect();
+            keyed.par_sort_unstable();
+            keyed.into_iter().map(|k| k.2).collect()
+        } else if nc == 1 {
+            (0..nf as u32).collect()
+        } else {
+            let mut fill = off.clone();
+            let mut members = vec![0u32; nf];
+            for (f, &c) in comp.iter().enumerate() {
+                members[fill[c as usize]] = f as u32;
+                fill[c as usize] += 1;
+            }
+            members
+        };
+        drop(comp);
         let mass_of = |f: u32| self.face_sums[f as usize].mass.max(0.0);
         let mass: Vec<f64> = (0..nc)
             .map(|c| {
@@ -298,32 +435,18 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let mut queue = VecDeque::with_capacity(nf);
         let mut next = 0u32;
         for c in 0..nc {
-            let part = &members[off[c]..off[c + 1]];
-            let q = quota[c];
-            let total = mass[c];
-            // Walk the curve once; seed k goes to the face where the running mass passes
-            // (k + u)·total/q, or to the next free face when a heavy face spans strata.
-            let mut run = 0.0;
-            let mut k = 0usize;
-            let goal = |k: usize, rng: &mut SplitMix64| {
-                let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-                (k as f64 + u) * total / q as f64
-            };
-            let mut at = goal(0, &mut rng);
-            for (i, &f) in part.iter().enumerate() {
-                run += mass_of(f);
-                // Faces left must still cover the seeds left.
-                let must = part.len() - i <= q - k;
-                if k < q && (run > at || must || total <= 0.0) {
+            stratified(
+                &members[off[c]..off[c + 1]],
+                quota[c],
+                mass[c],
+                mass_of,
+                &mut rng,
+                |f| {
                     labels[f as usize] = next;
                     queue.push_back(f);
                     next += 1;
-                    k += 1;
-                    if k < q {
-                        at = goal(k, &mut rng);
-                    }
-                }
-            }
+                },
+            );
         }
         while let Some(f) = queue.pop_front() {
             let l = labels[f as usize];
@@ -334,11 +457,18 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 }
             }
         }
-        self.set_labels(labels, n)
+        self.set_layout_labels(&labels, n);
+        Ok(())
     }
 
     /// Takes over an existing clustering of `n` clusters (labels `0..n`).
     pub fn set_labels(&mut self, labels: Vec<u32>, n: usize) -> Result<(), ClusterError> {
+        if labels.len() != self.order.len() {
+            return Err(ClusterError::LabelCount {
+                labels: labels.len(),
+                faces: self.order.len(),
+            });
+        }
         if let Some((face, &label)) = labels.iter().enumerate().find(|(_, l)| **l as usize >= n) {
             return Err(ClusterError::BadLabel {
                 face,
@@ -347,8 +477,9 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             });
         }
         let mut sums = vec![Sums::default(); n];
-        for (f, &l) in labels.iter().enumerate() {
-            sums[l as usize] = sums[l as usize].plus(self.face_sums[f]);
+        for (i, &f) in self.order.iter().enumerate() {
+            let l = labels[f as usize] as usize;
+            sums[l] = sums[l].plus(self.face_sums[i].sums());
         }
         self.labels = labels;
         self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
@@ -356,13 +487,23 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         Ok(())
     }
 
-    /// Around vertex `v`, the number of runs (maximal arcs) of faces of cluster `from`
-    /// without face `t`, of cluster `to` without `t`, and of `to` with `t` (see [`fan_runs`]).
+    /// [`Clusterer::set_labels`] from labels in the layout's numbering (all below `n`).
+    fn set_layout_labels(&mut self, labels: &[u32], n: usize) {
+        let mut sums = vec![Sums::default(); n];
+        let mut own = vec![0u32; labels.len()];
+        for (i, &l) in labels.iter().enumerate() {
+            sums[l as usize] = sums[l as usize].plus(self.face_sums[i].sums());
+            own[self.order[i] as usize] = l;
+        }
+        self.labels = own;
+        self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
+        self.sums = sums;
+    }
+
+    /// The faces of layout vertex `v`, in fan order (layout numbering).
     #[inline]
-    fn runs(&self, v: u32, from: u32, to: u32, t: u32) -> [u32; 3] {
-        fan_runs(self.topo, self.closed[v as usize], v, [from, to, t], |g| {
-            self.labels[g as usize]
-        })
+    fn fan(&self, v: u32) -> &[u32] {
+        &self.fan[self.fan_off[v as usize] as usize..self.fan_off[v as usize + 1] as usize]
     }
 
     /// True when face `t` may leave its cluster for cluster `to`: its cluster keeps a face
@@ -374,15 +515,20 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         if from == to || self.sums[from as usize].count < 1.5 {
             return false;
         }
-        self.faces[t as usize]
+        let tl = self.rank[t as usize];
+        self.corners[tl as usize].iter().all(|&v| {
+            fan_runs(self.fan(v), self.closed[v as usize], [from, to, tl], |g| {
+                self.labels[self.order[g as usize] as usize]
+            })
             .iter()
-            .all(|&v| self.runs(v, from, to, t).iter().all(|&r| r <= 1))
+            .all(|&r| r <= 1)
+        })
     }
 
     /// Moves face `t` to cluster `to` (no checks).
     pub fn apply_move(&mut self, t: u32, to: u32) {
         let from = self.labels[t as usize] as usize;
-        let ft = self.face_sums[t as usize];
+        let ft = self.face_sums[self.rank[t as usize] as usize].sums();
         self.sums[from] = self.sums[from].minus(ft);
         self.sums[to as usize] = self.sums[to as usize].plus(ft);
         self.terms[from] = self.energy.cluster(&self.sums[from]);
@@ -390,7 +536,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         self.labels[t as usize] = to;
     }
 
-    /// The ACVD loop, over faces: each pass sweeps the *active* faces in index order (at
+    /// The ACVD loop, over faces: each pass sweeps the *active* faces in layout order (at
     /// first the faces of `start`, or every face when `None`). A face with no neighbour in
     /// another cluster drops out; one on a cluster border stays active, and is tested only
     /// when its cluster or a neighbouring one changed in this pass or the previous one
@@ -404,8 +550,12 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         start: Option<&[u32]>,
         mut on_pass: impl FnMut(u32, u64, f64),
     ) -> PassLog {
-        let nf = self.faces.len();
+        let nf = self.order.len();
         let n = self.sums.len();
+        if n == 0 {
+            // Nothing labelled yet: nothing to minimise.
+            return PassLog::default();
+        }
         let words = nf.div_ceil(64);
         let bitset = || (0..words).map(|_| AtomicU64::new(0)).collect::<Vec<_>>();
         let (mut cur, mut next) = (bitset(), bitset());
@@ -416,7 +566,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 set(&cur, f);
             }),
             Some(faces) => faces.iter().filter(|&&f| (f as usize) < nf).for_each(|&f| {
-                set(&cur, f);
+                set(&cur, self.rank[f as usize]);
             }),
         }
         let mut log = PassLog {
@@ -454,10 +604,11 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         for (i, &c) in order.iter().enumerate() {
             new_of[c as usize] = i as u32;
         }
+        // Labels by layout face, in the parts' cluster numbering.
         let labels: Vec<AtomicU32> = self
-            .labels
-            .iter()
-            .map(|&l| AtomicU32::new(new_of[l as usize]))
+            .order
+            .par_iter()
+            .map(|&f| AtomicU32::new(new_of[self.labels[f as usize] as usize]))
             .collect();
         let mut sums: Vec<Sums> = order.iter().map(|&c| self.sums[c as usize]).collect();
         let mut terms: Vec<f64> = order.iter().map(|&c| self.terms[c as usize]).collect();
@@ -466,8 +617,9 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let mut previous = log.initial_energy;
         for pass in 1..=max_passes {
             let view = sweep::View {
-                topo: self.topo,
-                faces: self.faces,
+                corners: &self.corners,
+                fan_off: &self.fan_off,
+                fan: &self.fan,
                 nbr: &self.nbr,
                 closed: &self.closed,
                 face_sums: &self.face_sums,
@@ -498,10 +650,9 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 break;
             }
         }
-        self.labels = labels
-            .into_iter()
-            .map(|l| order[l.into_inner() as usize])
-            .collect();
+        for (i, l) in labels.into_iter().enumerate() {
+            self.labels[self.order[i] as usize] = order[l.into_inner() as usize];
+        }
         for (i, &c) in order.iter().enumerate() {
             self.sums[c as usize] = sums[i];
             self.terms[c as usize] = terms[i];
@@ -513,20 +664,26 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// the dual's repairs).
     pub fn connected_clusters(&self) -> Vec<bool> {
         let n = self.sums.len();
-        let mut seen = vec![false; self.faces.len()];
+        let nf = self.order.len();
+        let labels: Vec<u32> = self
+            .order
+            .iter()
+            .map(|&f| self.labels[f as usize])
+            .collect();
+        let mut seen = vec![false; nf];
         let mut pieces = vec![0u32; n];
         let mut stack = Vec::new();
-        for s in 0..self.faces.len() {
+        for s in 0..nf {
             if seen[s] {
                 continue;
             }
-            let c = self.labels[s];
+            let c = labels[s];
             pieces[c as usize] += 1;
             seen[s] = true;
             stack.push(s as u32);
             while let Some(f) = stack.pop() {
                 for g in self.nbr[f as usize] {
-                    if g != NONE && !seen[g as usize] && self.labels[g as usize] == c {
+                    if g != NONE && !seen[g as usize] && labels[g as usize] == c {
                         seen[g as usize] = true;
                         stack.push(g);
                     }
@@ -558,19 +715,85 @@ pub fn face_neighbors(topo: &Topology, n_faces: usize) -> Vec<[u32; 3]> {
         .collect()
 }
 
-/// Around vertex `v` (of `topo`, `closed` when its faces form one closed fan), the number
-/// of runs (maximal arcs) of faces of cluster `from` without face `t`, of cluster `to`
-/// without `t`, and of `to` with `t` — in one walk of the fan, `label` giving each face's
-/// cluster. A cluster covering the whole closed fan counts as one run.
+/// Picks `q` of the items `part` (in curve order, of total mass `total`), one in each
+/// equal-mass stretch at a point jittered by `rng`: item k is the one where the running
+/// mass passes (k + u)·total/q, or the next free one when a heavy item spans stretches.
+pub(crate) fn stratified(
+    part: &[u32],
+    q: usize,
+    total: f64,
+    mass_of: impl Fn(u32) -> f64,
+    rng: &mut SplitMix64,
+    mut pick: impl FnMut(u32),
+) {
+    let mut run = 0.0;
+    let mut k = 0usize;
+    let goal = |k: usize, rng: &mut SplitMix64| {
+        let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        (k as f64 + u) * total / q as f64
+    };
+    let mut at = goal(0, rng);
+    for (i, &f) in part.iter().enumerate() {
+        run += mass_of(f);
+        // Items left must still cover the picks left.
+        let must = part.len() - i <= q - k;
+        if k < q && (run > at || must || total <= 0.0) {
+            pick(f);
+            k += 1;
+            if k < q {
+                at = goal(k, rng);
+            }
+        }
+    }
+}
+
+/// The CSR `(offsets, values)` of the lists `list(k)` for the keys `keys`, each value
+/// mapped by `map`; filled in parallel by blocks of keys.
+fn csr<'l>(
+    keys: &[u32],
+    list: impl Fn(u32) -> &'l [u32] + Sync,
+    map: impl Fn(u32) -> u32 + Sync,
+) -> (Vec<u32>, Vec<u32>) {
+    const BLOCK: usize = 4096;
+    let mut off = Vec::with_capacity(keys.len() + 1);
+    off.push(0u32);
+    let mut at = 0u32;
+    for &k in keys {
+        at += list(k).len() as u32;
+        off.push(at);
+    }
+    let mut values = vec![0u32; at as usize];
+    let mut blocks = Vec::with_capacity(keys.len().div_ceil(BLOCK));
+    let mut rest = values.as_mut_slice();
+    for (b, chunk) in keys.chunks(BLOCK).enumerate() {
+        let len = (off[b * BLOCK + chunk.len()] - off[b * BLOCK]) as usize;
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(len);
+        blocks.push((chunk, head));
+        rest = tail;
+    }
+    blocks.into_par_iter().for_each(|(chunk, out)| {
+        let mut i = 0;
+        for &k in chunk {
+            for &x in list(k) {
+                out[i] = map(x);
+                i += 1;
+            }
+        }
+    });
+    (off, values)
+}
+
+/// Around a vertex whose faces are `fan` (in fan order; `closed` when they form one closed
+/// fan), the number of runs (maximal arcs) of faces of cluster `from` without face `t`, of
+/// cluster `to` without `t`, and of `to` with `t` — in one walk of the fan, `label` giving
+/// each face's cluster. A cluster covering the whole closed fan counts as one run.
 #[inline]
 pub(crate) fn fan_runs(
-    topo: &Topology,
+    fan: &[u32],
     closed: bool,
-    v: u32,
     [from, to, t]: [u32; 3],
     label: impl Fn(u32) -> u32,
 ) -> [u32; 3] {
-    let fan = topo.vertex_faces(v);
     // Membership bits of a face: from without t, to without t, to with t.
     let member = |g: u32| -> u32 {
         if g == t {

@@ -20,11 +20,15 @@
 //!
 //! 1. **Seeds**: every connected component gets one seed face, the rest are shared in
 //!    proportion to the components' masses; within a component the faces are ordered along
-//!    a Morton curve of their centroids and one seed is drawn in each equal-mass stretch
-//!    (jittered by SplitMix64 from `seed`), then grown breadth-first until every face
-//!    belongs to a cluster.
+//!    a Morton curve of their centroids (on meshes of 2²⁰ faces or more: vertices along the
+//!    curve of their positions, faces by their first corner on it) and one seed is drawn
+//!    in each equal-mass stretch (jittered by SplitMix64 from `seed`), then grown
+//!    breadth-first until every face belongs to a cluster.
 //! 2. **Minimisation** (the ACVD loop, over faces): each pass sweeps the faces on cluster
-//!    borders in index order; a face is tested only when its cluster or a neighbouring one
+//!    borders in index order (on meshes of 2²⁰ faces or more the clusterer renumbers faces
+//!    and vertices along that curve, so the faces a test reads lie close in memory, and
+//!    sweeps in that order; labels come back in the mesh's numbering); a face is tested
+//!    only when its cluster or a neighbouring one
 //!    changed in the current or previous pass. Its move to each neighbouring cluster is
 //!    priced in O(1) from the clusters' running sums and the best improving one kept. A
 //!    move is refused when it would empty the donor cluster, split it or pinch it (paper
@@ -59,7 +63,7 @@ pub mod energy;
 pub mod engine;
 mod sweep;
 
-pub use energy::{Energy, Shu2009, Sums, Valette2004};
+pub use energy::{Energy, FacePoint, Shu2009, Sums, Valette2004};
 pub use engine::{ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids, face_neighbors};
 
 use coarsen_mesh::Topology;

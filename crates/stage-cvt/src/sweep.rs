@@ -6,26 +6,29 @@
 //! such a move changes the sums of its own part alone, and a label only ever changes to
 //! another label of the same part, so what a part reads of another part's labels (always
 //! "not one of mine") cannot depend on timing. Faces on the border between two parts
-//! are set aside and swept in the second phase, alone, in face order. The number of parts
+//! are set aside and swept in the second phase, alone, in face order. Faces and vertices
+//! here are the clusterer's layout (renumbered along a Morton curve). The number of parts
 //! depends on the problem size, never on the thread count: the result is the same bytes
 //! with one thread or many. With one part the passes are the plain sequential ACVD sweep.
 
-use crate::energy::{Energy, Sums};
+use crate::energy::{Energy, FacePoint, Sums};
 use crate::engine::fan_runs;
-use coarsen_mesh::Topology;
 use coarsen_mesh::topology::NONE;
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 
-/// What every part reads: the mesh's adjacency, the face sums, and the shared state that
+/// What every part reads (faces and vertices in the clusterer's layout): the adjacency, the face sums, and the shared state that
 /// parts change only in their own label range (labels, active-face bitsets).
 pub(crate) struct View<'v, E: Energy + ?Sized> {
-    pub topo: &'v Topology,
-    pub faces: &'v [[u32; 3]],
+    /// Per face: its corners.
+    pub corners: &'v [[u32; 3]],
+    /// Per vertex `v`: its faces in fan order, `fan[fan_off[v]..fan_off[v + 1]]`.
+    pub fan_off: &'v [u32],
+    pub fan: &'v [u32],
     pub nbr: &'v [[u32; 3]],
     pub closed: &'v [bool],
-    pub face_sums: &'v [Sums],
+    pub face_sums: &'v [FacePoint],
     pub energy: &'v E,
     pub labels: &'v [AtomicU32],
     /// Faces to sweep in this pass.
@@ -39,6 +42,7 @@ pub(crate) struct Part<'p> {
     pub range: Range<u32>,
     pub sums: &'p mut [Sums],
     pub terms: &'p mut [f64],
+    /// Per cluster: the last pass that changed it.
     pub last_mod: &'p mut [u32],
 }
 
@@ -56,6 +60,19 @@ fn set(bits: &[AtomicU64], f: u32) {
     bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
 }
 
+/// What a visit of one face found.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Visit {
+    /// No neighbour in another cluster: the face drops out of the active set.
+    Inside,
+    /// A neighbouring cluster lies in another part: left to the border phase.
+    Deferred,
+    /// On a cluster border, not moved.
+    Stayed,
+    /// Moved to another cluster.
+    Moved,
+}
+
 impl<E: Energy + ?Sized> View<'_, E> {
     #[inline]
     fn label(&self, f: u32) -> u32 {
@@ -63,9 +80,8 @@ impl<E: Energy + ?Sized> View<'_, E> {
     }
 
     /// Sweeps face `t` of `part` (whose label range holds `t`'s cluster): moves it to the
-    /// best neighbouring cluster if allowed. Returns `None` when a neighbouring cluster
-    /// lies outside the part (and `defer` is on), else whether it moved (`Some(false)`
-    /// for no move, refused moves counted in `refused`).
+    /// best neighbouring cluster if allowed (refused moves counted in `refused`). With
+    /// `defer`, a face with a neighbouring cluster outside the part is left alone.
     #[inline]
     fn visit(
         &self,
@@ -74,7 +90,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
         pass: u32,
         defer: bool,
         refused: &mut u64,
-    ) -> Option<bool> {
+    ) -> Visit {
         let lo = part.range.start;
         let from = self.label(t);
         let mut cands = [NONE; 3];
@@ -89,17 +105,16 @@ impl<E: Energy + ?Sized> View<'_, E> {
             }
         }
         if k == 0 {
-            return Some(false);
+            return Visit::Inside;
         }
-        set(self.next, t);
         if defer && cands[..k].iter().any(|c| !part.range.contains(c)) {
-            return None;
+            return Visit::Deferred;
         }
         let fresh = |c: u32| part.last_mod[(c - lo) as usize] + 1 >= pass;
         if !(fresh(from) || cands[..k].iter().any(|&c| fresh(c))) {
-            return Some(false);
+            return Visit::Stayed;
         }
-        let ft = self.face_sums[t as usize];
+        let ft = self.face_sums[t as usize].sums();
         let fi = (from - lo) as usize;
         let a = part.sums[fi];
         let after_from = self.energy.cluster(&a.minus(ft));
@@ -114,11 +129,13 @@ impl<E: Energy + ?Sized> View<'_, E> {
             }
         }
         let Some((_, to, after_to)) = best else {
-            return Some(false);
+            return Visit::Stayed;
         };
         let allowed = a.count >= 1.5
-            && self.faces[t as usize].iter().all(|&v| {
-                fan_runs(self.topo, self.closed[v as usize], v, [from, to, t], |g| {
+            && self.corners[t as usize].iter().all(|&v| {
+                let fan = &self.fan
+                    [self.fan_off[v as usize] as usize..self.fan_off[v as usize + 1] as usize];
+                fan_runs(fan, self.closed[v as usize], [from, to, t], |g| {
                     self.label(g)
                 })
                 .iter()
@@ -126,7 +143,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
             });
         if !allowed {
             *refused += 1;
-            return Some(false);
+            return Visit::Stayed;
         }
         let ti = (to - lo) as usize;
         part.sums[fi] = a.minus(ft);
@@ -136,7 +153,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
         part.last_mod[fi] = pass;
         part.last_mod[ti] = pass;
         self.labels[t as usize].store(to, Relaxed);
-        Some(true)
+        Visit::Moved
     }
 
     /// The first phase of a pass for one part: its active faces (`own` marks the faces
@@ -147,19 +164,22 @@ impl<E: Energy + ?Sized> View<'_, E> {
             if mine == 0 {
                 continue;
             }
+            // Faces of this word already swept, and those staying active.
+            let (mut done, mut keep) = (0u64, 0u64);
             loop {
                 // Re-read the word each time: a move may activate later faces of it.
-                let bits = self.cur[w].load(Relaxed) & mine;
+                let bits = self.cur[w].load(Relaxed) & mine & !done;
                 if bits == 0 {
                     break;
                 }
                 let b = bits.trailing_zeros();
+                done |= u64::MAX >> (63 - b);
                 let t = (w * 64) as u32 + b;
-                self.cur[w].fetch_and(!(1u64 << b), Relaxed);
                 match self.visit(t, &mut part, pass, true, &mut out.refused) {
-                    None => out.deferred.push(t),
-                    Some(false) => {}
-                    Some(true) => {
+                    Visit::Inside => continue,
+                    Visit::Deferred => out.deferred.push(t),
+                    Visit::Stayed => {}
+                    Visit::Moved => {
                         out.moves += 1;
                         for g in self.nbr[t as usize] {
                             if g != NONE {
@@ -168,6 +188,10 @@ impl<E: Energy + ?Sized> View<'_, E> {
                         }
                     }
                 }
+                keep |= 1 << b;
+            }
+            if keep != 0 {
+                self.next[w].fetch_or(keep, Relaxed);
             }
         }
         out
@@ -187,7 +211,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
         let part_of = |c: u32| starts.partition_point(|&s| s <= c) - 1;
         for &t in faces {
             let from = self.label(t);
-            if self.visit(t, &mut all, pass, false, &mut out.refused) == Some(true) {
+            if self.visit(t, &mut all, pass, false, &mut out.refused) == Visit::Moved {
                 out.moves += 1;
                 let (p, q) = (part_of(from), part_of(self.label(t)));
                 if p != q {

@@ -294,3 +294,141 @@ fn parts_swept_in_parallel_give_the_same_clusters_with_any_thread_count() {
         }
     }
 }
+
+/// Components computed directly on the mesh's own face numbering (edges of exactly two
+/// faces join them), for comparing with the clusterer's renumbered layout.
+fn direct_components(mesh: &Mesh, topo: &Topology) -> Vec<u32> {
+    let nbr = face_neighbors(topo, mesh.n_faces());
+    let mut comp = vec![u32::MAX; mesh.n_faces()];
+    let mut n = 0;
+    for s in 0..mesh.n_faces() {
+        if comp[s] != u32::MAX {
+            continue;
+        }
+        comp[s] = n;
+        let mut stack = vec![s as u32];
+        while let Some(f) = stack.pop() {
+            for g in nbr[f as usize] {
+                if g != u32::MAX && comp[g as usize] == u32::MAX {
+                    comp[g as usize] = n;
+                    stack.push(g);
+                }
+            }
+        }
+        n += 1;
+    }
+    comp
+}
+
+#[test]
+fn the_layout_is_invisible_in_the_public_numbering() {
+    // Two shapes with shuffled faces, so that the layout differs from the mesh order.
+    let a = icosphere(1.0, 3).unwrap();
+    let b = torus(2.0, 0.7, 24, 12).unwrap();
+    let mut m = a.clone();
+    let off = a.n_vertices() as u32;
+    m.positions
+        .extend(b.positions.iter().map(|p| *p + DVec3::new(6.0, 0.0, 0.0)));
+    m.faces.extend(b.faces.iter().map(|f| f.map(|v| v + off)));
+    let mut rng = SplitMix64::new(11);
+    for i in (1..m.faces.len()).rev() {
+        let j = rng.below(i + 1);
+        m.faces.swap(i, j);
+    }
+    let topo = Topology::build(&m);
+    let e = Valette2004;
+    let mut c = Clusterer::with_layout(&m, &topo, &e, None, true).unwrap();
+    // Components come back in the mesh's numbering: the same partition as found directly.
+    let (comp, nc) = c.components();
+    assert_eq!(nc, 2);
+    let direct = direct_components(&m, &topo);
+    for f in 0..m.n_faces() {
+        assert_eq!(comp[f] == comp[0], direct[f] == direct[0], "face {f}");
+    }
+    // Labels given in the mesh's numbering are kept as given, sums follow them.
+    let labels: Vec<u32> = comp.clone();
+    c.set_labels(labels.clone(), 2).unwrap();
+    assert_eq!(c.labels(), &labels[..]);
+    let count0 = labels.iter().filter(|&&l| l == 0).count() as f64;
+    assert_eq!(c.cluster_sums()[0].count, count0);
+    assert!(c.connected_clusters().iter().all(|&k| k));
+    // Moves take and keep faces in the mesh's numbering.
+    let f = labels.iter().position(|&l| l == 1).unwrap() as u32;
+    assert!(!c.may_move(f, labels[f as usize]));
+    c.apply_move(f, 1 - labels[f as usize]);
+    assert_eq!(c.labels()[f as usize], 1 - labels[f as usize]);
+    assert_eq!(
+        c.cluster_sums()[labels[f as usize] as usize].count,
+        if labels[f as usize] == 0 {
+            count0 - 1.0
+        } else {
+            m.n_faces() as f64 - count0 - 1.0
+        }
+    );
+    // Minimising from scratch gives valid clusters back in the mesh's numbering, with the
+    // layout along the curve and without.
+    for curve in [true, false] {
+        let mut c = Clusterer::with_layout(&m, &topo, &e, None, curve).unwrap();
+        c.seed(40, 5).unwrap();
+        let log = c.minimize(50, None, |_, _, _| {});
+        assert!(log.energy.last().unwrap() < &log.initial_energy);
+        check_invariant(&m, c.labels(), 40);
+    }
+}
+
+#[test]
+fn bad_label_columns_are_errors_not_panics() {
+    let mesh = icosphere(1.0, 2).unwrap();
+    let topo = Topology::build(&mesh);
+    let e = Valette2004;
+    let mut c = Clusterer::new(&mesh, &topo, &e, None).unwrap();
+    // Nothing labelled yet: nothing to minimise.
+    assert_eq!(c.minimize(10, None, |_, _, _| {}), PassLog::default());
+    let short = vec![0u32; mesh.n_faces() - 1];
+    assert_eq!(
+        c.set_labels(short, 1),
+        Err(ClusterError::LabelCount {
+            labels: mesh.n_faces() - 1,
+            faces: mesh.n_faces()
+        })
+    );
+    let big = vec![3u32; mesh.n_faces()];
+    assert!(matches!(
+        c.set_labels(big, 2),
+        Err(ClusterError::BadLabel { label: 3, .. })
+    ));
+    // `cluster_from` falls back to fresh seeds on a column of the wrong length.
+    let p = CvtParams {
+        clusters: 10,
+        energy: EnergyKind::Valette2004,
+        ..CvtParams::default()
+    };
+    let r = cluster_from(&mesh, &topo, vec![0; 5], 10, &p, None, |_, _, _| {}).unwrap();
+    check_invariant(&mesh, &r.labels, 10);
+}
+
+#[test]
+fn the_curve_layout_gives_the_same_clusters_with_any_thread_count() {
+    // Parallel parts (≥ 20K faces, ≥ 512 clusters) over the renumbered layout.
+    let mesh = icosphere(1.0, 6).unwrap();
+    let topo = Topology::build(&mesh);
+    let e = Valette2004;
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut c = Clusterer::with_layout(&mesh, &topo, &e, None, true).unwrap();
+            c.seed(1500, 1).unwrap();
+            let log = c.minimize(200, None, |_, _, _| {});
+            (c.into_labels(), log)
+        })
+    };
+    let (one, log1) = on(1);
+    let (three, log3) = on(3);
+    assert_eq!(one, three);
+    assert_eq!(log1, log3);
+    assert!(log1.moves.len() > 2, "{:?}", log1.moves);
+    check_invariant(&mesh, &one, 1500);
+}

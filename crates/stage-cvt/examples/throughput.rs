@@ -1,0 +1,71 @@
+//! Times the phases of one clustering (adjacency, set-up, seeding, minimisation) on a mesh
+//! file: `cargo run --release -p coarsen-stage-cvt --example throughput -- FILE N [ENERGY]`.
+
+use coarsen_mesh::Topology;
+use coarsen_stage_cvt::{Clusterer, Energy, Shu2009, Valette2004};
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let (Some(path), Some(n)) = (args.get(1), args.get(2)) else {
+        return Err("usage: throughput FILE N [valette2004|shu2009]".into());
+    };
+    let n: usize = n.parse()?;
+    let mesh = coarsen_io::read_path(std::path::Path::new(path), &Default::default())?.mesh;
+    let mesh = coarsen_mesh::clean(mesh, &Default::default())?.0;
+    let (t, u) = (Instant::now(), cpu());
+    let topo = Topology::build(&mesh);
+    eprintln!("cpu: topology {:.2} s", cpu() - u);
+    eprintln!(
+        "faces {}, topology {:.3} s",
+        mesh.n_faces(),
+        t.elapsed().as_secs_f64()
+    );
+    match args.get(3).map(String::as_str) {
+        Some("shu2009") => time(&mesh, &topo, &Shu2009 { r: 2.0 }, n),
+        _ => time(&mesh, &topo, &Valette2004, n),
+    }
+}
+
+/// Times set-up, seeding and minimisation with `energy`.
+fn time<E: Energy>(
+    mesh: &coarsen_mesh::Mesh,
+    topo: &Topology,
+    energy: &E,
+    n: usize,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let (t, u) = (Instant::now(), cpu());
+    let mut c = Clusterer::new(mesh, topo, energy, None)?;
+    let t_new = t.elapsed().as_secs_f64();
+    let u_new = cpu() - u;
+    let (t, u) = (Instant::now(), cpu());
+    c.set_tolerance(1e-4);
+    c.seed(n, 1)?;
+    let t_seed = t.elapsed().as_secs_f64();
+    let u_seed = cpu() - u;
+    let (t, u) = (Instant::now(), cpu());
+    let log = c.minimize(200, None, |_, _, _| {});
+    let t_min = t.elapsed().as_secs_f64();
+    let u_min = cpu() - u;
+    eprintln!("cpu: new {u_new:.2} s, seed {u_seed:.2} s, minimize {u_min:.2} s");
+    eprintln!(
+        "new {t_new:.3} s, seed {t_seed:.3} s, minimize {t_min:.3} s; passes {}, moves {}, refused {}, E0 {:.6e}, E {:.6e}",
+        log.moves.len(),
+        log.moves.iter().sum::<u64>(),
+        log.refused,
+        log.initial_energy,
+        log.energy.last().copied().unwrap_or(f64::NAN)
+    );
+    Ok(())
+}
+
+/// CPU seconds used by this process so far (user + system, from /proc/self/stat).
+fn cpu() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let rest = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .map(|x| x.parse().unwrap_or(0.0))
+        .collect();
+    (f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0)) / 100.0
+}
