@@ -66,7 +66,7 @@ pub struct Scripted<F: Fn(&LiveMesh, &[Index]) -> f64> {
     pub cost: F,
 }
 
-impl<F: Fn(&LiveMesh, &[Index]) -> f64> CostModel for Scripted<F> {
+impl<F: Fn(&LiveMesh, &[Index]) -> f64 + Sync> CostModel for Scripted<F> {
     fn unit(&self) -> Unit {
         self.unit
     }

@@ -101,7 +101,34 @@ impl Heap {
             return Some(last);
         }
         let top = self.items[0];
-        self.sift_down(0, last);
+        // The last entry is among the dearest: walk the hole down to a leaf along the
+        // cheapest children, then let `last` rise from there (three comparisons per level
+        // instead of four, and it rarely rises far).
+        let n = self.items.len();
+        let mut i = 0;
+        loop {
+            let first = i * Self::ARITY + 1;
+            if first >= n {
+                break;
+            }
+            let mut best = first;
+            for c in first + 1..(first + Self::ARITY).min(n) {
+                if self.items[c].before(&self.items[best]) {
+                    best = c;
+                }
+            }
+            self.items[i] = self.items[best];
+            i = best;
+        }
+        while i > 0 {
+            let parent = (i - 1) / Self::ARITY;
+            if !last.before(&self.items[parent]) {
+                break;
+            }
+            self.items[i] = self.items[parent];
+            i = parent;
+        }
+        self.items[i] = last;
         Some(top)
     }
 

@@ -1,14 +1,16 @@
 //! Timing of `simplify.qem` beside meshoptimizer's simplifier on the same inputs.
 //!
 //! `cargo bench -p coarsen-stage-qem` measures each case several times, the two
-//! simplifiers in turns, and shows the median CPU time per call of this thread (wall time
-//! where Linux's `schedstat` is unavailable):
+//! simplifiers in turns, and shows the median CPU time per call of the whole process, all
+//! threads counted (wall time where Linux's `schedstat` is unavailable), so that other
+//! processes on a busy machine do not inflate the figures:
 //!
 //! * the Stanford bunny (when `../shared/data` has it) with 70 % and 95 % of faces removed;
 //! * a 1.3M-face icosphere down to 60 000 faces;
 //! * issue #6's speed bar: the bunny subdivided 1-to-4 three times (4.4M faces) down to
 //!   60 000 faces, once each, `simplify.qem` and `simplify.svec` against meshoptimizer
-//!   (`cargo bench -p coarsen-stage-qem --bench qem -- scale` runs only this case).
+//!   (`cargo bench -p coarsen-stage-qem --bench qem -- scale` runs only this case), with
+//!   wall time beside the CPU time (the engine's initial ranking runs on rayon's threads).
 //!
 //! coarsen's time covers the whole stage (adjacency, quadrics, collapses, compaction with
 //! attribute carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
@@ -23,11 +25,14 @@ use coarsen_stage_svec::{SimplifySvec, SvecParams};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-/// Time this thread has spent on a CPU (Linux: `/proc/thread-self/schedstat`), so that
-/// other processes on a busy machine do not inflate the figures; `None` elsewhere.
-fn cpu_time() -> Option<Duration> {
-    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    let ns: u64 = text.split_whitespace().next()?.parse().ok()?;
+/// CPU time of every thread of this process (Linux: the sum over `/proc/self/task`), so
+/// that work the stages hand to rayon's threads counts too; `None` elsewhere.
+fn process_cpu_time() -> Option<Duration> {
+    let mut ns = 0u64;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let text = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        ns += text.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
     Some(Duration::from_nanos(ns))
 }
 
@@ -41,10 +46,10 @@ fn time_both<A, B>(
     mut b: impl FnMut() -> B,
 ) -> ((Duration, A), (Duration, B)) {
     fn clock() -> (Instant, Option<Duration>) {
-        (Instant::now(), cpu_time())
+        (Instant::now(), process_cpu_time())
     }
     fn since((wall, cpu): (Instant, Option<Duration>)) -> Duration {
-        match (cpu, cpu_time()) {
+        match (cpu, process_cpu_time()) {
             (Some(a), Some(b)) => b - a,
             _ => wall.elapsed(),
         }
@@ -102,22 +107,27 @@ fn scale_case(big: &Mesh) {
         .iter()
         .map(|p| p.as_vec3().to_array())
         .collect();
+    // CPU time of the whole process (the initial ranking runs on rayon's threads), and
+    // wall time beside it.
     let time = |f: &mut dyn FnMut() -> usize| {
-        let start = (Instant::now(), cpu_time());
+        let start = (Instant::now(), process_cpu_time());
         let faces = f();
-        let t = match (start.1, cpu_time()) {
+        let wall = start.0.elapsed();
+        let t = match (start.1, process_cpu_time()) {
             (Some(a), Some(b)) => b - a,
-            _ => start.0.elapsed(),
+            _ => wall,
         };
-        (t.as_secs_f64(), faces)
+        (t.as_secs_f64(), wall.as_secs_f64(), faces)
     };
-    let (theirs, their_faces) = time(&mut || meshopt_simplify(&indices, &positions, goal));
-    let (qem, qem_faces) = time(&mut || coarsen(big, target).n_faces());
-    let (svec, svec_faces) =
+    let (theirs, theirs_wall, their_faces) =
+        time(&mut || meshopt_simplify(&indices, &positions, goal));
+    let (qem, qem_wall, qem_faces) = time(&mut || coarsen(big, target).n_faces());
+    let (svec, svec_wall, svec_faces) =
         time(&mut || run_stage(SimplifySvec::new(SvecParams::default()), big, target).n_faces());
     println!(
-        "subdivided bunny {} → 60K faces: meshopt {theirs:.2} s ({their_faces} faces), \
-         qem {qem:.2} s ({qem_faces} faces, ratio {:.2}), svec {svec:.2} s ({svec_faces} faces, ratio {:.2})",
+        "subdivided bunny {} → 60K faces, CPU time (wall): meshopt {theirs:.2} s ({theirs_wall:.2} s, \
+         {their_faces} faces), qem {qem:.2} s ({qem_wall:.2} s, {qem_faces} faces, ratio {:.2}), \
+         svec {svec:.2} s ({svec_wall:.2} s, {svec_faces} faces, ratio {:.2})",
         big.n_faces(),
         qem / theirs,
         svec / theirs

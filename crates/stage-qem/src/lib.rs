@@ -133,7 +133,7 @@ impl Stage for SimplifyQem {
             TargetCount::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
             TargetCount::Faces(n) => Goal::Faces(usize::try_from(n).unwrap_or(usize::MAX)),
         };
-        let mut live = LiveMesh::new(&mesh)
+        let mut live = LiveMesh::new_renumbered(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         if cx.progressive.is_some() {
             live.record_progressive();

@@ -214,7 +214,7 @@ impl Stage for SimplifySvec {
             TargetCount::Vertices(n) => Goal::Vertices(scaled(n)),
             TargetCount::Faces(n) => Goal::Faces(scaled(n)),
         };
-        let mut live = LiveMesh::new(&mesh)
+        let mut live = LiveMesh::new_renumbered(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
         if cx.progressive.is_some() {
             live.record_progressive();
