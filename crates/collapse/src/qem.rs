@@ -25,7 +25,7 @@
 //! * **Update.** The merged vertex keeps the sum of the merged quadrics.
 
 use crate::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind};
-use coarsen_geom::{DMat3, DVec3, Quadric, triangle};
+use coarsen_geom::{DVec3, Quadric, triangle};
 
 /// Relative determinant below which the quadric's minimiser is not trusted.
 const SOLVE_TOLERANCE: f64 = 1e-10;
@@ -124,42 +124,15 @@ impl QuadricModel {
         &self.quadrics[v as usize]
     }
 
-    /// Σ of the quadrics of `verts`, added in order from zero (as `Quadric`'s `+` does, here
-    /// inlined: this is the model's hottest line).
+    /// Σ of the quadrics of `verts`, added in order from zero.
     #[inline]
     fn sum(&self, verts: &[Index]) -> Quadric {
         let mut q = Quadric::ZERO;
         for &v in verts {
-            let o = &self.quadrics[v as usize];
-            for (x, y) in q.a.iter_mut().zip(o.a) {
-                *x += y;
-            }
-            q.b += o.b;
-            q.c += o.c;
+            q += self.quadrics[v as usize];
         }
         q
     }
-}
-
-/// `q.minimizer(SOLVE_TOLERANCE)`, bit for bit, with the determinant's cross products
-/// computed once (the guarded solve computes them twice: for the determinant and again for
-/// the inverse).
-#[inline]
-fn minimizer(q: &Quadric) -> Option<DVec3> {
-    let m = q.matrix();
-    let (x, y, z) = (m.x_axis, m.y_axis, m.z_axis);
-    let tmp0 = y.cross(z);
-    let det = x.dot(tmp0);
-    let norm = (x.length_squared() + y.length_squared() + z.length_squared()).sqrt();
-    let scale = norm * norm * norm;
-    if !det.is_finite() || scale == 0.0 || det.abs() <= SOLVE_TOLERANCE * scale {
-        return None;
-    }
-    let inv_det = DVec3::splat(1.0 / det);
-    let inverse =
-        DMat3::from_cols(tmp0 * inv_det, z.cross(x) * inv_det, x.cross(y) * inv_det).transpose();
-    let p = inverse * -q.b;
-    p.is_finite().then_some(p)
 }
 
 impl CostModel for QuadricModel {
@@ -197,7 +170,7 @@ impl CostModel for QuadricModel {
                     .iter()
                     .map(|&v| (mesh.position(v) - centroid).length())
                     .fold(0.0, f64::max);
-                match minimizer(&q) {
+                match q.minimizer(SOLVE_TOLERANCE) {
                     Some(x) if (x - centroid).length() <= MAX_REACH * radius => x,
                     _ => {
                         let mut best = centroid;
@@ -222,68 +195,5 @@ impl CostModel for QuadricModel {
 
     fn merged(&mut self, _mesh: &LiveMesh, kept: Index, merged: &[Index]) {
         self.quadrics[kept as usize] = self.sum(merged);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_inlined_minimizer_and_sum_are_the_geometry_crates_bit_for_bit() {
-        // Random plane sums: 1, 2 or 3 planes (singular, singular, regular), some nearly
-        // parallel (near the tolerance), some with huge or tiny weights.
-        let mut state = 2024u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
-        let (mut solved, mut refused) = (0, 0);
-        for round in 0..20000 {
-            let mut q = Quadric::ZERO;
-            let mut base = DVec3::new(next(), next(), next()).normalize_or(DVec3::X);
-            for _ in 0..1 + round % 3 {
-                let tilt = [1.0, 1e-3, 1e-6][round % 3 / 2 + (round / 3) % 2];
-                let n = (base + tilt * DVec3::new(next(), next(), next())).normalize_or(DVec3::Y);
-                let w = 10f64.powf(6.0 * next());
-                q += Quadric::from_plane(n, DVec3::new(next(), next(), next()), w);
-                base = n
-                    .cross(DVec3::new(next(), next(), next()))
-                    .normalize_or(DVec3::Z);
-            }
-            let got = minimizer(&q);
-            assert_eq!(
-                got.map(|p| p.to_array().map(f64::to_bits)),
-                q.minimizer(SOLVE_TOLERANCE)
-                    .map(|p| p.to_array().map(f64::to_bits)),
-                "round {round}: {q:?}"
-            );
-            if got.is_some() {
-                solved += 1;
-            } else {
-                refused += 1;
-            }
-        }
-        assert!(
-            solved > 1000 && refused > 1000,
-            "{solved} solved, {refused} refused"
-        );
-        // The inlined sum against `+`, including a negative zero.
-        let mut model = QuadricModel {
-            quadrics: vec![Quadric::ZERO; 3],
-            cost_unit: 1.0,
-        };
-        model.quadrics[0] = Quadric::from_plane(DVec3::X, DVec3::splat(0.3), 2.0);
-        model.quadrics[1] = Quadric::from_plane(DVec3::Y, DVec3::splat(-0.7), 0.5);
-        model.quadrics[2].c = -0.0;
-        for verts in [&[0u32, 1][..], &[2], &[1, 2, 0]] {
-            let expect = verts
-                .iter()
-                .fold(Quadric::ZERO, |q, &v| q + model.quadrics[v as usize]);
-            let got = model.sum(verts);
-            assert_eq!(format!("{got:?}"), format!("{expect:?}"));
-        }
     }
 }

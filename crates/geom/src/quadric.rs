@@ -24,11 +24,13 @@ impl Quadric {
     };
 
     /// `weight · (n·v + d)²` for the plane through `point` with unit normal `n`.
+    #[inline]
     pub fn from_plane(n: DVec3, point: DVec3, weight: f64) -> Self {
         Quadric::from_plane_offset(n, -n.dot(point), weight)
     }
 
     /// `weight · (n·v + d)²` for the plane n·v + d = 0 (unit `n`).
+    #[inline]
     pub fn from_plane_offset(n: DVec3, d: f64, weight: f64) -> Self {
         let w = weight;
         Quadric {
@@ -46,6 +48,7 @@ impl Quadric {
     }
 
     /// The matrix `A`.
+    #[inline]
     pub fn matrix(&self) -> DMat3 {
         let [xx, xy, xz, yy, yz, zz] = self.a;
         DMat3::from_cols(
@@ -68,6 +71,7 @@ impl Quadric {
     }
 
     /// The point minimising the quadric, when `A` is well conditioned (see [`solve3`]).
+    #[inline]
     pub fn minimizer(&self, rel_tol: f64) -> Option<DVec3> {
         solve3(self.matrix(), -self.b, rel_tol)
     }
@@ -75,6 +79,7 @@ impl Quadric {
 
 impl std::ops::Add for Quadric {
     type Output = Quadric;
+    #[inline]
     fn add(mut self, o: Quadric) -> Quadric {
         self += o;
         self
@@ -82,6 +87,7 @@ impl std::ops::Add for Quadric {
 }
 
 impl std::ops::AddAssign for Quadric {
+    #[inline]
     fn add_assign(&mut self, o: Quadric) {
         for (x, y) in self.a.iter_mut().zip(o.a) {
             *x += y;
@@ -93,6 +99,7 @@ impl std::ops::AddAssign for Quadric {
 
 impl std::ops::Mul<f64> for Quadric {
     type Output = Quadric;
+    #[inline]
     fn mul(self, s: f64) -> Quadric {
         Quadric {
             a: self.a.map(|x| x * s),

@@ -280,10 +280,7 @@ impl SvecModel {
                 let w = self.volume_quadric(f).eval(p).max(0.0) / mean;
                 q += self.face_quadric(f) * w;
             }),
-            None => for_faces_around(mesh, verts, |f| {
-                let d = &self.face[f as usize];
-                add_plane(&mut q, d.normal, d.offset, d.weight);
-            }),
+            None => for_faces_around(mesh, verts, |f| q += self.face_quadric(f)),
         }
         q
     }
@@ -373,21 +370,6 @@ impl SvecModel {
         *m = generation;
         fresh
     }
-}
-
-/// `*q += Quadric::from_plane_offset(n, d, w)`, bit for bit, inlined: the sums over faces
-/// are the model's hottest loop, and the geometry crate's functions are not inlined across
-/// crates.
-#[inline]
-fn add_plane(q: &mut Quadric, n: DVec3, d: f64, w: f64) {
-    q.a[0] += w * n.x * n.x;
-    q.a[1] += w * n.x * n.y;
-    q.a[2] += w * n.x * n.z;
-    q.a[3] += w * n.y * n.y;
-    q.a[4] += w * n.y * n.z;
-    q.a[5] += w * n.z * n.z;
-    q.b += w * d * n;
-    q.c += w * d * d;
 }
 
 /// mean + `sigma` · standard deviation of `values` (∞ when empty).
@@ -494,26 +476,6 @@ mod tests {
         let q = Quadric::from_plane_offset(n, -n.dot(point), w);
         assert_eq!(q, Quadric::from_plane(n, point, w));
         assert_ne!(q, Quadric::from_plane_offset(n, -n.dot(point), 2.0 * w));
-    }
-
-    #[test]
-    fn the_inlined_plane_sum_is_the_geometry_crates_bit_for_bit() {
-        let mut state = 77u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
-        let (mut got, mut expect) = (Quadric::ZERO, Quadric::ZERO);
-        for _ in 0..1000 {
-            let n = DVec3::new(next(), next(), next()).normalize_or(DVec3::X);
-            let (d, w) = (next() * 10.0, 10f64.powf(8.0 * next()));
-            add_plane(&mut got, n, d, w);
-            expect += Quadric::from_plane_offset(n, d, w);
-            assert_eq!(format!("{got:?}"), format!("{expect:?}"));
-        }
-        assert_ne!(got, Quadric::ZERO);
     }
 
     #[test]
