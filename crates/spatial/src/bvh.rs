@@ -5,7 +5,7 @@
 //! contiguous memory and the index owns everything it needs (no borrow of the mesh).
 //!
 //! Build: top-down binned surface-area heuristic (16 bins on each axis of the centroid
-//! box), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
+//! box; a range of more than 2 × [`SAMPLE`] triangles bins an even sample of them), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
 //! triangles, one whose centroids all coincide, or one deeper than [`MAX_SAH_DEPTH`] is
 //! split at the median of its widest axis instead, which bounds the depth. Ranges of at
 //! least 2¹⁴ triangles are split and their halves built in parallel (`rayon::join`), each
@@ -45,6 +45,10 @@ pub const MEDIAN_MAX: usize = 16;
 const STACK: usize = MAX_SAH_DEPTH + 40;
 
 const BINS: usize = 16;
+
+/// Ranges of at least twice as many items bin an even sample of about this many to place
+/// their plane.
+const SAMPLE: usize = 1 << 10;
 
 /// Ranges of at least this many triangles are split into halves built in parallel.
 const PARALLEL_MIN: usize = 1 << 14;
@@ -713,7 +717,13 @@ fn split(items: &mut [Item], bounds: &Bounds, depth: usize) -> Option<(usize, [B
     let parent_area = half_area(bounds.boxes.min, bounds.boxes.max).max(f64::MIN_POSITIVE);
     let scale = DVec3::splat(BINS as f64) / extent;
     let mut bins = [[Bin::EMPTY; BINS]; 3];
-    for it in items.iter() {
+    // Big ranges choose their plane from an even sample of their items (the partition
+    // below still places every item, and gathers the exact bounds of both sides).
+    let stride = (n / SAMPLE).max(1);
+    let sampled = n.div_ceil(stride);
+    // Each sampled item stands for `stride` of them in the cost.
+    let weight = stride as f64;
+    for it in items.iter().step_by(stride) {
         for (ax, axis_bins) in bins.iter_mut().enumerate() {
             if extent[ax] > 0.0 {
                 axis_bins[bin_of(it.centroid(ax), cbounds.min[ax], scale[ax])].add(it);
@@ -735,11 +745,12 @@ fn split(items: &mut [Item], bounds: &Bounds, depth: usize) -> Option<(usize, [B
         let mut left = Bin::EMPTY;
         for k in 1..BINS {
             left.merge(&b[k - 1]);
-            if left.count == 0 || left.count == n {
+            if left.count == 0 || left.count == sampled {
                 continue;
             }
             let cost = 1.0
-                + (half_area(left.min, left.max) * left.count as f64 + right_cost[k]) / parent_area;
+                + weight * (half_area(left.min, left.max) * left.count as f64 + right_cost[k])
+                    / parent_area;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, ax, k));
             }
@@ -747,7 +758,12 @@ fn split(items: &mut [Item], bounds: &Bounds, depth: usize) -> Option<(usize, [B
     }
     let (_, ax, k) = best?;
     let (lo, sc) = (cbounds.min[ax], scale[ax]);
-    Some(partition(items, |it| bin_of(it.centroid(ax), lo, sc) < k))
+    let (mid, sides) = partition(items, |it| bin_of(it.centroid(ax), lo, sc) < k);
+    if mid == 0 || mid == n {
+        // A sampled plane that has every item on one side: split at the median instead.
+        return split(items, bounds, MAX_SAH_DEPTH);
+    }
+    Some((mid, sides))
 }
 
 /// One bin of the heuristic: how many triangles fall in it and their joint box.
@@ -1021,10 +1037,31 @@ mod tests {
     }
 
     #[test]
+    fn big_ranges_placed_from_a_sample_still_answer_exactly() {
+        // 9,200 faces: the top levels bin every second to eighth item.
+        let mut rng = Rng(7);
+        let (pos, faces) = random_mesh(&mut rng, 60, 2000);
+        assert!(faces.len() > 8 * SAMPLE);
+        let bvh = Bvh::build(&pos, &faces);
+        assert_eq!(bvh.len(), faces.len());
+        for _ in 0..200 {
+            let p = rng.vec(-1.0, 2.0);
+            let got = bvh.closest_point(p).unwrap();
+            assert_eq!(got.distance_squared, brute_force(&pos, &faces, p), "at {p}");
+        }
+    }
+
+    #[test]
     fn leaves_hold_at_most_max_leaf_triangles_and_cover_every_face_once() {
         let mut rng = Rng(13);
-        let (pos, faces) = random_mesh(&mut rng, 30, 100);
-        let bvh = Bvh::build(&pos, &faces);
+        for (n, loose) in [(30, 100), (60, 2000)] {
+            let (pos, faces) = random_mesh(&mut rng, n, loose);
+            leaves_cover_every_face_once(&pos, &faces);
+        }
+    }
+
+    fn leaves_cover_every_face_once(pos: &[DVec3], faces: &[[u32; 3]]) {
+        let bvh = Bvh::build(pos, faces);
         let mut seen = vec![false; faces.len()];
         for n in bvh.nodes.iter().filter(|n| n.count > 0) {
             assert!(n.count as usize <= MAX_LEAF);
