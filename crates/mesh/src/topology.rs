@@ -41,6 +41,7 @@
 
 use crate::{Index, Mesh, sanity};
 use coarsen_geom::triangle;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// The "no such element" value of `u32` tables (a skipped face's edges and component).
@@ -1256,18 +1257,26 @@ impl Topology {
     /// (its positions give the degenerate-face test).
     pub fn summary(&self, mesh: &Mesh) -> TopologySummary {
         let tiny = sanity::area_threshold(mesh, sanity::DEGENERATE_AREA_REL);
-        let mut n_tiny = 0;
-        for (f, face) in mesh.faces.iter().enumerate() {
-            if self.face_edges.get(f).is_none_or(|e| e[0] == NONE) {
-                continue;
-            }
-            let p = face.map(|i| mesh.positions.get(i as usize).copied());
-            if let [Some(a), Some(b), Some(c)] = p
-                && sanity::is_degenerate_area(triangle::area(a, b, c), tiny)
-            {
-                n_tiny += 1;
-            }
-        }
+        // A count: the same whatever the chunks and threads.
+        let n_tiny: usize = mesh
+            .faces
+            .par_chunks(1 << 14)
+            .enumerate()
+            .map(|(k, chunk)| {
+                let first = k << 14;
+                (first..first + chunk.len())
+                    .zip(chunk)
+                    .filter(|&(f, face)| {
+                        if self.face_edges.get(f).is_none_or(|e| e[0] == NONE) {
+                            return false;
+                        }
+                        let p = face.map(|i| mesh.positions.get(i as usize).copied());
+                        matches!(p, [Some(a), Some(b), Some(c)]
+                            if sanity::is_degenerate_area(triangle::area(a, b, c), tiny))
+                    })
+                    .count()
+            })
+            .sum();
 
         let nc = self.n_components();
         let (mut vc, mut ec, mut fc, mut bc) = (
@@ -1287,6 +1296,13 @@ impl Topology {
         }
         let mut comps: Vec<u32> = Vec::new();
         for v in 0..self.n_vertices as u32 {
+            if self.n_vertex_fans(v) == 1
+                && let Some(fan) = self.vertex_fans(v).next()
+            {
+                // One fan: one component (the common case, without the sort).
+                vc[self.face_component[fan[0] as usize] as usize] += 1;
+                continue;
+            }
             comps.clear();
             comps.extend(
                 self.vertex_fans(v)

@@ -79,6 +79,7 @@ use coarsen_stage::{
     AttrKind, AttrRef, Context, Contract, Domain, Mesh, Needs, Params, Stage, StageError, params,
 };
 use coarsen_stage_cvt::{CLUSTER, cluster_centroids};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Where each cluster's output vertex goes.
@@ -200,55 +201,52 @@ pub fn dual(
     // on a curved part), gets its clusters' vertices moved to the projected centroids, the
     // most central choice (the report's `degenerate_fixes`).
     let diag2 = mesh.bbox().diagonal().powi(2);
-    let bad_faces = |positions: &[DVec3]| -> Vec<u32> {
-        let mut v: Vec<u32> = faces
-            .iter()
-            .filter(|f| {
-                let [a, b, c] = f.map(|i| positions[i as usize]);
-                coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2 || facing.faces_away(a, b, c)
-            })
-            .flatten()
-            .copied()
-            .collect();
-        v.sort_unstable();
-        v.dedup();
-        v
-    };
-    let bad = bad_faces(&positions);
-    if !bad.is_empty() {
-        // Unsnapped: a boundary cluster between two others on a straight boundary would
-        // otherwise give a flat triangle; its vertex then stays just inside the boundary.
-        let (projected, _, _) = place(
-            mesh,
-            topo,
-            labels,
-            n,
-            Placement::Projected,
-            facing.bvh(),
-            false,
-        );
-        bad.iter()
-            .for_each(|&c| positions[c as usize] = projected[c as usize]);
-    }
     let flat = |f: &[u32; 3], positions: &[DVec3]| {
         let [a, b, c] = f.map(|i| positions[i as usize]);
         coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
     };
-    let mut moved = bad.len();
-    let still: Vec<u32> = {
-        let mut v: Vec<u32> = faces
-            .iter()
-            .filter(|f| {
-                let [a, b, c] = f.map(|i| positions[i as usize]);
-                flat(f, &positions) || (fix_facing && facing.faces_away(a, b, c))
-            })
-            .flatten()
-            .copied()
+    let away = |f: &[u32; 3], positions: &[DVec3]| {
+        let [a, b, c] = f.map(|i| positions[i as usize]);
+        facing.faces_away(a, b, c)
+    };
+    // Per output face: whether it faces away (the costly test, run in parallel, and again
+    // only for faces whose vertices move).
+    let mut turned: Vec<bool> = faces.par_iter().map(|f| away(f, &positions)).collect();
+    // The clusters (output vertices) of the faces `pick` selects, ascending.
+    let clusters_of = |pick: &dyn Fn(usize) -> bool| -> Vec<u32> {
+        let mut v: Vec<u32> = (0..faces.len())
+            .filter(|&i| pick(i))
+            .flat_map(|i| faces[i])
             .collect();
         v.sort_unstable();
         v.dedup();
         v
     };
+    let bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
+    if !bad.is_empty() {
+        // Unsnapped: a boundary cluster between two others on a straight boundary would
+        // otherwise give a flat triangle; its vertex then stays just inside the boundary.
+        let centroids = cluster_centroids(mesh, labels, n);
+        let projected: Vec<DVec3> = bad
+            .par_iter()
+            .map(|&c| {
+                let g = centroids[c as usize];
+                facing.bvh().closest_point(g).map_or(g, |h| h.point)
+            })
+            .collect();
+        let mut changed = vec![false; n];
+        for (&c, p) in bad.iter().zip(projected) {
+            positions[c as usize] = p;
+            changed[c as usize] = true;
+        }
+        turned
+            .par_iter_mut()
+            .zip(&faces)
+            .filter(|(_, f)| f.iter().any(|&c| changed[c as usize]))
+            .for_each(|(t, f)| *t = away(f, &positions));
+    }
+    let mut moved = bad.len();
+    let still = clusters_of(&|i| flat(&faces[i], &positions) || (fix_facing && turned[i]));
     if !still.is_empty() {
         // Centroids in a row (e.g. thin clusters along a straight strip), or a face across a
         // part thinner than a cluster (nearest the opposite sheet): each vertex of such a
@@ -335,7 +333,15 @@ pub fn dual(
             f[0]
         )));
     }
-    let origins = vertex_origins(mesh, labels, n);
+    // Origins serve only to carry vertex attributes: none, none to gather.
+    let origins = match mesh.vertex_attrs.is_empty() {
+        true => {
+            let mut o = VertexOrigins::with_capacity(n);
+            (0..n).for_each(|_| o.push_unknown());
+            o
+        }
+        false => vertex_origins(mesh, labels, n),
+    };
     let mut fo = FaceOrigins::with_capacity(faces.len());
     faces.iter().for_each(|_| fo.push_unknown());
     let (out, _) = mesh.rebuilt(positions, faces, &origins, &fo);
@@ -486,7 +492,7 @@ fn place(
     let mut fallbacks = 0;
     let mut pos: Vec<DVec3> = match placement {
         Placement::Centroid => centroids.clone(),
-        Placement::Projected => centroids.iter().map(|&c| project(c)).collect(),
+        Placement::Projected => centroids.par_iter().map(|&c| project(c)).collect(),
         Placement::ClosestVertex => {
             // Each cluster takes its nearest vertex not taken by a lower-numbered cluster,
             // so that no two output vertices coincide (the centroid when all are taken).
