@@ -3,7 +3,9 @@
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use coarsen_stage_cvt::{Clusterer, Valette2004, face_neighbors};
+use rayon::prelude::*;
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 
 /// Why a dual triangulation could not be made.
 #[derive(Clone, Debug, PartialEq)]
@@ -106,6 +108,32 @@ fn vertex_runs(topo: &Topology, labels: &[u32], v: u32, out: &mut Vec<u32>) {
     }
 }
 
+/// What the vertices of one range of [`diagnose`] give, in vertex order.
+struct AroundRange {
+    /// The distinct clusters around each vertex.
+    around: Vec<u32>,
+    /// Clusters met twice around a vertex.
+    twice: Vec<u32>,
+    /// Dual faces.
+    faces: Vec<[u32; 3]>,
+}
+
+/// The faces of each cluster, ascending: cluster `c`'s are `members[start[c]..start[c + 1]]`.
+fn faces_by_cluster(labels: &[u32], n: usize) -> (Vec<usize>, Vec<u32>) {
+    let mut start = vec![0usize; n + 1];
+    labels.iter().for_each(|&c| start[c as usize + 1] += 1);
+    for c in 0..n {
+        start[c + 1] += start[c];
+    }
+    let mut at = start.clone();
+    let mut members = vec![0u32; labels.len()];
+    for (f, &c) in labels.iter().enumerate() {
+        members[at[c as usize]] = f as u32;
+        at[c as usize] += 1;
+    }
+    (start, members)
+}
+
 /// Checks the clustering and builds the dual faces.
 pub(crate) fn diagnose(
     mesh: &Mesh,
@@ -116,68 +144,99 @@ pub(crate) fn diagnose(
 ) -> Diagnosis {
     let mut p = Problems::default();
     let mut bad = vec![false; n];
-    let nf = mesh.n_faces();
-    // Connectivity and Euler characteristic per cluster.
-    let mut pieces = vec![0u32; n];
-    let mut seen = vec![false; nf];
-    let mut stack = Vec::new();
-    for s in 0..nf {
-        if seen[s] {
-            continue;
-        }
-        let c = labels[s];
-        pieces[c as usize] += 1;
-        seen[s] = true;
-        stack.push(s as u32);
-        while let Some(f) = stack.pop() {
-            for e in topo.face_edges(f) {
-                for &g in topo.edge_faces(e) {
-                    if !seen[g as usize] && labels[g as usize] == c {
-                        seen[g as usize] = true;
-                        stack.push(g);
+    // Per cluster, in parallel: its pieces (flood fills within the cluster) and the faces
+    // minus the edges of its Euler characteristic (each edge counted once per cluster).
+    let (start, members) = faces_by_cluster(labels, n);
+    let seen: Vec<AtomicBool> = (0..mesh.n_faces())
+        .map(|_| AtomicBool::new(false))
+        .collect();
+    let (pieces, mut chi): (Vec<u32>, Vec<i64>) = (0..n)
+        .into_par_iter()
+        .map(|c| {
+            let own = &members[start[c]..start[c + 1]];
+            let c = c as u32;
+            let mut pieces = 0;
+            let mut stack = Vec::new();
+            for &s in own {
+                if seen[s as usize].swap(true, Relaxed) {
+                    continue;
+                }
+                pieces += 1;
+                stack.push(s);
+                while let Some(f) = stack.pop() {
+                    for e in topo.face_edges(f) {
+                        for &g in topo.edge_faces(e) {
+                            if labels[g as usize] == c && !seen[g as usize].swap(true, Relaxed) {
+                                stack.push(g);
+                            }
+                        }
                     }
                 }
             }
-        }
-    }
-    let mut chi = vec![0i64; n];
-    labels.iter().for_each(|&c| chi[c as usize] += 1);
-    for e in 0..topo.n_edges() as u32 {
-        let ef = topo.edge_faces(e);
-        chi[labels[ef[0] as usize] as usize] -= 1;
-        if ef.len() == 2 && labels[ef[1] as usize] != labels[ef[0] as usize] {
-            chi[labels[ef[1] as usize] as usize] -= 1;
-        }
-    }
-    let mut runs = Vec::new();
-    let mut faces = Vec::new();
-    let mut counted = vec![NONE; n];
-    for v in 0..topo.n_vertices() as u32 {
-        if topo.is_isolated_vertex(v) {
-            continue;
-        }
-        let fan = topo.vertex_faces(v);
-        for &f in fan {
-            let c = labels[f as usize];
-            if counted[c as usize] != v {
-                counted[c as usize] = v;
-                chi[c as usize] += 1;
-            }
-        }
-        vertex_runs(topo, labels, v, &mut runs);
-        // A cluster met twice around a vertex is pinched there (runs of one or two
-        // clusters cannot repeat one: equal neighbours are merged).
-        if runs.len() > 2 {
-            for (i, &c) in runs.iter().enumerate() {
-                if runs[..i].contains(&c) && !bad[c as usize] {
-                    bad[c as usize] = true;
-                    p.pinched += 1;
+            let mut chi = own.len() as i64;
+            for &f in own {
+                for e in topo.face_edges(f) {
+                    // Counted at the edge's first face in the cluster.
+                    let first = topo
+                        .edge_faces(e)
+                        .iter()
+                        .find(|&&g| labels[g as usize] == c);
+                    chi -= i64::from(first == Some(&f));
                 }
             }
+            (pieces, chi)
+        })
+        .unzip();
+    drop(seen);
+    drop(members);
+    // Per vertex, in parallel over ranges: the clusters around it (the vertices of the
+    // Euler characteristics), the clusters met twice (pinched there: runs of one or two
+    // clusters cannot repeat one, equal neighbours are merged) and the dual faces, each
+    // range's lists in vertex order.
+    const RANGE: usize = 1 << 13;
+    let nv = topo.n_vertices();
+    let ranges: Vec<AroundRange> = (0..nv.div_ceil(RANGE))
+        .into_par_iter()
+        .map(|k| {
+            let (mut around, mut twice, mut faces) = (Vec::new(), Vec::new(), Vec::new());
+            let mut runs = Vec::new();
+            for v in (k * RANGE) as u32..((k + 1) * RANGE).min(nv) as u32 {
+                if topo.is_isolated_vertex(v) {
+                    continue;
+                }
+                vertex_runs(topo, labels, v, &mut runs);
+                for (i, &c) in runs.iter().enumerate() {
+                    match runs[..i].contains(&c) {
+                        false => around.push(c),
+                        true => twice.push(c),
+                    }
+                }
+                for i in 1..runs.len().saturating_sub(1) {
+                    faces.push([runs[0], runs[i], runs[i + 1]]);
+                }
+            }
+            AroundRange {
+                around,
+                twice,
+                faces,
+            }
+        })
+        .collect();
+    let mut faces = Vec::new();
+    for AroundRange {
+        around,
+        twice,
+        faces: f,
+    } in ranges
+    {
+        around.iter().for_each(|&c| chi[c as usize] += 1);
+        for c in twice {
+            if !bad[c as usize] {
+                bad[c as usize] = true;
+                p.pinched += 1;
+            }
         }
-        for i in 1..runs.len().saturating_sub(1) {
-            faces.push([runs[0], runs[i], runs[i + 1]]);
-        }
+        faces.extend(f);
     }
     for c in 0..n {
         if pieces[c] != 1 {
