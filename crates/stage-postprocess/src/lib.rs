@@ -217,31 +217,43 @@ impl Stage for Postprocess {
         let mut projected = 0usize;
         if let Some(facing) = &facing {
             let before = out.clone();
-            let mut moved = vec![false; out.n_vertices()];
-            for (v, pos) in out.positions.iter_mut().enumerate() {
-                if let Some(hit) = facing.bvh().closest_point(*pos) {
-                    moved[v] = hit.point != *pos;
-                    *pos = hit.point;
-                }
-            }
-            let diag2 = cx.original.bbox().diagonal().powi(2);
-            for _ in 0..8 {
-                let mut undo: Vec<u32> = Vec::new();
-                for f in 0..out.n_faces() {
-                    let [a, b, c] = out.corners(f);
-                    let bad = out.face_normal(f).dot(before.face_normal(f)) <= 0.0
-                        || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
-                        || facing.faces_away(a, b, c);
-                    if bad {
-                        undo.extend(out.faces[f].iter().filter(|&&v| moved[v as usize]));
+            let mut moved: Vec<bool> = out
+                .positions
+                .par_iter_mut()
+                .map(|pos| match facing.bvh().closest_point(*pos) {
+                    Some(hit) => {
+                        let m = hit.point != *pos;
+                        *pos = hit.point;
+                        m
                     }
-                }
+                    None => false,
+                })
+                .collect();
+            let diag2 = cx.original.bbox().diagonal().powi(2);
+            // Faces to look at: all at first, then those with a vertex just sent back (the
+            // others are as they were).
+            let mut look = vec![true; out.n_vertices()];
+            for _ in 0..8 {
+                let undo: Vec<u32> = (0..out.n_faces())
+                    .into_par_iter()
+                    .filter(|&f| out.faces[f].iter().any(|&v| look[v as usize]))
+                    .filter(|&f| {
+                        let [a, b, c] = out.corners(f);
+                        out.face_normal(f).dot(before.face_normal(f)) <= 0.0
+                            || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
+                            || facing.faces_away(a, b, c)
+                    })
+                    .flat_map_iter(|f| out.faces[f])
+                    .filter(|&v| moved[v as usize])
+                    .collect();
                 if undo.is_empty() {
                     break;
                 }
+                look.iter_mut().for_each(|l| *l = false);
                 for v in undo {
                     out.positions[v as usize] = before.positions[v as usize];
                     moved[v as usize] = false;
+                    look[v as usize] = true;
                 }
             }
             projected = moved.iter().filter(|&&m| m).count();
