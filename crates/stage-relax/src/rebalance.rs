@@ -151,6 +151,7 @@ pub(crate) fn plan_collapse(
     };
     let mut before = f64::INFINITY;
     let mut after = f64::INFINITY;
+    let mut tris: Vec<[DVec3; 3]> = Vec::new();
     for &v in &[a, b] {
         for &f in topo.vertex_faces(v) {
             let t = mesh.faces[f as usize];
@@ -168,15 +169,17 @@ pub(crate) fn plan_collapse(
             });
             let n_old = triangle::normal(old[0], old[1], old[2]);
             let n_new = triangle::normal(new[0], new[1], new[2]);
-            if n_new.dot(n_old) < cos_turn
-                || surface.is_some_and(|s| !s.agrees(new[0], new[1], new[2]))
-            {
+            if n_new.dot(n_old) < cos_turn {
                 return None;
             }
             after = after.min(triangle::min_angle(new[0], new[1], new[2]));
+            tris.push(new);
         }
     }
-    (after >= before.min(floor)).then(|| Collapse {
+    // The facing test last: it is the costly one (a query of the input's index per face).
+    (after >= before.min(floor)
+        && surface.is_none_or(|s| tris.iter().all(|[a, b, c]| s.agrees(*a, *b, *c))))
+    .then(|| Collapse {
         keep,
         gone,
         at,
