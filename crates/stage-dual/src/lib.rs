@@ -439,8 +439,7 @@ fn short_boundary_loop(topo: &Topology) -> Option<String> {
 /// Each cluster's vertex as the area-weighted blend of its faces' corners.
 fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
     // The corners of each cluster's faces, by cluster (counting sort, face order kept);
-    // each cluster's vertices in order of first appearance, weights summed per vertex in
-    // that order (clusters in parallel).
+    // each cluster's vertices in order of first appearance, weights summed per vertex.
     let mut start = vec![0usize; n + 1];
     labels.iter().for_each(|&c| start[c as usize + 1] += 3);
     for c in 0..n {
@@ -455,28 +454,23 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
             at[c as usize] += 1;
         }
     }
-    let blends: Vec<Vec<(u32, f64)>> = (0..n)
-        .into_par_iter()
-        .map(|c| {
-            let corners = &entries[start[c]..start[c + 1]];
-            // Positions by vertex, then by appearance: each vertex's run sums its weights
-            // in order of appearance, and its first position places it.
-            let mut idx: Vec<u32> = (0..corners.len() as u32).collect();
-            idx.sort_unstable_by_key(|&i| (corners[i as usize].0, i));
-            let mut blend: Vec<(u32, (u32, f64))> = Vec::new();
-            for &i in &idx {
-                let (v, w) = corners[i as usize];
-                match blend.last_mut() {
-                    Some((_, (u, sum))) if *u == v => *sum += w,
-                    _ => blend.push((i, (v, w))),
-                }
-            }
-            blend.sort_unstable_by_key(|b| b.0);
-            blend.into_iter().map(|b| b.1).collect()
-        })
-        .collect();
+    let mut slot = vec![u32::MAX; mesh.n_vertices()];
     let mut o = VertexOrigins::with_capacity(n);
-    for blend in blends {
+    for c in 0..n {
+        let corners = &entries[start[c]..start[c + 1]];
+        let mut blend: Vec<(u32, f64)> = Vec::new();
+        for &(v, w) in corners {
+            match slot[v as usize] {
+                u32::MAX => {
+                    slot[v as usize] = blend.len() as u32;
+                    blend.push((v, w));
+                }
+                i => blend[i as usize].1 += w,
+            }
+        }
+        for &(v, _) in &blend {
+            slot[v as usize] = u32::MAX;
+        }
         o.push_blend(blend);
     }
     o
