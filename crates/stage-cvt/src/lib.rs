@@ -192,8 +192,14 @@ fn run_from<E: Energy>(
     density: Option<&[f64]>,
     on_pass: impl FnMut(u32, u64, f64),
 ) -> Result<Clustering, ClusterError> {
-    let mut c = Clusterer::new(mesh, topo, energy, density)?;
-    let usable = labels.len() == mesh.n_faces()
+    // A warm start (the post-process's levels) runs few passes: the curve layout costs
+    // about what it saves there, and its copies add to the peak memory.
+    let warm = labels.len() == mesh.n_faces();
+    let mut c = match warm {
+        true => Clusterer::with_layout(mesh, topo, energy, density, false)?,
+        false => Clusterer::new(mesh, topo, energy, density)?,
+    };
+    let usable = warm
         && c.set_labels(labels, n).is_ok()
         && c.cluster_sums().iter().all(|s| s.count > 0.5)
         && c.connected_clusters().iter().all(|&k| k);
