@@ -1121,6 +1121,12 @@ impl Topology {
         })
     }
 
+    /// Every vertex's faces as one table: `faces[offsets[v]..offsets[v + 1]]` is
+    /// [`Topology::vertex_faces`]`(v)`; returns `(offsets, faces)`.
+    pub fn vertex_face_table(&self) -> (&[u32], &[u32]) {
+        (&self.vertex_face_offsets, &self.vertex_faces)
+    }
+
     /// Number of fans of vertex `v` (0 when isolated, 1 when manifold).
     #[inline]
     pub fn n_vertex_fans(&self, v: u32) -> usize {

@@ -10,6 +10,7 @@ use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 
@@ -133,12 +134,13 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     rank: Vec<u32>,
     /// Per layout face: the layout face across each edge (corner i → i+1), or `NONE`.
     nbr: Vec<[u32; 3]>,
-    /// Per layout face: its corners as layout vertices.
-    corners: Vec<[u32; 3]>,
+    /// Per layout face: its corners as layout vertices (without the curve layout, the
+    /// mesh's faces themselves).
+    corners: Cow<'a, [[u32; 3]]>,
     /// Per layout vertex: its faces (layout numbering, in the adjacency's fan order) are
-    /// `fan[fan_off[v]..fan_off[v + 1]]`.
-    fan_off: Vec<u32>,
-    fan: Vec<u32>,
+    /// `fan[fan_off[v]..fan_off[v + 1]]` (without the curve layout, the adjacency's table).
+    fan_off: Cow<'a, [u32]>,
+    fan: Cow<'a, [u32]>,
     /// Per layout vertex: its faces form one closed fan.
     closed: Vec<bool>,
     /// Per layout face: its mass and centroid.
@@ -242,10 +244,15 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         for (i, &f) in order.iter().enumerate() {
             rank[f as usize] = i as u32;
         }
-        let corners: Vec<[u32; 3]> = order
-            .par_iter()
-            .map(|&f| mesh.faces[f as usize].map(|v| vmap[v as usize]))
-            .collect();
+        let corners: Cow<'a, [[u32; 3]]> = match curve {
+            true => Cow::Owned(
+                order
+                    .par_iter()
+                    .map(|&f| mesh.faces[f as usize].map(|v| vmap[v as usize]))
+                    .collect(),
+            ),
+            false => Cow::Borrowed(&mesh.faces),
+        };
         drop(vmap);
         // Face sums from the vertices in layout order (reads close in memory).
         let pos: Vec<DVec3> = vorder.par_iter().map(|&v| pos_of(v)).collect();
@@ -269,7 +276,16 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             })
             .collect();
         drop(pos);
-        let (fan_off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
+        let (fan_off, fan) = match curve {
+            true => {
+                let (off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
+                (Cow::Owned(off), Cow::Owned(fan))
+            }
+            false => {
+                let (off, fan) = topo.vertex_face_table();
+                (Cow::Borrowed(off), Cow::Borrowed(fan))
+            }
+        };
         let closed = vorder
             .par_iter()
             .map(|&v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
