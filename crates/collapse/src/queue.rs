@@ -82,8 +82,14 @@ impl Heap {
     }
 
     fn push(&mut self, e: Entry) {
-        let mut i = self.items.len();
+        let i = self.items.len();
         self.items.push(e);
+        self.sift_up(i, e);
+    }
+
+    /// Places `e` at hole `i` or above, moving dearer parents down.
+    #[inline]
+    fn sift_up(&mut self, mut i: usize, e: Entry) {
         while i > 0 {
             let parent = (i - 1) / Self::ARITY;
             if !e.before(&self.items[parent]) {
@@ -95,6 +101,22 @@ impl Heap {
         self.items[i] = e;
     }
 
+    /// The cheapest child of node `i`, if it has children.
+    #[inline]
+    fn least_child(&self, i: usize) -> Option<usize> {
+        let first = i * Self::ARITY + 1;
+        let n = self.items.len();
+        (first < n).then(|| {
+            let mut best = first;
+            for c in first + 1..(first + Self::ARITY).min(n) {
+                if self.items[c].before(&self.items[best]) {
+                    best = c;
+                }
+            }
+            best
+        })
+    }
+
     fn pop(&mut self) -> Option<Entry> {
         let last = self.items.pop()?;
         if self.items.is_empty() {
@@ -104,48 +126,18 @@ impl Heap {
         // The last entry is among the dearest: walk the hole down to a leaf along the
         // cheapest children, then let `last` rise from there (three comparisons per level
         // instead of four, and it rarely rises far).
-        let n = self.items.len();
         let mut i = 0;
-        loop {
-            let first = i * Self::ARITY + 1;
-            if first >= n {
-                break;
-            }
-            let mut best = first;
-            for c in first + 1..(first + Self::ARITY).min(n) {
-                if self.items[c].before(&self.items[best]) {
-                    best = c;
-                }
-            }
+        while let Some(best) = self.least_child(i) {
             self.items[i] = self.items[best];
             i = best;
         }
-        while i > 0 {
-            let parent = (i - 1) / Self::ARITY;
-            if !last.before(&self.items[parent]) {
-                break;
-            }
-            self.items[i] = self.items[parent];
-            i = parent;
-        }
-        self.items[i] = last;
+        self.sift_up(i, last);
         Some(top)
     }
 
     /// Places `e` at hole `i` or below, moving smaller children up.
     fn sift_down(&mut self, mut i: usize, e: Entry) {
-        let n = self.items.len();
-        loop {
-            let first = i * Self::ARITY + 1;
-            if first >= n {
-                break;
-            }
-            let mut best = first;
-            for c in first + 1..(first + Self::ARITY).min(n) {
-                if self.items[c].before(&self.items[best]) {
-                    best = c;
-                }
-            }
+        while let Some(best) = self.least_child(i) {
             if !self.items[best].before(&e) {
                 break;
             }
