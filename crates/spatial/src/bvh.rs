@@ -756,7 +756,15 @@ fn split(items: &mut [Item], bounds: &Bounds, depth: usize) -> Option<(usize, [B
             }
         }
     }
-    let (_, ax, k) = best?;
+    let Some((_, ax, k)) = best else {
+        // Every item in one bin can only happen to a sample that missed the extreme
+        // centroids (all items put the two extremes in the first and last bins): split at
+        // the median instead.
+        return match stride > 1 {
+            true => split(items, bounds, MAX_SAH_DEPTH),
+            false => None,
+        };
+    };
     let (lo, sc) = (cbounds.min[ax], scale[ax]);
     let (mid, sides) = partition(items, |it| bin_of(it.centroid(ax), lo, sc) < k);
     if mid == 0 || mid == n {
@@ -1085,6 +1093,28 @@ mod tests {
         assert_eq!(bvh.len(), 1000);
         let got = bvh.closest_point(DVec3::new(0.2, 0.2, 1.0)).unwrap();
         assert_eq!(got.distance_squared, 1.0);
+    }
+
+    #[test]
+    fn a_sample_that_misses_the_outliers_still_splits_to_small_leaves() {
+        // 4,000 copies of one triangle and 20 far ones, none at a multiple of 3: the root
+        // bins every third item, so its sample holds one centroid only.
+        let mut pos = vec![DVec3::ZERO, DVec3::X, DVec3::Y];
+        let mut faces = Vec::new();
+        for i in 0..4000u32 {
+            if i % 3 == 1 && i < 60 {
+                let base = pos.len() as u32;
+                let c = DVec3::new(100.0 + f64::from(i), 0.0, 0.0);
+                pos.extend([c, c + DVec3::X, c + DVec3::Y]);
+                faces.push([base, base + 1, base + 2]);
+            } else {
+                faces.push([0, 1, 2]);
+            }
+        }
+        leaves_cover_every_face_once(&pos, &faces);
+        let bvh = Bvh::build(&pos, &faces);
+        let far = DVec3::new(158.2, 0.2, 1.0);
+        assert_eq!(bvh.closest_point(far).unwrap().distance_squared, 1.0);
     }
 
     #[test]
