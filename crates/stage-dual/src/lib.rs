@@ -194,8 +194,9 @@ pub fn dual(
             &own
         }
     };
+    let centroids = cluster_centroids(mesh, labels, n);
     let (mut positions, boundary_clusters, quadric_fallbacks) =
-        place(mesh, topo, labels, n, placement, facing.bvh(), true);
+        place(mesh, topo, labels, &centroids, placement, facing.bvh());
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
     // one facing away from the input surface nearest its centroid (closest-vertex placement
     // on a curved part), gets its clusters' vertices moved to the projected centroids, the
@@ -226,7 +227,6 @@ pub fn dual(
     if !bad.is_empty() {
         // Unsnapped: a boundary cluster between two others on a straight boundary would
         // otherwise give a flat triangle; its vertex then stays just inside the boundary.
-        let centroids = cluster_centroids(mesh, labels, n);
         let projected: Vec<DVec3> = bad
             .par_iter()
             .map(|&c| {
@@ -476,22 +476,22 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
     o
 }
 
-/// Output positions, projecting through `bvh` (the surface's index): `(positions, clusters
-/// on the boundary, quadric fall-backs)`.
+/// Output positions from the clusters' `centroids`, projecting through `bvh` (the surface's
+/// index), boundary clusters snapped onto their boundary runs: `(positions, clusters on the
+/// boundary, quadric fall-backs)`.
 fn place(
     mesh: &Mesh,
     topo: &Topology,
     labels: &[u32],
-    n: usize,
+    centroids: &[DVec3],
     placement: Placement,
     bvh: &Bvh,
-    snap: bool,
 ) -> (Vec<DVec3>, usize, usize) {
-    let centroids = cluster_centroids(mesh, labels, n);
+    let n = centroids.len();
     let project = |p: DVec3| bvh.closest_point(p).map_or(p, |h| h.point);
     let mut fallbacks = 0;
     let mut pos: Vec<DVec3> = match placement {
-        Placement::Centroid => centroids.clone(),
+        Placement::Centroid => centroids.to_vec(),
         Placement::Projected => centroids.par_iter().map(|&c| project(c)).collect(),
         Placement::ClosestVertex => {
             // Each cluster takes its nearest vertex not taken by a lower-numbered cluster,
@@ -507,7 +507,7 @@ fn place(
                 a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2))
             });
             let mut taken = vec![false; mesh.n_vertices()];
-            let mut pos = centroids.clone();
+            let mut pos = centroids.to_vec();
             let mut i = 0;
             for (c, p) in pos.iter_mut().enumerate() {
                 let mut done = false;
@@ -585,7 +585,7 @@ fn place(
         }
     }
     let mut on_boundary = 0;
-    for (c, b) in best.iter().enumerate().filter(|_| snap) {
+    for (c, b) in best.iter().enumerate() {
         if let Some((_, p)) = b {
             pos[c] = *p;
             on_boundary += 1;
