@@ -273,7 +273,15 @@ pub(crate) fn pull(
                 triangle::normal(a, b, c)
             }));
             for q in std::iter::once(p).chain(half) {
-                let Some((worst, _)) = fan_shape(mesh, fan, w, q, &normals, cos_turn) else {
+                let Some((worst, _)) = fan_shape(
+                    &mesh.faces,
+                    fan,
+                    w,
+                    q,
+                    |x| mesh.positions[x as usize],
+                    &normals,
+                    cos_turn,
+                ) else {
                     continue;
                 };
                 if worst < guard {

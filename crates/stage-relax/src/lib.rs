@@ -9,8 +9,9 @@
 //! input's boundary edges. The best move is kept only when the smallest angle of the vertex's faces grows,
 //! none of them turns by more than `max_turn_deg`, and (when projecting) none faces away
 //! from the input normal nearest its centroid — so the mesh's minimum angle never drops, no
-//! face flips, and every vertex stays on the input surface. Deterministic (one thread,
-//! fixed order).
+//! face flips, and every vertex stays on the input surface. Meshes of 2¹⁴ vertices or more
+//! sweep in eight fixed spatial parts at once, the vertices on the borders between parts
+//! last; the result does not depend on the thread count.
 //!
 //! With `flips`, each sweep first flips the interior edges whose two faces get a larger
 //! smallest angle that way (same guards: no new edge duplicating one, no face turned by
@@ -58,10 +59,12 @@ use std::sync::Arc;
 mod fit;
 mod flip;
 mod rebalance;
+mod sweep;
 
 use fit::*;
 use flip::*;
 use rebalance::*;
+use sweep::*;
 
 params! {
     /// Parameters of `relax`.
@@ -127,26 +130,22 @@ pub struct Relaxed {
     pub min_angle_after: f64,
 }
 
-/// Smallest angle (radians) and summed quality of the faces `fan` of `mesh`, with vertex
-/// `v` at `p`; `None` when a face normal turns beyond `cos_turn` from `normals`.
+/// Smallest angle (radians) and summed quality of the faces `fan` (of `faces`, corners at
+/// `pos`), with vertex `v` at `p`; `None` when a face normal turns beyond `cos_turn` from
+/// `normals`.
 fn fan_shape(
-    mesh: &Mesh,
+    faces: &[[u32; 3]],
     fan: &[u32],
     v: u32,
     p: DVec3,
+    pos: impl Fn(u32) -> DVec3,
     normals: &[DVec3],
     cos_turn: f64,
 ) -> Option<(f64, f64)> {
     let mut worst = f64::INFINITY;
     let mut sum = 0.0;
     for (i, &f) in fan.iter().enumerate() {
-        let [a, b, c] = mesh.faces[f as usize].map(|w| {
-            if w == v {
-                p
-            } else {
-                mesh.positions[w as usize]
-            }
-        });
+        let [a, b, c] = faces[f as usize].map(|w| if w == v { p } else { pos(w) });
         let n = triangle::normal(a, b, c);
         if n.dot(normals[i]) < cos_turn {
             return None;
@@ -288,9 +287,9 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     };
     // The two boundary neighbours of each boundary vertex.
     let ends = boundary_neighbours(&topo, mesh.n_vertices());
-    let mut normals = Vec::new();
     let mut topo = topo;
-    let mut tris = Vec::new();
+    // The parts of a big mesh's sweeps (its vertices barely move between sweeps).
+    let parts = Parts::new(&mesh.positions);
     for _ in 0..params.sweeps {
         if let Some(w) = watch.as_mut() {
             w.assign(mesh);
@@ -312,133 +311,15 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                 }
             }
         }
-        let mut moved = 0;
-        for v in 0..mesh.n_vertices() as u32 {
-            let fan = topo.vertex_faces(v);
-            if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
-                continue;
-            }
-            let p = mesh.positions[v as usize];
-            normals.clear();
-            let (mut sum, mut area, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-            for &f in fan {
-                let [a, b, c] = mesh.corners(f as usize);
-                let w = triangle::area(a, b, c);
-                sum += w * triangle::centroid(a, b, c);
-                area += w;
-                normal += triangle::cross(a, b, c);
-                normals.push(triangle::normal(a, b, c));
-            }
-            // Candidate positions, best first: the full move, then partial ones (on the
-            // boundary: a third and two thirds of the way between the two neighbours).
-            let mut cands = [DVec3::NAN; 5];
-            if topo.is_boundary_vertex(v) {
-                let [u, w] = match ends[v as usize][..] {
-                    [u, w] => [u, w].map(|i| mesh.positions[i as usize]),
-                    _ => continue,
-                };
-                for (c, s) in cands.iter_mut().zip([0.5, 1.0 / 3.0, 2.0 / 3.0]) {
-                    let target = p + params.step * (u.lerp(w, s) - p);
-                    *c = match surface.filter(|_| params.project) {
-                        Some(sf) => sf.project_boundary(target).unwrap_or(DVec3::NAN),
-                        None => target,
-                    };
-                }
-            } else {
-                let normal = normal.normalize_or_zero();
-                if area <= 0.0 || normal == DVec3::ZERO {
-                    continue;
-                }
-                let d = sum / area - p;
-                let d = d - d.dot(normal) * normal;
-                // With `floor_deg`, also the mean of the neighbours (evens edge lengths).
-                let ring = topo.vertex_neighbors(v);
-                let mean = ring
-                    .iter()
-                    .map(|&w| mesh.positions[w as usize])
-                    .sum::<DVec3>()
-                    / ring.len().max(1) as f64;
-                let l = mean - p;
-                let l = l - l.dot(normal) * normal;
-                let n_moves = if params.floor_deg > 0.0 { 5 } else { 3 };
-                let moves = [d, 0.5 * d, 0.25 * d, l, 0.5 * l];
-                for (c, m) in cands.iter_mut().zip(moves).take(n_moves) {
-                    let q = p + params.step * m;
-                    *c = match surface.filter(|_| params.project) {
-                        Some(sf) => sf.project(q).unwrap_or(q),
-                        None => q,
-                    };
-                }
-            }
-            let Some(before) = fan_shape(mesh, fan, v, p, &normals, -1.0) else {
-                continue;
-            };
-            // Capped smallest angle first, summed quality second (with `floor_deg` 0: the
-            // smallest angle alone).
-            let floor = params.floor_deg.to_radians();
-            let better = |after: (f64, f64)| {
-                if floor <= 0.0 {
-                    return after.0 > before.0;
-                }
-                let (x, y) = (after.0.min(floor), before.0.min(floor));
-                x > y || (x == y && after.1 > before.1)
-            };
-            let agrees = |q: DVec3| {
-                surface.is_none_or(|s| {
-                    fan.iter().all(|&f| {
-                        let [a, b, c] = mesh.faces[f as usize].map(|w| {
-                            if w == v {
-                                q
-                            } else {
-                                mesh.positions[w as usize]
-                            }
-                        });
-                        s.agrees(a, b, c)
-                    })
-                })
-            };
-            // Rank the improving candidates; the (costlier) input-normal test goes in order.
-            let mut ranked: Vec<((f64, f64), DVec3)> = cands
-                .iter()
-                .filter(|q| q.is_finite() && **q != p)
-                .filter_map(|&q| {
-                    fan_shape(mesh, fan, v, q, &normals, cos_turn)
-                        .filter(|&after| better(after))
-                        .map(|after| (after, q))
-                })
-                .collect();
-            ranked.sort_by(|a, b| {
-                let key = |s: (f64, f64)| (s.0.min(floor.max(0.0)), s.1);
-                if floor <= 0.0 {
-                    b.0.0.total_cmp(&a.0.0)
-                } else {
-                    let (x, y) = (key(a.0), key(b.0));
-                    y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1))
-                }
-            });
-            let close = |q: DVec3, tris: &mut Vec<[DVec3; 3]>| {
-                watch.as_ref().is_none_or(|w| {
-                    tris.clear();
-                    tris.extend(fan.iter().map(|&f| {
-                        mesh.faces[f as usize].map(|x| {
-                            if x == v {
-                                q
-                            } else {
-                                mesh.positions[x as usize]
-                            }
-                        })
-                    }));
-                    w.allows(fan, tris)
-                })
-            };
-            if let Some(&(_, q)) = ranked
-                .iter()
-                .find(|(_, q)| agrees(*q) && close(*q, &mut tris))
-            {
-                mesh.positions[v as usize] = q;
-                moved += 1;
-            }
-        }
+        let sweep = Sweep {
+            faces: &mesh.faces,
+            topo: &topo,
+            ends: &ends,
+            surface,
+            watch: watch.as_ref(),
+            params,
+        };
+        let moved = sweep.run(&mut mesh.positions, parts.as_ref());
         out.moved.push(moved);
         if moved == 0 && out.flipped.last().is_none_or(|&f| f == 0) {
             break;
@@ -887,6 +768,56 @@ mod tests {
     }
 
     /// `fit` and the bound give the same bytes on any thread count.
+    #[test]
+    fn a_big_mesh_sweeps_in_parts_alike_for_any_thread_count() {
+        // 40962 vertices: above PARTS_MIN, so the sweeps run in parts.
+        let original = coarsen_shapes::icosphere(1.0, 6).unwrap();
+        assert!(Parts::new(&original.positions).is_some());
+        let mut jittered = original.clone();
+        let mut s = 11u64;
+        for p in &mut jittered.positions {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let t = DVec3::new(
+                ((s >> 11) % 1000) as f64 / 1000.0 - 0.5,
+                ((s >> 23) % 1000) as f64 / 1000.0 - 0.5,
+                ((s >> 37) % 1000) as f64 / 1000.0 - 0.5,
+            );
+            *p = (*p + 0.004 * t).normalize();
+        }
+        let params = RelaxParams {
+            sweeps: 2,
+            flips: false,
+            ..RelaxParams::default()
+        };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let surface = Surface::new(&original);
+                let mut m = jittered.clone();
+                let r = relax(&mut m, Some(&surface), &params);
+                (m, r)
+            })
+        };
+        let ((a, ra), (b, rb)) = (run(1), run(3));
+        assert_eq!(ra, rb);
+        let bits = |m: &Mesh| {
+            m.positions
+                .iter()
+                .flat_map(|p| p.to_array().map(f64::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&a), bits(&b));
+        // The parts moved most vertices and lifted the worst angle, on the sphere.
+        assert!(ra.moved[0] > a.n_vertices() / 2, "{ra:?}");
+        assert!(ra.min_angle_after > ra.min_angle_before + 1.0, "{ra:?}");
+        assert!(a.positions.iter().all(|p| (p.length() - 1.0).abs() < 1e-3));
+    }
+
     #[test]
     fn fitting_is_deterministic_across_thread_counts() {
         let original = bumped_grid(64, 0.0625);

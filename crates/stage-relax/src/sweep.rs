@@ -1,0 +1,314 @@
+//! The vertex sweep of [`relax`]: every vertex offered its moves, in index order.
+//!
+//! Big meshes sweep in [`PARTS`] spatial parts at once: each part's vertices whose whole
+//! ring lies in the part move in index order, in parallel with the other parts (a move
+//! reads and writes only the vertex's ring), then the vertices on the borders between
+//! parts move one by one. The parts do not depend on the thread count, so neither does
+//! the result.
+
+use super::*;
+
+/// Meshes with at least this many vertices sweep in parts (smaller ones in one piece).
+pub(crate) const PARTS_MIN: usize = 1 << 14;
+/// Number of parts: 2³ cells of a median split along the widest axis, three levels deep.
+pub(crate) const PARTS: usize = 8;
+
+/// What a sweep reads besides the vertex positions.
+pub(crate) struct Sweep<'a> {
+    /// The faces of the mesh being relaxed.
+    pub faces: &'a [[u32; 3]],
+    /// Their adjacency.
+    pub topo: &'a Topology,
+    /// The two boundary neighbours of each boundary vertex.
+    pub ends: &'a [Vec<u32>],
+    /// The input surface faces must agree with.
+    pub surface: Option<&'a Surface<'a>>,
+    /// The input points kept near the mesh.
+    pub watch: Option<&'a Watch>,
+    /// The stage's parameters.
+    pub params: &'a RelaxParams,
+}
+
+/// Scratch buffers of one sweeper.
+#[derive(Default)]
+struct Scratch {
+    normals: Vec<DVec3>,
+    tris: Vec<[DVec3; 3]>,
+    ranked: Vec<((f64, f64), DVec3)>,
+}
+
+impl Sweep<'_> {
+    /// One sweep over the vertices of a mesh with `positions`, in `parts` when given (see
+    /// [`Parts::new`]); returns the moves kept.
+    pub(crate) fn run(&self, positions: &mut [DVec3], parts: Option<&Parts>) -> usize {
+        let Some(parts) = parts else {
+            let mut sc = Scratch::default();
+            let mut moved = 0;
+            for v in 0..positions.len() as u32 {
+                if let Some(q) = self.best_move(v, |w| positions[w as usize], &mut sc) {
+                    positions[v as usize] = q;
+                    moved += 1;
+                }
+            }
+            return moved;
+        };
+        let border = parts.border(self.topo, positions.len());
+        // Each part moves its inner vertices on a copy of its own positions.
+        let moved_in_parts: Vec<(Vec<DVec3>, usize)> = parts
+            .members
+            .par_iter()
+            .map(|members| {
+                let mut local: Vec<DVec3> =
+                    members.iter().map(|&v| positions[v as usize]).collect();
+                let mut sc = Scratch::default();
+                let mut moved = 0;
+                for (i, &v) in members.iter().enumerate() {
+                    if border[v as usize] {
+                        continue;
+                    }
+                    let at = |w: u32| local[parts.slot[w as usize] as usize];
+                    if let Some(q) = self.best_move(v, at, &mut sc) {
+                        local[i] = q;
+                        moved += 1;
+                    }
+                }
+                (local, moved)
+            })
+            .collect();
+        let mut moved = 0;
+        for (members, (local, k)) in parts.members.iter().zip(moved_in_parts) {
+            for (&v, p) in members.iter().zip(local) {
+                positions[v as usize] = p;
+            }
+            moved += k;
+        }
+        let mut sc = Scratch::default();
+        for v in 0..positions.len() as u32 {
+            if border[v as usize]
+                && let Some(q) = self.best_move(v, |w| positions[w as usize], &mut sc)
+            {
+                positions[v as usize] = q;
+                moved += 1;
+            }
+        }
+        moved
+    }
+
+    /// Where vertex `v` goes, if one of its moves is kept (see the crate docs); `pos` gives
+    /// the positions of `v` and its ring.
+    fn best_move(
+        &self,
+        v: u32,
+        pos: impl Fn(u32) -> DVec3 + Copy,
+        sc: &mut Scratch,
+    ) -> Option<DVec3> {
+        let (topo, params) = (self.topo, self.params);
+        let cos_turn = params.max_turn_deg.to_radians().cos();
+        let fan = topo.vertex_faces(v);
+        if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
+            return None;
+        }
+        let corners = |f: u32| self.faces[f as usize].map(pos);
+        let p = pos(v);
+        sc.normals.clear();
+        let (mut sum, mut area, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
+        for &f in fan {
+            let [a, b, c] = corners(f);
+            let w = triangle::area(a, b, c);
+            sum += w * triangle::centroid(a, b, c);
+            area += w;
+            normal += triangle::cross(a, b, c);
+            sc.normals.push(triangle::normal(a, b, c));
+        }
+        // Candidate positions, best first: the full move, then partial ones (on the
+        // boundary: a third and two thirds of the way between the two neighbours).
+        let mut cands = [DVec3::NAN; 5];
+        let onto = self.surface.filter(|_| params.project);
+        if topo.is_boundary_vertex(v) {
+            let [u, w] = match self.ends[v as usize][..] {
+                [u, w] => [u, w].map(pos),
+                _ => return None,
+            };
+            for (c, s) in cands.iter_mut().zip([0.5, 1.0 / 3.0, 2.0 / 3.0]) {
+                let target = p + params.step * (u.lerp(w, s) - p);
+                *c = match onto {
+                    Some(sf) => sf.project_boundary(target).unwrap_or(DVec3::NAN),
+                    None => target,
+                };
+            }
+        } else {
+            let normal = normal.normalize_or_zero();
+            if area <= 0.0 || normal == DVec3::ZERO {
+                return None;
+            }
+            let d = sum / area - p;
+            let d = d - d.dot(normal) * normal;
+            // With `floor_deg`, also the mean of the neighbours (evens edge lengths).
+            let ring = topo.vertex_neighbors(v);
+            let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
+            let l = mean - p;
+            let l = l - l.dot(normal) * normal;
+            let n_moves = if params.floor_deg > 0.0 { 5 } else { 3 };
+            let moves = [d, 0.5 * d, 0.25 * d, l, 0.5 * l];
+            for (c, m) in cands.iter_mut().zip(moves).take(n_moves) {
+                let q = p + params.step * m;
+                *c = match onto {
+                    Some(sf) => sf.project(q).unwrap_or(q),
+                    None => q,
+                };
+            }
+        }
+        let shape = |q: DVec3, cos: f64, normals: &[DVec3]| {
+            fan_shape(self.faces, fan, v, q, pos, normals, cos)
+        };
+        let before = shape(p, -1.0, &sc.normals)?;
+        // Capped smallest angle first, summed quality second (with `floor_deg` 0: the
+        // smallest angle alone).
+        let floor = params.floor_deg.to_radians();
+        let better = |after: (f64, f64)| {
+            if floor <= 0.0 {
+                return after.0 > before.0;
+            }
+            let (x, y) = (after.0.min(floor), before.0.min(floor));
+            x > y || (x == y && after.1 > before.1)
+        };
+        // The fan's corners with `v` at `q`.
+        let moved_fan = |q: DVec3| {
+            fan.iter()
+                .map(move |&f| self.faces[f as usize].map(|w| if w == v { q } else { pos(w) }))
+        };
+        let agrees = |q: DVec3| {
+            self.surface
+                .is_none_or(|s| moved_fan(q).all(|[a, b, c]| s.agrees(a, b, c)))
+        };
+        // Rank the improving candidates; the (costlier) input-normal test goes in order.
+        sc.ranked.clear();
+        for &q in cands.iter().filter(|q| q.is_finite() && **q != p) {
+            if let Some(after) = shape(q, cos_turn, &sc.normals).filter(|&a| better(a)) {
+                sc.ranked.push((after, q));
+            }
+        }
+        sc.ranked.sort_by(|a, b| {
+            let key = |s: (f64, f64)| (s.0.min(floor.max(0.0)), s.1);
+            if floor <= 0.0 {
+                b.0.0.total_cmp(&a.0.0)
+            } else {
+                let (x, y) = (key(a.0), key(b.0));
+                y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1))
+            }
+        });
+        let (ranked, tris) = (&sc.ranked, &mut sc.tris);
+        let mut close = |q: DVec3| {
+            self.watch.is_none_or(|w| {
+                tris.clear();
+                tris.extend(moved_fan(q));
+                w.allows(fan, tris)
+            })
+        };
+        ranked
+            .iter()
+            .find(|(_, q)| agrees(*q) && close(*q))
+            .map(|&(_, q)| q)
+    }
+}
+
+/// A fixed split of a mesh's vertices into [`PARTS`] spatial parts.
+pub(crate) struct Parts {
+    /// Each part's vertices, ascending.
+    members: Vec<Vec<u32>>,
+    /// Each vertex's place in its part's `members`.
+    slot: Vec<u32>,
+    /// Each vertex's part.
+    part: Vec<u8>,
+}
+
+impl Parts {
+    /// Splits `positions` at the median of the widest axis of each cell's points, three
+    /// times (ties by index), when there are at least [`PARTS_MIN`] of them.
+    pub(crate) fn new(positions: &[DVec3]) -> Option<Parts> {
+        let n = positions.len();
+        if n < PARTS_MIN {
+            return None;
+        }
+        let mut order: Vec<u32> = (0..n as u32).collect();
+        let mut cells = vec![&mut order[..]];
+        while cells.len() < PARTS {
+            let mut next = Vec::with_capacity(2 * cells.len());
+            for cell in cells {
+                let (lo, hi) = cell
+                    .iter()
+                    .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &v| {
+                        (lo.min(positions[v as usize]), hi.max(positions[v as usize]))
+                    });
+                let axis = (hi - lo).max_position();
+                let mid = cell.len() / 2;
+                cell.select_nth_unstable_by(mid, |&a, &b| {
+                    positions[a as usize][axis]
+                        .total_cmp(&positions[b as usize][axis])
+                        .then(a.cmp(&b))
+                });
+                let (l, r) = cell.split_at_mut(mid);
+                next.extend([l, r]);
+            }
+            cells = next;
+        }
+        let mut part = vec![0u8; n];
+        for (k, cell) in cells.iter().enumerate() {
+            cell.iter().for_each(|&v| part[v as usize] = k as u8);
+        }
+        let mut members = vec![Vec::new(); PARTS];
+        let mut slot = vec![0u32; n];
+        for v in 0..n as u32 {
+            let m = &mut members[part[v as usize] as usize];
+            slot[v as usize] = m.len() as u32;
+            m.push(v);
+        }
+        Some(Parts {
+            members,
+            slot,
+            part,
+        })
+    }
+
+    /// Whether each vertex has a neighbour (in `topo`) in another part.
+    fn border(&self, topo: &Topology, n: usize) -> Vec<bool> {
+        (0..n as u32)
+            .map(|v| {
+                let k = self.part[v as usize];
+                topo.vertex_neighbors(v)
+                    .iter()
+                    .any(|&w| self.part[w as usize] != k)
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parts_cover_every_vertex_once_and_split_evenly() {
+        let n = PARTS_MIN + 37;
+        // Points on a spiral, so every axis matters.
+        let pos: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                DVec3::new(t.cos() * (1.0 + t), t.sin(), 0.3 * t)
+            })
+            .collect();
+        assert!(Parts::new(&pos[..PARTS_MIN - 1]).is_none());
+        let parts = Parts::new(&pos).unwrap();
+        let mut seen = vec![0; n];
+        for (k, m) in parts.members.iter().enumerate() {
+            assert!(m.windows(2).all(|w| w[0] < w[1]));
+            assert!(m.len().abs_diff(n / PARTS) <= 1, "part {k}: {}", m.len());
+            for (i, &v) in m.iter().enumerate() {
+                seen[v as usize] += 1;
+                assert_eq!(parts.part[v as usize] as usize, k);
+                assert_eq!(parts.slot[v as usize] as usize, i);
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1));
+    }
+}
