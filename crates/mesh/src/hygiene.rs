@@ -24,6 +24,7 @@ use crate::sanity::{
 };
 use crate::{Domain, FaceOrigins, Index, IndexError, Mesh, VertexOrigins};
 use coarsen_geom::DVec3;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Which clean-up steps [`clean`] runs.
@@ -246,22 +247,24 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         .count();
     let faces: Vec<[Index; 3]> = mesh
         .faces
-        .iter()
+        .par_iter()
         .map(|f| f.map(|v| rep[v as usize]))
         .collect();
 
     let mut keep = vec![true; faces.len()];
     if opts.drop_degenerate {
         let threshold = area_threshold(&mesh, opts.degenerate_area_rel);
+        let flat: Vec<bool> = (0..faces.len())
+            .into_par_iter()
+            .map(|f| is_degenerate_area(mesh.face_area(f), threshold))
+            .collect();
         for (f, &[a, b, c]) in faces.iter().enumerate() {
             if a == b || b == c || a == c {
                 keep[f] = false;
                 report.repeated_index_faces += 1;
-            } else {
-                if is_degenerate_area(mesh.face_area(f), threshold) {
-                    keep[f] = false;
-                    report.zero_area_faces += 1;
-                }
+            } else if flat[f] {
+                keep[f] = false;
+                report.zero_area_faces += 1;
             }
         }
     }
@@ -293,7 +296,7 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         .filter(|&f| keep[f as usize])
         .collect();
     let new_faces: Vec<[Index; 3]> = kept_faces
-        .iter()
+        .par_iter()
         .map(|&f| faces[f as usize].map(|v| new_index[v as usize]))
         .collect();
     let positions: Vec<DVec3> = old_of_new
@@ -344,12 +347,13 @@ fn weld_map(positions: &[DVec3]) -> Vec<Index> {
             (p.z + 0.0).to_bits(),
         ]
     };
+    // Every entry holds its vertex index, so the (parallel) unstable sort has one outcome.
     let mut order: Vec<([u64; 3], Index)> = positions
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(v, &p)| (key(p), v as Index))
         .collect();
-    order.sort_unstable();
+    order.par_sort_unstable();
     let mut rep: Vec<Index> = (0..positions.len() as Index).collect();
     let mut first = 0;
     for i in 1..order.len() {

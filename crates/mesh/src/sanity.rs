@@ -17,6 +17,7 @@
 use crate::topology::{Topology, TopologyError};
 use crate::{Domain, Index, IndexError, Mesh};
 use coarsen_geom::is_finite;
+use rayon::prelude::*;
 
 /// The metrics' degenerate-face threshold: area below `1e-12 · (bbox diagonal)²`.
 pub const DEGENERATE_AREA_REL: f64 = 1e-12;
@@ -203,8 +204,9 @@ pub(crate) fn is_degenerate_area(area: f64, threshold: f64) -> bool {
 /// whether the face runs against the increasing order of its sorted triple.
 pub(crate) fn faces_by_vertex_set(
     faces: &[[Index; 3]],
-    keep: impl Fn(usize) -> bool,
+    keep: impl Fn(usize) -> bool + Sync,
 ) -> Vec<([Index; 3], bool, Index)> {
+    // Every entry holds its face index, so the (parallel) unstable sort has one outcome.
     let mut order: Vec<([Index; 3], bool, Index)> = faces
         .iter()
         .enumerate()
@@ -216,7 +218,7 @@ pub(crate) fn faces_by_vertex_set(
             (s, face[(m + 1) % 3] != s[1], f as Index)
         })
         .collect();
-    order.sort_unstable();
+    order.par_sort_unstable();
     order
 }
 
