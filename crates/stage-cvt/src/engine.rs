@@ -680,33 +680,41 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// the dual's repairs).
     pub fn connected_clusters(&self) -> Vec<bool> {
         let n = self.sums.len();
-        let nf = self.order.len();
         let labels: Vec<u32> = self
             .order
-            .iter()
+            .par_iter()
             .map(|&f| self.labels[f as usize])
             .collect();
-        let mut seen = vec![false; nf];
-        let mut pieces = vec![0u32; n];
-        let mut stack = Vec::new();
-        for s in 0..nf {
-            if seen[s] {
-                continue;
-            }
-            let c = labels[s];
-            pieces[c as usize] += 1;
-            seen[s] = true;
-            stack.push(s as u32);
-            while let Some(f) = stack.pop() {
-                for g in self.nbr[f as usize] {
-                    if g != NONE && !seen[g as usize] && labels[g as usize] == c {
-                        seen[g as usize] = true;
-                        stack.push(g);
+        // The faces (layout slots) of each cluster.
+        let (start, members) = faces_by_cluster(&labels, n);
+        // Per cluster, in parallel: a flood fill from its first face reaches all of them.
+        // Every face is marked by its own cluster's fill only.
+        let seen: Vec<AtomicU32> = (0..labels.len()).map(|_| AtomicU32::new(0)).collect();
+        (0..n)
+            .into_par_iter()
+            .map_init(Vec::new, |stack, c| {
+                let faces = &members[start[c]..start[c + 1]];
+                let Some(&s) = faces.first() else {
+                    return false;
+                };
+                seen[s as usize].store(1, Relaxed);
+                stack.clear();
+                stack.push(s);
+                let mut reached = 1;
+                while let Some(f) = stack.pop() {
+                    for g in self.nbr[f as usize] {
+                        if g != NONE
+                            && labels[g as usize] == c as u32
+                            && seen[g as usize].swap(1, Relaxed) == 0
+                        {
+                            reached += 1;
+                            stack.push(g);
+                        }
                     }
                 }
-            }
-        }
-        pieces.iter().map(|&p| p == 1).collect()
+                reached == faces.len()
+            })
+            .collect()
     }
 }
 
@@ -901,21 +909,43 @@ fn allocate(n: usize, mass: &[f64], size: impl Fn(usize) -> usize) -> Vec<usize>
     q
 }
 
+/// The faces of each of `n` clusters given each face's label: cluster `c` has
+/// `members[start[c]..start[c + 1]]`, ascending.
+pub fn faces_by_cluster(labels: &[u32], n: usize) -> (Vec<usize>, Vec<u32>) {
+    let mut start = vec![0usize; n + 1];
+    labels.iter().for_each(|&c| start[c as usize + 1] += 1);
+    for c in 0..n {
+        start[c + 1] += start[c];
+    }
+    let mut at = start.clone();
+    let mut members = vec![0u32; labels.len()];
+    for (f, &c) in labels.iter().enumerate() {
+        members[at[c as usize]] = f as u32;
+        at[c as usize] += 1;
+    }
+    (start, members)
+}
+
 /// The mass centroid of each cluster in the mesh's own coordinates (area-weighted face
 /// centroids), for callers that place a point per cluster.
 pub fn cluster_centroids(mesh: &Mesh, labels: &[u32], n: usize) -> Vec<DVec3> {
-    let mut acc = vec![(DVec3::ZERO, 0.0f64, DVec3::ZERO, 0.0f64); n];
-    for (f, &l) in labels.iter().enumerate() {
-        let a = mesh.face_area(f);
-        let c = mesh.face_centroid(f);
-        let e = &mut acc[l as usize];
-        e.0 += a * c;
-        e.1 += a;
-        e.2 += c;
-        e.3 += 1.0;
-    }
-    acc.iter()
-        .map(|&(s, w, p, k)| if w > 0.0 { s / w } else { p / k.max(1.0) })
+    // The clusters in parallel, each summed in face order: the same sums as one pass
+    // over the faces.
+    let (start, members) = faces_by_cluster(labels, n);
+    (0..n)
+        .into_par_iter()
+        .map(|c| {
+            let (mut s, mut w, mut p, mut k) = (DVec3::ZERO, 0.0f64, DVec3::ZERO, 0.0f64);
+            for &f in &members[start[c]..start[c + 1]] {
+                let a = mesh.face_area(f as usize);
+                let g = mesh.face_centroid(f as usize);
+                s += a * g;
+                w += a;
+                p += g;
+                k += 1.0;
+            }
+            if w > 0.0 { s / w } else { p / k.max(1.0) }
+        })
         .collect()
 }
 

@@ -64,7 +64,10 @@ pub mod engine;
 mod sweep;
 
 pub use energy::{Energy, FacePoint, Shu2009, Sums, Valette2004};
-pub use engine::{ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids, face_neighbors};
+pub use engine::{
+    ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids, face_neighbors,
+    faces_by_cluster,
+};
 
 use coarsen_mesh::Topology;
 use coarsen_stage::params::check_range;

@@ -432,3 +432,28 @@ fn the_curve_layout_gives_the_same_clusters_with_any_thread_count() {
     assert!(log1.moves.len() > 2, "{:?}", log1.moves);
     check_invariant(&mesh, &one, 1500);
 }
+
+#[test]
+fn a_cluster_in_two_pieces_is_reported_disconnected() {
+    // A 30×30 grid: cluster 0 is two bands at both ends, cluster 1 the middle.
+    let mesh = plane_grid(30, 30, 1.0).unwrap();
+    let topo = Topology::build(&mesh);
+    let e = Valette2004;
+    let mut c = Clusterer::new(&mesh, &topo, &e, None).unwrap();
+    let x = |f: usize| mesh.face_centroid(f).x;
+    let (a, b) = (mesh.bbox().min.x, mesh.bbox().max.x);
+    let third = |t: f64| a + t * (b - a);
+    let labels: Vec<u32> = (0..mesh.n_faces())
+        .map(|f| u32::from(x(f) > third(1.0 / 3.0) && x(f) < third(2.0 / 3.0)))
+        .collect();
+    c.set_labels(labels.clone(), 2).unwrap();
+    assert_eq!(c.connected_clusters(), vec![false, true]);
+    // Joined along one row of faces at the bottom, cluster 0 is one piece again.
+    let y = |f: usize| mesh.face_centroid(f).y;
+    let bottom = mesh.bbox().min.y + (mesh.bbox().max.y - mesh.bbox().min.y) / 30.0;
+    let joined: Vec<u32> = (0..mesh.n_faces())
+        .map(|f| u32::from(labels[f] == 1 && y(f) > bottom))
+        .collect();
+    c.set_labels(joined, 2).unwrap();
+    assert_eq!(c.connected_clusters(), vec![true, true]);
+}

@@ -2,7 +2,7 @@
 
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
-use coarsen_stage_cvt::{Clusterer, Valette2004, face_neighbors};
+use coarsen_stage_cvt::{Clusterer, Valette2004, face_neighbors, faces_by_cluster};
 use rayon::prelude::*;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
@@ -116,22 +116,6 @@ struct AroundRange {
     twice: Vec<u32>,
     /// Dual faces.
     faces: Vec<[u32; 3]>,
-}
-
-/// The faces of each cluster, ascending: cluster `c`'s are `members[start[c]..start[c + 1]]`.
-fn faces_by_cluster(labels: &[u32], n: usize) -> (Vec<usize>, Vec<u32>) {
-    let mut start = vec![0usize; n + 1];
-    labels.iter().for_each(|&c| start[c as usize + 1] += 1);
-    for c in 0..n {
-        start[c + 1] += start[c];
-    }
-    let mut at = start.clone();
-    let mut members = vec![0u32; labels.len()];
-    for (f, &c) in labels.iter().enumerate() {
-        members[at[c as usize]] = f as u32;
-        at[c as usize] += 1;
-    }
-    (start, members)
 }
 
 /// Checks the clustering and builds the dual faces.

@@ -371,24 +371,49 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
             loops[c] += 1;
         }
     }
-    // χ per component from its vertices, edges and faces.
-    let (mut v, mut e, mut f) = (vec![0i64; nc], vec![0i64; nc], vec![0i64; nc]);
+    // χ per component from its vertices, edges and faces (integer counts: any order).
     let comp_of_face = topo.face_components();
-    for (face, &c) in comp_of_face.iter().enumerate() {
-        if (c as usize) < nc && !topo.is_skipped_face(face as u32) {
-            f[c as usize] += 1;
+    // In parallel when each part's tally is small (a soup can have a component per face).
+    let count = |len: usize, comp: &(dyn Fn(usize) -> Option<usize> + Sync)| -> Vec<i64> {
+        if nc > 1 << 12 {
+            let mut acc = vec![0i64; nc];
+            (0..len)
+                .filter_map(comp)
+                .filter(|&c| c < nc)
+                .for_each(|c| acc[c] += 1);
+            return acc;
         }
-    }
-    for edge in 0..topo.n_edges() as u32 {
-        if let Some(&face) = topo.edge_faces(edge).first() {
-            e[comp_of_face[face as usize] as usize] += 1;
-        }
-    }
-    for vert in 0..topo.n_vertices() as u32 {
-        if let Some(&face) = topo.vertex_faces(vert).first() {
-            v[comp_of_face[face as usize] as usize] += 1;
-        }
-    }
+        (0..len)
+            .into_par_iter()
+            .with_min_len(1 << 14)
+            .fold(
+                || vec![0i64; nc],
+                |mut acc, i| {
+                    if let Some(c) = comp(i).filter(|&c| c < nc) {
+                        acc[c] += 1;
+                    }
+                    acc
+                },
+            )
+            .reduce(
+                || vec![0i64; nc],
+                |mut a, b| {
+                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            )
+    };
+    let f = count(comp_of_face.len(), &|face| {
+        (!topo.is_skipped_face(face as u32)).then_some(comp_of_face[face] as usize)
+    });
+    let e = count(topo.n_edges(), &|edge| {
+        let first = topo.edge_faces(edge as u32).first();
+        first.map(|&face| comp_of_face[face as usize] as usize)
+    });
+    let v = count(topo.n_vertices(), &|vert| {
+        let first = topo.vertex_faces(vert as u32).first();
+        first.map(|&face| comp_of_face[face as usize] as usize)
+    });
     let mut need = 0usize;
     let mut worst = (0usize, 0usize);
     for c in 0..nc {
