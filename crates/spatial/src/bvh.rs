@@ -1,8 +1,10 @@
 //! A bounding-volume hierarchy over triangles, answering nearest-point queries.
 //!
 //! Layout: one flat array of nodes (the root first, the two children of an inner node
-//! side by side) and the triangles' corners copied in leaf order, so that a query walks
-//! contiguous memory and the index owns everything it needs (no borrow of the mesh).
+//! side by side, each pair in one 64-byte cache line: 32-byte nodes with single-precision
+//! boxes rounded outwards) and the triangles' corners copied in leaf order, in double
+//! precision, so that a query walks contiguous memory and the index owns everything it
+//! needs (no borrow of the mesh).
 //!
 //! Build: top-down binned surface-area heuristic (16 bins on each axis of the centroid
 //! box; a range of more than 2 × [`SAMPLE`] triangles bins an even sample of them), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
@@ -55,10 +57,16 @@ const PARALLEL_MIN: usize = 1 << 14;
 
 /// One node of the flat tree: a box, and either a range of triangles (leaf) or the index
 /// of its first child (inner node; the second child follows it).
+///
+/// The box is kept in single precision, rounded outwards, so a node takes 32 bytes (two
+/// to a cache line): it still contains its triangles, and its distance to a point is
+/// still a lower bound of theirs, which is all a query asks of it; the triangles
+/// themselves stay in double precision.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
 struct Node {
-    min: DVec3,
-    max: DVec3,
+    min: [f32; 3],
+    max: [f32; 3],
     /// Leaf: first triangle; inner node: first child.
     first: u32,
     /// Leaf: triangle count (≥ 1); inner node: 0.
@@ -68,17 +76,53 @@ struct Node {
 impl Node {
     /// A placeholder, overwritten when its subtree is placed.
     const BLANK: Node = Node {
-        min: DVec3::ZERO,
-        max: DVec3::ZERO,
+        min: [0.0; 3],
+        max: [0.0; 3],
         first: 0,
         count: 0,
     };
 
+    /// Sets the box to the smallest single-precision box holding `b`.
+    #[inline]
+    fn set_box(&mut self, b: &Aabb) {
+        self.min = b.min.to_array().map(f32_at_most);
+        self.max = b.max.to_array().map(f32_at_least);
+    }
+
+    #[inline]
+    fn lo(&self) -> DVec3 {
+        DVec3::new(self.min[0].into(), self.min[1].into(), self.min[2].into())
+    }
+
+    #[inline]
+    fn hi(&self) -> DVec3 {
+        DVec3::new(self.max[0].into(), self.max[1].into(), self.max[2].into())
+    }
+
     #[inline]
     fn distance_squared(&self, p: DVec3) -> f64 {
-        let d = max3(max3(self.min - p, p - self.max), DVec3::ZERO);
+        let d = max3(max3(self.lo() - p, p - self.hi()), DVec3::ZERO);
         d.length_squared()
     }
+}
+
+/// Two nodes in one cache line: the children of one inner node (or the root and a blank).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+struct Pair([Node; 2]);
+
+/// The largest `f32` not above `x` (an infinite one beyond the `f32` range below).
+#[inline]
+fn f32_at_most(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x { y.next_down() } else { y }
+}
+
+/// The smallest `f32` not below `x` (an infinite one beyond the `f32` range above).
+#[inline]
+fn f32_at_least(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x { y.next_up() } else { y }
 }
 
 /// The nearest point of the indexed surface to a query point.
@@ -105,11 +149,14 @@ impl Nearest {
 /// A bounding-volume hierarchy over the triangles of a mesh (see the module docs).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bvh {
-    nodes: Vec<Node>,
+    /// The nodes two by two: the root and a blank, then each inner node's two children.
+    pairs: Vec<Pair>,
     /// Corners of each indexed triangle, in leaf order.
     tris: Vec<[DVec3; 3]>,
     /// Original face index of each entry of `tris`.
     face_ids: Vec<u32>,
+    /// The exact box of every indexed triangle (the root's is rounded outwards).
+    root_box: Option<Aabb>,
 }
 
 /// Relative rounding allowance of [`Bvh::gather_near`] and [`Bvh::closest_point_near`]:
@@ -308,11 +355,8 @@ fn subtree(items: &mut [Item], start: usize, bounds: &Bounds, depth: usize) -> S
         grow(&mut nodes, items, start, bounds, depth);
         return Subtree::Flat(nodes);
     }
-    let mut root = Node {
-        min: bounds.boxes.min,
-        max: bounds.boxes.max,
-        ..Node::BLANK
-    };
+    let mut root = Node::BLANK;
+    root.set_box(&bounds.boxes);
     let Some((mid, [lb, rb])) = split(items, bounds, depth) else {
         root.first = start as u32;
         root.count = items.len() as u32;
@@ -335,8 +379,7 @@ fn grow(nodes: &mut Vec<Node>, items: &mut [Item], start: usize, bounds: &Bounds
     let mut work = vec![(0usize, 0usize, items.len(), depth, *bounds)];
     while let Some((node, lo, hi, depth, bounds)) = work.pop() {
         let range = &mut items[lo..hi];
-        nodes[node].min = bounds.boxes.min;
-        nodes[node].max = bounds.boxes.max;
+        nodes[node].set_box(&bounds.boxes);
         let Some((mid, [lb, rb])) = split(range, &bounds, depth) else {
             nodes[node].first = (start + lo) as u32;
             nodes[node].count = range.len() as u32;
@@ -364,8 +407,8 @@ impl Bvh {
         mut top: usize,
     ) -> usize {
         let (dl, dr) = (
-            self.nodes[l as usize].distance_squared(p),
-            self.nodes[l as usize + 1].distance_squared(p),
+            self.pairs[l as usize / 2].0[0].distance_squared(p),
+            self.pairs[l as usize / 2].0[1].distance_squared(p),
         );
         let (near, dn, far, df) = if dr < dl {
             (l + 1, dr, l, dl)
@@ -403,14 +446,24 @@ impl Bvh {
             .map(Bounds::of)
             .reduce(|| Bounds::EMPTY, Bounds::merged);
         let tree = subtree(&mut items, 0, &bounds, 0);
-        let mut nodes = Vec::with_capacity(tree.len());
-        nodes.push(Node::BLANK);
+        // The root and a blank: every pair of children then starts at an even index.
+        let mut nodes = Vec::with_capacity(tree.len() + 1);
+        nodes.extend([Node::BLANK; 2]);
         tree.flatten_into(&mut nodes, 0);
-        Bvh::finish(positions, faces, items, nodes)
+        Bvh::finish(positions, faces, items, nodes, bounds.boxes)
     }
 
     /// The tree with `nodes` over `items` in leaf order: gathers their corners.
-    fn finish(positions: &[DVec3], faces: &[[u32; 3]], items: Vec<Item>, nodes: Vec<Node>) -> Bvh {
+    fn finish(
+        positions: &[DVec3],
+        faces: &[[u32; 3]],
+        items: Vec<Item>,
+        nodes: Vec<Node>,
+        root_box: Aabb,
+    ) -> Bvh {
+        debug_assert!(nodes.len().is_multiple_of(2));
+        let pairs = nodes.chunks(2).map(|p| Pair([p[0], p[1]])).collect();
+        drop(nodes);
         // The items go before the corners are gathered: the two are the largest arrays.
         let face_ids: Vec<u32> = items.par_iter().map(|it| it.face).collect();
         drop(items);
@@ -419,10 +472,23 @@ impl Bvh {
             .map(|&f| corners(positions, &faces[f as usize]).unwrap_or([DVec3::ZERO; 3]))
             .collect();
         Bvh {
-            nodes,
+            pairs,
             tris,
             face_ids,
+            root_box: Some(root_box),
         }
+    }
+
+    /// The root node, if any.
+    #[inline]
+    fn root(&self) -> Option<&Node> {
+        self.pairs.first().map(|p| &p.0[0])
+    }
+
+    /// Node `i` (an index the tree holds).
+    #[inline]
+    fn node(&self, i: u32) -> &Node {
+        &self.pairs[i as usize / 2].0[i as usize % 2]
     }
 
     /// Number of triangles indexed (faces left out by [`Bvh::build`] are not counted).
@@ -437,15 +503,13 @@ impl Bvh {
 
     /// Number of nodes of the tree (diagnostics).
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
+        // Without the blank beside the root.
+        (2 * self.pairs.len()).saturating_sub(1)
     }
 
     /// Bounding box of every indexed triangle ([`Aabb::EMPTY`] when there is none).
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map_or(Aabb::EMPTY, |n| Aabb {
-            min: n.min,
-            max: n.max,
-        })
+        self.root_box.unwrap_or(Aabb::EMPTY)
     }
 
     /// The nearest point of the indexed surface to `p`; `None` when the tree is empty or
@@ -461,7 +525,7 @@ impl Bvh {
     /// The nearest point of the indexed surface to `p` if its squared distance is at most
     /// `max_distance_squared`, else `None`. A small bound makes the query faster.
     pub fn closest_point_within(&self, p: DVec3, max_distance_squared: f64) -> Option<Nearest> {
-        let root = self.nodes.first()?;
+        let root = self.root()?;
         if !p.is_finite() || max_distance_squared.is_nan() {
             return None;
         }
@@ -480,7 +544,7 @@ impl Bvh {
             if box_d2 > best_d2 {
                 continue;
             }
-            let node = &self.nodes[ni as usize];
+            let node = self.node(ni);
             if node.count > 0 {
                 let first = node.first as usize;
                 for (i, [a, b, c]) in self.tris[first..first + node.count as usize]
@@ -522,7 +586,7 @@ impl Bvh {
     /// times `d_c + 2r` plus the centre's largest coordinate magnitude.
     pub fn gather_near(&self, center: DVec3, radius: f64, limit: usize, set: &mut NearSet) -> bool {
         set.clear();
-        let Some(root) = self.nodes.first() else {
+        let Some(root) = self.root() else {
             return false;
         };
         if !(center.is_finite() && radius.is_finite() && radius >= 0.0) {
@@ -541,7 +605,7 @@ impl Bvh {
             if box_d2 > bound2 {
                 continue;
             }
-            let node = &self.nodes[ni as usize];
+            let node = self.node(ni);
             if node.count > 0 {
                 let first = node.first as usize;
                 for (i, [a, b, c]) in self.tris[first..first + node.count as usize]
@@ -930,14 +994,45 @@ mod tests {
         assert_eq!(a.closest_point(p), b.closest_point(p));
     }
 
+    #[test]
+    fn single_precision_boxes_round_outwards() {
+        let mut rng = Rng(5);
+        let mut xs: Vec<f64> = (0..10_000)
+            .map(|i| (rng.unit() - 0.5) * 10f64.powi(i % 80 - 40))
+            .collect();
+        xs.extend([
+            0.0,
+            -0.0,
+            0.1,
+            -0.1,
+            1e300,
+            -1e300,
+            f64::from(f32::MAX),
+            1.0 + 1e-12,
+        ]);
+        for x in xs {
+            let (lo, hi) = (f32_at_most(x), f32_at_least(x));
+            assert!(f64::from(lo) <= x && x <= f64::from(hi), "{x}: {lo} {hi}");
+            // Tight: the next single-precision values out are on the wrong side.
+            assert!(
+                f64::from(lo.next_up()) > x || f64::from(lo) == x,
+                "{x}: {lo}"
+            );
+            assert!(
+                f64::from(hi.next_down()) < x || f64::from(hi) == x,
+                "{x}: {hi}"
+            );
+        }
+    }
+
     /// The tree built in one piece by [`grow`], as a single-threaded build without the
     /// parallel split would give it.
     fn one_piece(positions: &[DVec3], faces: &[[u32; 3]]) -> Bvh {
         let mut items = items_of(positions, faces);
         let bounds = Bounds::of(&items);
-        let mut nodes = vec![Node::BLANK];
+        let mut nodes = vec![Node::BLANK; 2];
         grow(&mut nodes, &mut items, 0, &bounds, 0);
-        Bvh::finish(positions, faces, items, nodes)
+        Bvh::finish(positions, faces, items, nodes, bounds.boxes)
     }
 
     #[test]
@@ -1068,17 +1163,42 @@ mod tests {
         }
     }
 
+    #[test]
+    fn children_share_a_cache_line_and_lie_in_their_parent() {
+        let mut rng = Rng(23);
+        let (pos, faces) = random_mesh(&mut rng, 60, 2000);
+        let bvh = Bvh::build(&pos, &faces);
+        assert_eq!(std::mem::size_of::<Pair>(), 64);
+        assert_eq!(bvh.pairs.as_ptr() as usize % 64, 0);
+        let mut inner = 0;
+        let mut stack = vec![0u32];
+        while let Some(i) = stack.pop() {
+            let n = *bvh.node(i);
+            if n.count > 0 {
+                continue;
+            }
+            inner += 1;
+            assert!(n.first.is_multiple_of(2) && n.first > i, "node {i}: {n:?}");
+            for c in [n.first, n.first + 1] {
+                let k = bvh.node(c);
+                assert!(k.lo().cmpge(n.lo()).all() && k.hi().cmple(n.hi()).all());
+                stack.push(c);
+            }
+        }
+        assert_eq!(bvh.node_count(), 2 * inner + 1);
+    }
+
     fn leaves_cover_every_face_once(pos: &[DVec3], faces: &[[u32; 3]]) {
         let bvh = Bvh::build(pos, faces);
         let mut seen = vec![false; faces.len()];
-        for n in bvh.nodes.iter().filter(|n| n.count > 0) {
+        for n in bvh.pairs.iter().flat_map(|p| &p.0).filter(|n| n.count > 0) {
             assert!(n.count as usize <= MAX_LEAF);
             for i in n.first..n.first + n.count {
                 let f = bvh.face_ids[i as usize] as usize;
                 assert!(!seen[f]);
                 seen[f] = true;
                 for c in bvh.tris[i as usize] {
-                    assert!(c.cmpge(n.min).all() && c.cmple(n.max).all());
+                    assert!(c.cmpge(n.lo()).all() && c.cmple(n.hi()).all());
                 }
             }
         }
