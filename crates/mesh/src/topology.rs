@@ -16,6 +16,10 @@
 //!    manifold take a quick path of pairwise comparisons in fixed arrays; every other
 //!    vertex (high valence, boundary on a non-manifold edge, flips) takes the general path,
 //!    which sorts `(other vertex, face)` pairs. Both give identical tables (tested).
+//!    Big meshes run the pass over fixed ranges of vertices in parallel; a range needs
+//!    nothing from the others (a boundary edge made by another range is named by its
+//!    half-edge until all ids are known), and the ranges' tables are appended in vertex
+//!    order with their local edge ids shifted.
 //! 4. **Boundary loops** follow boundary edges from edge to edge within each fan's ends
 //!    (see [`Topology::boundary_loop`]).
 //! 5. **Components** over faces by union-find across edges (any edge, whatever its face
@@ -34,15 +38,20 @@
 //! * an *isolated* vertex is referenced by no face that takes part in adjacency.
 //!
 //! Every table is a flat array indexed by `u32`; nothing is allocated per element, and
-//! the result depends only on the input arrays (no hashing, no threads).
+//! the result depends only on the input arrays: every table is bit-identical for any
+//! thread count (no hashing; the parallel parts either own disjoint slices or are
+//! appended in a fixed order; tested against the one-range build).
 //!
-//! Cost: linear in the mesh size. Measured on a loaded 2-core VM, an icosphere of
-//! 5.2 M faces builds in about 0.95 s, the 69 k-face Stanford bunny in about 10 ms.
+//! Cost: linear in the mesh size. Meshes of fewer than 32 768 vertices (one range), or
+//! one rayon thread, take the serial path (one range, whose tables are moved, not copied).
+//! On a 2-core VM shared with other jobs, the 4.4 M-face subdivided bunny builds in
+//! about 0.85 s serially; see `examples/build_timing.rs` to measure.
 
 use crate::{Index, Mesh, sanity};
 use coarsen_geom::triangle;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// The "no such element" value of `u32` tables (a skipped face's edges and component).
 pub const NONE: u32 = u32::MAX;
@@ -212,6 +221,11 @@ fn link_boundary(link: &mut Vec<[u32; 2]>, edges: &[[u32; 2]], v: u32, a: u32, b
     link[b as usize][usize::from(edges[b as usize][1] == v)] = a;
 }
 
+/// Vertices per range of the vertex pass; a mesh with more runs its ranges in parallel.
+/// Fixed, and the ranges' tables are appended in order: the result is the same for any
+/// thread count.
+const CHUNK_VERTICES: usize = 1 << 15;
+
 /// Vertices with more faces than this always take the general path of the vertex pass
 /// (the quick path compares every pair of faces, in fixed-size arrays).
 const QUICK_MAX_FACES: usize = 16;
@@ -222,11 +236,9 @@ struct Scratch {
     slots: Vec<Slot>,
     pairs: Vec<u64>,
     listed: Vec<bool>,
-    loose_in: Vec<u32>,
-    loose_out: Vec<u32>,
-    /// The boundary edges that follow each boundary edge at its two endpoints; grown on
-    /// demand, so closed meshes never allocate it.
-    boundary_link: Vec<[u32; 2]>,
+    /// Boundary ends no fan pairs: `x << 32 | half-edge` of edge `(v, x)`.
+    loose_in: Vec<u64>,
+    loose_out: Vec<u64>,
 }
 
 /// "No slot" in [`Around`]'s links.
@@ -379,12 +391,18 @@ impl Topology {
 
     /// Builds the adjacency of `mesh`, or says why the mesh is too large for it.
     pub fn try_build(mesh: &Mesh) -> Result<Topology, TopologyError> {
-        Self::build_with(mesh, true)
+        // One thread: one range, whose tables need no copying (the same tables).
+        let chunk = match rayon::current_num_threads() {
+            1 => usize::MAX,
+            _ => CHUNK_VERTICES,
+        };
+        Self::build_with(mesh, true, chunk)
     }
 
-    /// [`Topology::try_build`], with the quick path of the vertex pass on or off (tests
-    /// check that both give the same tables).
-    fn build_with(mesh: &Mesh, quick: bool) -> Result<Topology, TopologyError> {
+    /// [`Topology::try_build`], with the quick path of the vertex pass on or off and
+    /// `chunk` vertices per range of the vertex pass (tests check that every choice gives
+    /// the same tables).
+    fn build_with(mesh: &Mesh, quick: bool, chunk: usize) -> Result<Topology, TopologyError> {
         let nv = mesh.positions.len();
         let nf = mesh.faces.len();
         if nf > MAX_FACES {
@@ -402,8 +420,7 @@ impl Topology {
         };
         let valid = t.classify_faces(&mesh.faces);
         let corners = t.bucket_vertex_faces(&mesh.faces, &valid);
-        let boundary_link = t.link_edges_and_fans(&corners, quick);
-        drop(corners);
+        let boundary_link = t.link_edges_and_fans(corners, &mesh.faces, &valid, quick, chunk);
         t.trace_boundary_loops(&mesh.faces, &boundary_link);
         t.label_components(&mesh.faces, &valid);
         Ok(t)
@@ -422,7 +439,6 @@ impl Topology {
                 *ok = true;
             }
         }
-        self.face_edges = vec![[NONE; 3]; faces.len()];
         valid
     }
 
@@ -467,43 +483,359 @@ impl Topology {
     /// The vertex pass: creates edges, fills `face_edges`, orders each vertex's faces into
     /// fans, lists one-rings, and links boundary edges at each vertex for loop tracing.
     ///
-    /// Everything it needs about a vertex's surroundings is gathered into small local
-    /// buffers first; the only scattered accesses are the face corners it reads and the
-    /// `face_edges` entries it writes. Vertices of low valence whose faces meet like a
-    /// manifold, consistently oriented surface take a quick path ([`Self::regular_vertex`]);
-    /// all others, and every vertex when `quick` is off, the general one
-    /// ([`Self::general_vertex`]); both give identical tables.
-    fn link_edges_and_fans(&mut self, corners: &[[u32; 3]], quick: bool) -> Vec<[u32; 2]> {
+    /// The vertices are cut into ranges of `chunk` vertices (see [`VertexPass`]), run in
+    /// parallel a wave at a time into reused buffers; each range's tables are appended in
+    /// vertex order while the next wave runs, and the range-local edge ids in `face_edges`
+    /// are shifted at the end, so the result is the same for any chunk size and thread
+    /// count. `corners` is freed as soon as the ranges are done.
+    fn link_edges_and_fans(
+        &mut self,
+        corners: Vec<[u32; 3]>,
+        faces: &[[Index; 3]],
+        valid: &[bool],
+        quick: bool,
+        chunk: usize,
+    ) -> Vec<[u32; 2]> {
         let nv = self.n_vertices;
-        let n_corners = self.vertex_faces.len();
+        let chunk = chunk.max(1);
+        let n_chunks = nv.div_ceil(chunk);
+        let offsets = std::mem::take(&mut self.vertex_face_offsets);
+        let mut vertex_faces = vec![0u32; corners.len()];
+        let mut vertex_flags = vec![0u8; nv];
+        // Zeroed memory, taken over in place (skipped faces get `NONE` at the end).
+        let mut local_face_edges: Vec<[AtomicU32; 3]> = vec![[0u32; 3]; faces.len()]
+            .into_iter()
+            .map(|fe| fe.map(AtomicU32::new))
+            .collect();
+        // Each range owns the slices of `vertex_faces` and `vertex_flags` of its vertices.
+        let mut passes = Vec::with_capacity(n_chunks);
+        let mut rest_faces = vertex_faces.as_mut_slice();
+        for (k, flags) in vertex_flags.chunks_mut(chunk).enumerate() {
+            let v0 = k * chunk;
+            let (lo, hi) = (offsets[v0] as usize, offsets[v0 + flags.len()] as usize);
+            let (mine, rest) = std::mem::take(&mut rest_faces).split_at_mut(hi - lo);
+            rest_faces = rest;
+            passes.push(VertexPass {
+                out: ChunkOut::default(),
+                faces: mine,
+                face_base: lo,
+                flags,
+                v0: v0 as u32,
+                face_edges: &local_face_edges,
+            });
+        }
+        let mut tables = Tables::with_capacity(if n_chunks > 1 { nv } else { 0 }, corners.len());
+        let run = |pass: &mut VertexPass<'_>, out: &mut ChunkOut| {
+            std::mem::swap(&mut pass.out, out);
+            pass.run(&corners, &offsets, quick);
+            std::mem::swap(&mut pass.out, out);
+        };
+        if let [pass] = passes.as_mut_slice() {
+            // One range: its tables are the result, moved rather than copied.
+            let mut out = ChunkOut::default();
+            run(pass, &mut out);
+            tables = Tables::from_single(out);
+        } else {
+            // Double buffering: one wave's buffers are appended while the next wave fills
+            // the other set.
+            let wave = 2 * rayon::current_num_threads().max(1);
+            let mut filled: Vec<ChunkOut> = (0..wave).map(|_| ChunkOut::default()).collect();
+            let mut fresh: Vec<ChunkOut> = (0..wave).map(|_| ChunkOut::default()).collect();
+            let mut n_filled = 0;
+            for w in passes.chunks_mut(wave) {
+                let (done, todo) = (&filled[..n_filled], &mut fresh[..w.len()]);
+                rayon::join(
+                    || done.iter().for_each(|out| tables.append(out)),
+                    || {
+                        w.par_iter_mut()
+                            .zip(todo.par_iter_mut())
+                            .for_each(|(pass, out)| run(pass, out))
+                    },
+                );
+                std::mem::swap(&mut filled, &mut fresh);
+                n_filled = w.len();
+            }
+            filled[..n_filled].iter().for_each(|out| tables.append(out));
+        }
+        drop(passes);
+        drop(corners);
+        self.vertex_face_offsets = offsets;
+        self.vertex_faces = vertex_faces;
+        self.vertex_flags = vertex_flags;
+        let Tables {
+            edge_bases, links, ..
+        } = tables.finish(self);
+
+        // Range-local edge ids → global ones (the range of an edge is its smaller
+        // endpoint's); skipped faces get `NONE`.
+        let shift = |(fe, (face, &ok)): (&mut [AtomicU32; 3], (&[Index; 3], &bool))| {
+            for (c, e) in fe.iter_mut().enumerate() {
+                let e = e.get_mut();
+                *e = if ok {
+                    let owner = face[c].min(face[(c + 1) % 3]) as usize / chunk;
+                    e.wrapping_add(edge_bases.get(owner).copied().unwrap_or(0))
+                } else {
+                    NONE
+                };
+            }
+        };
+        if n_chunks > 1 {
+            local_face_edges
+                .par_iter_mut()
+                .zip(faces.par_iter().zip(valid))
+                .for_each(shift);
+        } else if self.n_out_of_range_faces + self.n_repeated_index_faces > 0 {
+            for (fe, &ok) in local_face_edges.iter_mut().zip(valid) {
+                if !ok {
+                    *fe = [NONE; 3].map(AtomicU32::new);
+                }
+            }
+        }
+        // The same layout: collected in place.
+        self.face_edges = local_face_edges
+            .into_iter()
+            .map(|fe| fe.map(AtomicU32::into_inner))
+            .collect();
+
+        // Boundary links, in vertex order, now that every edge has its id.
+        let mut boundary_link = Vec::new();
+        if !links.is_empty() {
+            boundary_link = vec![[NONE; 2]; self.edges.len()];
+            let edge_of = |h: u32| {
+                self.face_edges
+                    .get((h >> 2) as usize)
+                    .and_then(|e| e.get((h & 3) as usize))
+                    .copied()
+                    .unwrap_or(NONE)
+            };
+            for &[v, a, b] in &links {
+                let (a, b) = (edge_of(a), edge_of(b));
+                // Both are edges of v by construction; the test only guards the invariant.
+                if a != NONE && b != NONE {
+                    link_boundary(&mut boundary_link, &self.edges, v, a, b);
+                }
+            }
+        }
+        boundary_link
+    }
+}
+
+/// The tables of the vertex pass being assembled from its ranges, in vertex order.
+struct Tables {
+    edges: Vec<[u32; 2]>,
+    edge_flags: Vec<u8>,
+    edge_face_offsets: Vec<u32>,
+    edge_faces: Vec<u32>,
+    vertex_edge_offsets: Vec<u32>,
+    vertex_neighbor_offsets: Vec<u32>,
+    vertex_neighbors: Vec<u32>,
+    vertex_fan_offsets: Vec<u32>,
+    fan_offsets: Vec<u32>,
+    /// The id of each range's first edge.
+    edge_bases: Vec<u32>,
+    /// Every range's [`ChunkOut::links`].
+    links: Vec<[u32; 3]>,
+}
+
+/// `local` with `by` added to every entry.
+fn shifted(local: &[u32], by: u32) -> impl Iterator<Item = u32> + '_ {
+    local.iter().map(move |&s| s + by)
+}
+
+impl Tables {
+    /// Empty tables with room for a mesh of `nv` vertices and `n_corners` corners.
+    fn with_capacity(nv: usize, n_corners: usize) -> Tables {
+        let n_corners = if nv == 0 { 0 } else { n_corners };
         // Euler: E ≈ F · 3/2 for closed meshes, up to 3F for soups.
-        self.edges.reserve(n_corners / 2 + 16);
-        self.edge_flags.reserve(n_corners / 2 + 16);
-        self.edge_faces.reserve(n_corners);
-        self.edge_face_offsets.reserve(n_corners / 2 + 17);
+        let mut t = Tables {
+            edges: Vec::with_capacity(n_corners / 2 + 16),
+            edge_flags: Vec::with_capacity(n_corners / 2 + 16),
+            edge_face_offsets: Vec::with_capacity(n_corners / 2 + 17),
+            edge_faces: Vec::with_capacity(n_corners),
+            vertex_edge_offsets: Vec::with_capacity(nv + 1),
+            vertex_neighbor_offsets: Vec::with_capacity(nv + 1),
+            vertex_neighbors: Vec::with_capacity(n_corners + 16),
+            vertex_fan_offsets: Vec::with_capacity(nv + 1),
+            fan_offsets: Vec::with_capacity(nv + 1),
+            edge_bases: Vec::new(),
+            links: Vec::new(),
+        };
+        t.edge_face_offsets.push(0);
+        t.vertex_neighbor_offsets.push(0);
+        t
+    }
+
+    /// The tables of a single range over every vertex.
+    fn from_single(c: ChunkOut) -> Tables {
+        Tables {
+            edges: c.edges,
+            edge_flags: c.edge_flags,
+            edge_face_offsets: c.edge_face_offsets,
+            edge_faces: c.edge_faces,
+            vertex_edge_offsets: c.vertex_edge_starts,
+            vertex_neighbor_offsets: c.vertex_neighbor_offsets,
+            vertex_neighbors: c.vertex_neighbors,
+            vertex_fan_offsets: c.vertex_fan_starts,
+            fan_offsets: c.fan_offsets,
+            edge_bases: vec![0],
+            links: c.links,
+        }
+    }
+
+    /// Appends the next range's tables, shifting its local offsets.
+    fn append(&mut self, c: &ChunkOut) {
+        let (e0, f0) = (self.edges.len() as u32, self.edge_faces.len() as u32);
+        let (n0, fan0) = (
+            self.vertex_neighbors.len() as u32,
+            self.fan_offsets.len() as u32,
+        );
+        self.edge_bases.push(e0);
+        self.vertex_edge_offsets
+            .extend(shifted(&c.vertex_edge_starts, e0));
+        self.vertex_fan_offsets
+            .extend(shifted(&c.vertex_fan_starts, fan0));
+        self.vertex_neighbor_offsets
+            .extend(shifted(&c.vertex_neighbor_offsets[1..], n0));
+        self.edge_face_offsets
+            .extend(shifted(&c.edge_face_offsets[1..], f0));
+        self.edges.extend_from_slice(&c.edges);
+        self.edge_flags.extend_from_slice(&c.edge_flags);
+        self.edge_faces.extend_from_slice(&c.edge_faces);
+        self.vertex_neighbors.extend_from_slice(&c.vertex_neighbors);
+        self.fan_offsets.extend_from_slice(&c.fan_offsets);
+        self.links.extend_from_slice(&c.links);
+    }
+
+    /// Closes the per-vertex offset tables and moves the tables into `t`; returns what
+    /// is left (edge bases and links).
+    fn finish(mut self, t: &mut Topology) -> Tables {
+        self.vertex_edge_offsets.push(self.edges.len() as u32);
+        self.vertex_fan_offsets.push(self.fan_offsets.len() as u32);
+        self.fan_offsets.push(t.vertex_faces.len() as u32);
+        use std::mem::take;
+        t.edges = take(&mut self.edges);
+        t.edge_flags = take(&mut self.edge_flags);
+        t.edge_face_offsets = take(&mut self.edge_face_offsets);
+        t.edge_faces = take(&mut self.edge_faces);
+        t.vertex_edge_offsets = take(&mut self.vertex_edge_offsets);
+        t.vertex_neighbor_offsets = take(&mut self.vertex_neighbor_offsets);
+        t.vertex_neighbors = take(&mut self.vertex_neighbors);
+        t.vertex_fan_offsets = take(&mut self.vertex_fan_offsets);
+        t.fan_offsets = take(&mut self.fan_offsets);
+        self
+    }
+}
+
+/// What the vertex pass produces for one range of vertices, with offsets local to it.
+#[derive(Default)]
+struct ChunkOut {
+    /// Edges created by the range's vertices (their smaller endpoint), sorted.
+    edges: Vec<[u32; 2]>,
+    edge_flags: Vec<u8>,
+    /// Edge `i`'s faces are `edge_faces[edge_face_offsets[i]..edge_face_offsets[i + 1]]`.
+    edge_face_offsets: Vec<u32>,
+    edge_faces: Vec<u32>,
+    /// Per vertex: its first edge in `edges`.
+    vertex_edge_starts: Vec<u32>,
+    /// Per vertex: its first fan in `fan_offsets`.
+    vertex_fan_starts: Vec<u32>,
+    /// Vertex `v0 + i`'s one-ring is `vertex_neighbors[vertex_neighbor_offsets[i]..[i + 1]]`.
+    vertex_neighbor_offsets: Vec<u32>,
+    vertex_neighbors: Vec<u32>,
+    /// The start of each fan in the whole `vertex_faces` table.
+    fan_offsets: Vec<u32>,
+    /// `[v, a, b]`: boundary edges `a` and `b`, named by their half-edges
+    /// (`face << 2 | corner`), follow each other at vertex `v`.
+    links: Vec<[u32; 3]>,
+}
+
+impl ChunkOut {
+    /// Empties every table, keeping the memory.
+    fn clear(&mut self) {
+        self.edges.clear();
+        self.edge_flags.clear();
+        self.edge_face_offsets.clear();
         self.edge_face_offsets.push(0);
-        self.vertex_edge_offsets = Vec::with_capacity(nv + 1);
-        self.vertex_neighbor_offsets = Vec::with_capacity(nv + 1);
+        self.edge_faces.clear();
+        self.vertex_edge_starts.clear();
+        self.vertex_fan_starts.clear();
+        self.vertex_neighbor_offsets.clear();
         self.vertex_neighbor_offsets.push(0);
-        self.vertex_neighbors.reserve(n_corners + 16);
-        self.vertex_fan_offsets = Vec::with_capacity(nv + 1);
-        self.fan_offsets.reserve(nv + 1);
-        self.vertex_flags = vec![0u8; nv];
+        self.vertex_neighbors.clear();
+        self.fan_offsets.clear();
+        self.links.clear();
+    }
+}
+
+/// The vertex pass over one range of vertices: what it produces and the parts of the
+/// per-vertex tables it owns.
+///
+/// A range needs nothing from the others: edges are created by their smaller endpoint
+/// (no id is needed while the pass runs), and a boundary edge is named by the half-edge
+/// its one face has on it, resolved to its id once all ranges are appended.
+struct VertexPass<'a> {
+    out: ChunkOut,
+    /// `vertex_faces` of the range's vertices: entry `i` is `vertex_faces[face_base + i]`.
+    faces: &'a mut [u32],
+    face_base: usize,
+    /// `vertex_flags` of the range: entry `i` is vertex `v0 + i`'s.
+    flags: &'a mut [u8],
+    v0: u32,
+    /// `face_edges` of every face, flat (`3 · face + corner`): the range writes the
+    /// range-local ids of the edges it creates.
+    face_edges: &'a [[AtomicU32; 3]],
+}
+
+/// The half-edge starting at corner `c` of face `f`, as [`ChunkOut::links`] names it.
+#[inline]
+fn half_edge(f: u32, c: usize) -> u32 {
+    (f << 2) | c as u32
+}
+
+impl VertexPass<'_> {
+    /// Runs the pass over the range's vertices, given the vertex → corners table.
+    ///
+    /// Everything it needs about a vertex's surroundings is gathered into small local
+    /// buffers first. Vertices of low valence whose faces meet like a manifold,
+    /// consistently oriented surface take a quick path ([`Self::regular_vertex`]); all
+    /// others, and every vertex when `quick` is off, the general one
+    /// ([`Self::general_vertex`]); both give identical tables.
+    fn run(&mut self, corners: &[[u32; 3]], offsets: &[u32], quick: bool) {
+        let nv = self.flags.len();
+        let (lo, hi) = (
+            offsets[self.v0 as usize] as usize,
+            offsets[self.v0 as usize + nv] as usize,
+        );
+        self.out.clear();
+        let o = &mut self.out;
+        o.edges.reserve((hi - lo) / 2 + 16);
+        o.edge_flags.reserve((hi - lo) / 2 + 16);
+        o.edge_face_offsets.reserve((hi - lo) / 2 + 17);
+        o.edge_faces.reserve(hi - lo + 16);
+        o.vertex_edge_starts.reserve(nv);
+        o.vertex_fan_starts.reserve(nv);
+        o.vertex_neighbor_offsets.reserve(nv + 1);
+        o.vertex_neighbors.reserve(hi - lo + 16);
+        o.fan_offsets.reserve(nv + 1);
         let mut sc = Scratch::default();
         let mut around = Around::new();
-
-        for v in 0..nv as u32 {
+        for i in 0..nv {
+            let v = self.v0 + i as u32;
             let vi = v as usize;
-            self.vertex_edge_offsets.push(self.edges.len() as u32);
-            self.vertex_fan_offsets.push(self.fan_offsets.len() as u32);
-            let start = self.vertex_face_offsets[vi] as usize;
-            let end = self.vertex_face_offsets[vi + 1] as usize;
+            self.out
+                .vertex_edge_starts
+                .push(self.out.edges.len() as u32);
+            self.out
+                .vertex_fan_starts
+                .push(self.out.fan_offsets.len() as u32);
+            let start = offsets[vi] as usize;
+            let end = offsets[vi + 1] as usize;
             if start == end {
-                self.vertex_flags[vi] |= V_ISOLATED;
+                self.flags[i] |= V_ISOLATED;
             } else {
                 let ring = &corners[start..end];
                 let n_fans = match quick && around.link(ring) {
-                    true => self.regular_vertex(v, start, &around, &mut sc.boundary_link),
+                    true => self.regular_vertex(v, start, &around),
                     false => {
                         sc.slots.clear();
                         sc.slots
@@ -524,49 +856,56 @@ impl Topology {
                     }
                 };
                 if n_fans > 1 {
-                    self.vertex_flags[vi] |= V_NON_MANIFOLD;
+                    self.flags[i] |= V_NON_MANIFOLD;
                 }
             }
-            self.vertex_neighbor_offsets
-                .push(self.vertex_neighbors.len() as u32);
+            self.out
+                .vertex_neighbor_offsets
+                .push(self.out.vertex_neighbors.len() as u32);
         }
-        self.vertex_edge_offsets.push(self.edges.len() as u32);
-        self.vertex_fan_offsets.push(self.fan_offsets.len() as u32);
-        self.fan_offsets.push(self.vertex_faces.len() as u32);
-        sc.boundary_link
     }
 
     /// Appends edge `[v, x]` with its faces (ascending), given as `(face, corner of the
-    /// face's half-edge on it)`, writing its id into their `face_edges`. Returns the edge.
+    /// face's half-edge on it)`, writing its range-local id into their `face_edges`.
+    #[inline]
     fn push_edge(
         &mut self,
         v: u32,
         x: u32,
         flags: u8,
         on_edge: impl IntoIterator<Item = (u32, usize)>,
-    ) -> u32 {
-        let e = self.edges.len() as u32;
+    ) {
+        let o = &mut self.out;
+        let e = o.edges.len() as u32;
         for (f, c) in on_edge {
-            self.edge_faces.push(f);
-            self.face_edges[f as usize][c] = e;
+            o.edge_faces.push(f);
+            // Each entry has one writer: the range of the edge's smaller endpoint.
+            if let Some(slot) = self.face_edges.get(f as usize).and_then(|fe| fe.get(c)) {
+                slot.store(e, Ordering::Relaxed);
+            }
         }
-        self.edges.push([v, x]);
-        self.edge_flags.push(flags);
-        self.edge_face_offsets.push(self.edge_faces.len() as u32);
-        e
+        o.edges.push([v, x]);
+        o.edge_flags.push(flags);
+        o.edge_face_offsets.push(o.edge_faces.len() as u32);
+    }
+
+    /// Writes face `f` at position `out` of the whole `vertex_faces` table.
+    #[inline]
+    fn put_face(&mut self, out: usize, f: u32) {
+        self.faces[out - self.face_base] = f;
+    }
+
+    /// Sets flag bits of vertex `v` of the range.
+    #[inline]
+    fn flag(&mut self, v: u32, bits: u8) {
+        self.flags[(v - self.v0) as usize] |= bits;
     }
 
     /// The quick path, for a vertex whose faces [`Around::link`] could link: every edge
     /// `(v, x)` has one face or two opposite ones. Returns the number of fans.
-    fn regular_vertex(
-        &mut self,
-        v: u32,
-        start: usize,
-        a: &Around,
-        boundary_link: &mut Vec<[u32; 2]>,
-    ) -> usize {
+    fn regular_vertex(&mut self, v: u32, start: usize, a: &Around) -> usize {
         let k = a.k;
-        // Boundary edge of each slot's `next` side (no pred) and `prev` side (no succ).
+        // Boundary half-edge of each slot's `next` side (no pred) and `prev` side (no succ).
         let mut b_next = [NONE; QUICK_MAX_FACES];
         let mut b_prev = [NONE; QUICK_MAX_FACES];
         // Edges created here, by the smaller endpoint, in order of the other one: key
@@ -574,20 +913,20 @@ impl Topology {
         let mut keys = [0u64; 2 * QUICK_MAX_FACES];
         let mut n_keys = 0;
         for j in 0..k {
-            let (f, c) = (a.face[j] as usize, a.corner[j] as usize);
+            let (f, c) = (a.face[j], a.corner[j] as usize);
             if a.next[j] > v {
                 keys[n_keys] = (u64::from(a.next[j]) << 8) | (j as u64) << 1;
                 n_keys += 1;
-            } else if a.pred[j] == NO_SLOT {
-                b_next[j] = self.face_edges[f][c];
+            }
+            if a.pred[j] == NO_SLOT {
+                b_next[j] = half_edge(f, c);
             }
             if a.succ[j] == NO_SLOT {
                 if a.prev[j] > v {
                     keys[n_keys] = (u64::from(a.prev[j]) << 8) | (j as u64) << 1 | 1;
                     n_keys += 1;
-                } else {
-                    b_prev[j] = self.face_edges[f][(c + 2) % 3];
                 }
+                b_prev[j] = half_edge(f, (c + 2) % 3);
             }
         }
         let keys = &mut keys[..n_keys];
@@ -596,9 +935,9 @@ impl Topology {
             let (x, j) = ((key >> 8) as u32, ((key & 0xff) >> 1) as usize);
             let (f, c) = (a.face[j], a.corner[j] as usize);
             if key & 1 == 1 {
-                b_prev[j] = self.push_edge(v, x, E_BOUNDARY, [(f, (c + 2) % 3)]);
+                self.push_edge(v, x, E_BOUNDARY, [(f, (c + 2) % 3)]);
             } else if a.pred[j] == NO_SLOT {
-                b_next[j] = self.push_edge(v, x, E_BOUNDARY, [(f, c)]);
+                self.push_edge(v, x, E_BOUNDARY, [(f, c)]);
             } else {
                 // Slots are in face order: the lower slot has the lower face.
                 let i = a.pred[j] as usize;
@@ -619,32 +958,32 @@ impl Topology {
         let mut visited = 0u32;
         for j0 in (0..k).filter(|&j| a.pred[j] == NO_SLOT) {
             n_fans += 1;
-            self.fan_offsets.push(out as u32);
-            self.vertex_neighbors.push(a.next[j0]);
+            self.out.fan_offsets.push(out as u32);
+            self.out.vertex_neighbors.push(a.next[j0]);
             let mut j = j0;
             loop {
                 visited |= 1 << j;
-                self.vertex_faces[out] = a.face[j];
+                self.put_face(out, a.face[j]);
                 out += 1;
-                self.vertex_neighbors.push(a.prev[j]);
+                self.out.vertex_neighbors.push(a.prev[j]);
                 match a.succ[j] {
                     NO_SLOT => break,
                     s => j = s as usize,
                 }
             }
-            self.vertex_flags[v as usize] |= V_BOUNDARY;
-            link_boundary(boundary_link, &self.edges, v, b_next[j0], b_prev[j]);
+            self.flag(v, V_BOUNDARY);
+            self.out.links.push([v, b_next[j0], b_prev[j]]);
         }
         let all = (1u32 << k) - 1;
         while visited != all {
             let j0 = (!visited & all).trailing_zeros() as usize;
             n_fans += 1;
-            self.fan_offsets.push(out as u32);
-            self.vertex_neighbors.push(a.next[j0]);
+            self.out.fan_offsets.push(out as u32);
+            self.out.vertex_neighbors.push(a.next[j0]);
             let mut j = j0;
             loop {
                 visited |= 1 << j;
-                self.vertex_faces[out] = a.face[j];
+                self.put_face(out, a.face[j]);
                 out += 1;
                 let s = a.succ[j] as usize;
                 // `succ` is a permutation of the slots left at this point; the second
@@ -652,7 +991,7 @@ impl Topology {
                 if s == j0 || s >= k {
                     break;
                 }
-                self.vertex_neighbors.push(a.prev[j]);
+                self.out.vertex_neighbors.push(a.prev[j]);
                 j = s;
             }
         }
@@ -663,7 +1002,6 @@ impl Topology {
     /// through edges of exactly two faces (flipped or not), walks the fans and pairs the
     /// boundary edges at their ends. Returns the number of fans.
     fn general_vertex(&mut self, v: u32, start: usize, sc: &mut Scratch) -> usize {
-        let vi = v as usize;
         let slots = &mut sc.slots;
         let pairs = &mut sc.pairs;
         pairs.clear();
@@ -686,8 +1024,6 @@ impl Topology {
             }
             let run = &pairs[i..k];
             let slot_of = |p: u64| (p & 0xffff_ffff) as usize;
-            // Edge ids are only needed here for new edges and for boundary edges.
-            let mut e = NONE;
             if x > v {
                 let flags = match run.len() {
                     1 => E_BOUNDARY,
@@ -705,16 +1041,14 @@ impl Topology {
                     let s = &slots[slot_of(p)];
                     (s.face, s.corner_of_edge(x))
                 });
-                e = self.push_edge(v, x, flags, on_edge);
-            } else if run.len() == 1 {
-                // Created earlier by x, the smaller endpoint.
-                let s = &slots[slot_of(run[0])];
-                e = self.face_edges[s.face as usize][s.corner_of_edge(x)];
+                self.push_edge(v, x, flags, on_edge);
             }
+            // Boundary edges are named by their one half-edge (ids are not known yet).
+            let mut e = NONE;
             if run.len() == 1 {
-                self.vertex_flags[vi] |= V_BOUNDARY;
-            } else {
-                e = NONE;
+                let s = &slots[slot_of(run[0])];
+                e = half_edge(s.face, s.corner_of_edge(x));
+                self.flag(v, V_BOUNDARY);
             }
             for &p in run {
                 let s = &mut slots[slot_of(p)];
@@ -764,25 +1098,26 @@ impl Topology {
                     _ => continue,
                 };
                 n_fans += 1;
-                self.fan_offsets.push(out as u32);
+                self.out.fan_offsets.push(out as u32);
                 let g = s0.group(entry0) as usize;
                 if !listed[g] {
                     listed[g] = true;
-                    self.vertex_neighbors.push(entry0);
+                    self.out.vertex_neighbors.push(entry0);
                 }
                 let (mut j, mut entry) = (j0, entry0);
                 let (last, exit, closed) = loop {
                     let s = &mut slots[j];
                     s.visited = true;
-                    self.vertex_faces[out] = s.face;
-                    out += 1;
+                    let face = s.face;
                     let exit = s.other(entry);
                     let g = s.group(exit) as usize;
+                    let nj = s.link(exit);
+                    self.put_face(out, face);
+                    out += 1;
                     if !listed[g] {
                         listed[g] = true;
-                        self.vertex_neighbors.push(exit);
+                        self.out.vertex_neighbors.push(exit);
                     }
-                    let nj = s.link(exit);
                     if nj == NONE {
                         break (j, exit, false);
                     }
@@ -796,37 +1131,41 @@ impl Topology {
                     continue;
                 }
                 // Boundary edges at the two open ends of the chain are consecutive
-                // along the boundary through v, whatever their directions.
-                let mut fan_ends = [(NONE, false); 2];
+                // along the boundary through v, whatever their directions. Each is kept
+                // with its other endpoint, the order of the edge ids around v.
+                let mut fan_ends = [(NONE, NONE, false); 2];
                 for (end, (js, x)) in fan_ends.iter_mut().zip([(j0, entry0), (last, exit)]) {
                     let e = slots[js].edge(x);
                     if e != NONE {
                         // The face has half-edge `v → x` when x is its next corner.
-                        *end = (e, slots[js].next == x);
+                        *end = (x, e, slots[js].next == x);
                     }
                 }
                 match fan_ends {
-                    [(NONE, _), (NONE, _)] => {}
-                    [(e, leaves), (NONE, _)] | [(NONE, _), (e, leaves)] => {
+                    [(_, NONE, _), (_, NONE, _)] => {}
+                    [(x, e, leaves), (_, NONE, _)] | [(_, NONE, _), (x, e, leaves)] => {
+                        let key = (u64::from(x) << 32) | u64::from(e);
                         if leaves {
-                            sc.loose_out.push(e);
+                            sc.loose_out.push(key);
                         } else {
-                            sc.loose_in.push(e);
+                            sc.loose_in.push(key);
                         }
                     }
-                    [(a, _), (b, _)] => link_boundary(&mut sc.boundary_link, &self.edges, v, a, b),
+                    [(_, a, _), (_, b, _)] => self.out.links.push([v, a, b]),
                 }
             }
         }
         // Boundary ends that no fan pairs (chains ending at an edge of three or more
-        // faces): entering edges paired with leaving ones in edge order, then any rest
-        // among themselves, so every boundary edge meets at most one other at v.
+        // faces): entering edges paired with leaving ones in edge order (the order of
+        // their other endpoints), then any rest among themselves, so every boundary edge
+        // meets at most one other at v.
         let (loose_in, loose_out) = (&mut sc.loose_in, &mut sc.loose_out);
         loose_in.sort_unstable();
         loose_out.sort_unstable();
         let paired = loose_in.len().min(loose_out.len());
+        let half = |key: u64| (key & 0xffff_ffff) as u32;
         for (&a, &b) in loose_in.iter().zip(loose_out.iter()) {
-            link_boundary(&mut sc.boundary_link, &self.edges, v, a, b);
+            self.out.links.push([v, half(a), half(b)]);
         }
         let rest = if loose_in.len() > paired {
             &loose_in[paired..]
@@ -834,11 +1173,13 @@ impl Topology {
             &loose_out[paired..]
         };
         for pair in rest.chunks_exact(2) {
-            link_boundary(&mut sc.boundary_link, &self.edges, v, pair[0], pair[1]);
+            self.out.links.push([v, half(pair[0]), half(pair[1])]);
         }
         n_fans
     }
+}
 
+impl Topology {
     /// The tail and head of boundary edge `e` as its one face orients it.
     fn boundary_half_edge(&self, faces: &[[Index; 3]], e: u32) -> (u32, u32) {
         let f = self.edge_faces[self.edge_face_offsets[e as usize] as usize] as usize;
@@ -1463,10 +1804,17 @@ pub(crate) mod tests {
     /// quick path of the vertex pass against the general one.
     fn check_consistency(mesh: &Mesh, t: &Topology) {
         assert_eq!(
-            &Topology::build_with(mesh, false).unwrap(),
+            &Topology::build_with(mesh, false, CHUNK_VERTICES).unwrap(),
             t,
             "quick ≠ general"
         );
+        for chunk in [1, 3, 64] {
+            assert_eq!(
+                &Topology::build_with(mesh, true, chunk).unwrap(),
+                t,
+                "ranges of {chunk} vertices ≠ one range"
+            );
+        }
         let mut oracle: BTreeMap<[u32; 2], Vec<u32>> = BTreeMap::new();
         for (f, &[a, b, c]) in mesh.faces.iter().enumerate() {
             let n = mesh.n_vertices() as u32;
@@ -1808,6 +2156,100 @@ pub(crate) mod tests {
         assert_eq!(t.summary(&m).genus, vec![Some(0)]);
     }
 
+    /// A torus grid damaged in every way the vertex pass distinguishes: holes (boundary
+    /// loops), faces listed backwards (flipped edges), doubled faces (edges of three or
+    /// more faces), merged vertices (bow-ties and high valence), faces repeating an index
+    /// or naming a vertex out of range (skipped), and isolated vertices.
+    fn damaged_torus(n: u32, m: u32) -> Mesh {
+        let mut mesh = torus_grid(n, m);
+        let nv = mesh.n_vertices() as u32;
+        let mut faces = Vec::with_capacity(mesh.faces.len() + mesh.faces.len() / 50);
+        for (f, &face) in mesh.faces.iter().enumerate() {
+            match f % 211 {
+                0 | 1 | 2 | 7 => {} // a hole
+                _ if f % 131 == 5 => faces.push([face[0], face[2], face[1]]),
+                _ if f % 173 == 9 => {
+                    faces.push(face);
+                    faces.push(face);
+                }
+                _ if f % 389 == 11 => faces.push([face[0], face[1], face[0]]),
+                _ if f % 397 == 13 => faces.push([face[0], nv + 5, face[2]]),
+                _ => faces.push(face),
+            }
+        }
+        // Merge some vertices into others far away: bow-ties and crowded fans.
+        for k in 0..(nv / 997) {
+            let (from, to) = (k * 997 + 3, (k * 997 + nv / 2) % nv);
+            for face in &mut faces {
+                face.iter_mut()
+                    .filter(|x| **x == from)
+                    .for_each(|x| *x = to);
+            }
+        }
+        mesh.faces = faces;
+        mesh.positions.push(DVec3::splat(9.0)); // isolated
+        mesh
+    }
+
+    #[test]
+    fn any_range_size_gives_the_same_tables() {
+        let m = damaged_torus(40, 31);
+        let t = Topology::build_with(&m, true, usize::MAX).unwrap();
+        check_consistency(&m, &t);
+        let s = t.summary(&m);
+        assert!(s.n_boundary_loops > 0 && s.n_non_manifold_edges > 0);
+        assert!(s.n_flipped_edges > 0 && s.n_non_manifold_vertices > 0);
+        assert!(s.n_repeated_index_faces > 0 && s.n_out_of_range_faces > 0);
+        assert!(s.n_isolated_vertices > 0);
+        for chunk in [2, 5, 17, 100, 1000] {
+            for quick in [true, false] {
+                assert_eq!(
+                    Topology::build_with(&m, quick, chunk).unwrap(),
+                    t,
+                    "ranges of {chunk}, quick {quick}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn parallel_build_equals_the_serial_one_for_any_thread_count() {
+        // More vertices than one range holds, so `build` takes the parallel path.
+        let clean = torus_grid(300, 240);
+        let damaged = damaged_torus(290, 240);
+        for m in [&clean, &damaged] {
+            assert!(m.n_vertices() > 2 * CHUNK_VERTICES);
+            let serial = Topology::build_with(m, true, usize::MAX).unwrap();
+            assert_eq!(
+                Topology::build_with(m, false, usize::MAX).unwrap(),
+                serial,
+                "quick ≠ general"
+            );
+            for threads in [1, 2, 3, 4] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let built = pool.install(|| Topology::try_build(m)).unwrap();
+                assert_eq!(built, serial, "{threads} threads");
+                let ranged = pool.install(|| Topology::build_with(m, true, CHUNK_VERTICES));
+                assert_eq!(ranged.unwrap(), serial, "{threads} threads, ranges");
+            }
+        }
+        let s = serial_summary(&damaged);
+        assert!(s.n_boundary_loops > 0 && s.n_non_manifold_edges > 0);
+        assert!(s.n_flipped_edges > 0 && s.n_bowtie_vertices > 0);
+        assert!(s.n_repeated_index_faces > 0 && s.n_out_of_range_faces > 0);
+        assert_eq!(serial_summary(&clean).genus, vec![Some(1)]);
+    }
+
+    /// The summary of the one-range build.
+    fn serial_summary(m: &Mesh) -> TopologySummary {
+        Topology::build_with(m, true, usize::MAX)
+            .unwrap()
+            .summary(m)
+    }
+
     /// A fixed seed unless `PROPTEST_RNG_SEED` is set, so CI runs the same cases every time.
     fn fixed_seed() -> proptest::test_runner::Config {
         let mut c = proptest::test_runner::Config::default();
@@ -1926,9 +2368,14 @@ pub(crate) mod tests {
             let m = read_obj(&dir.join(format!("{name}.obj")));
             let t = Topology::build(&m);
             assert_eq!(
-                Topology::build_with(&m, false).unwrap(),
+                Topology::build_with(&m, false, CHUNK_VERTICES).unwrap(),
                 t,
                 "quick ≠ general"
+            );
+            assert_eq!(
+                Topology::build_with(&m, true, 500).unwrap(),
+                t,
+                "ranges ≠ one range"
             );
             let s = t.summary(&m);
             (t, s)
