@@ -131,6 +131,8 @@ pub struct LiveMesh {
     history: Option<Progressive>,
     /// The input's index of each vertex, when [`LiveMesh::new_renumbered`] renumbered them.
     original_of: Option<Vec<Index>>,
+    /// The faces the last collapse deleted (their corners as they were).
+    last_deleted: Vec<Index>,
 }
 
 /// Work buffers of one run, reused by every collapse.
@@ -412,6 +414,7 @@ impl LiveMesh {
             region_normal,
             region_area,
             history: None,
+            last_deleted: Vec::new(),
             original_of,
         }
     }
@@ -491,6 +494,12 @@ impl LiveMesh {
     #[inline]
     pub fn faces_around(&self, v: Index) -> &[Index] {
         self.lists.get(v)
+    }
+
+    /// The faces the last collapse deleted; [`LiveMesh::face`] still gives their corners
+    /// as they were before it (for cost models that track data around deleted faces).
+    pub fn last_deleted(&self) -> &[Index] {
+        &self.last_deleted
     }
 
     /// The kind of vertex `v`.
@@ -1165,6 +1174,7 @@ impl LiveMesh {
     /// are renamed; lists, counts, stamps and clusters follow.
     fn merge(&mut self, verts: &[Index], kept: Index, p: DVec3, s: &mut Scratch) {
         s.list.clear();
+        self.last_deleted.clear();
         let mut step = Step {
             kept,
             removed: [NONE; 2],
@@ -1200,6 +1210,7 @@ impl LiveMesh {
                         step.deleted += 1;
                     }
                     self.face_state[fi] = DEAD;
+                    self.last_deleted.push(f);
                     self.n_faces -= 1;
                     for &u in face.iter().filter(|u| !verts.contains(u)) {
                         self.lists.remove(u, f);
@@ -1377,6 +1388,47 @@ mod tests {
 
     fn bump(x: f64, y: f64) -> f64 {
         0.2 * (std::f64::consts::PI * x).sin() * (std::f64::consts::PI * y).sin()
+    }
+
+    #[test]
+    fn last_deleted_names_the_faces_the_last_collapse_removed() {
+        let p = [
+            DVec3::X,
+            DVec3::Y,
+            -DVec3::X,
+            -DVec3::Y,
+            DVec3::Z,
+            -DVec3::Z,
+        ];
+        let faces = vec![
+            [0, 1, 4],
+            [1, 2, 4],
+            [2, 3, 4],
+            [3, 0, 4],
+            [1, 0, 5],
+            [2, 1, 5],
+            [3, 2, 5],
+            [0, 3, 5],
+        ];
+        let mesh = Mesh::new(p.to_vec(), faces.clone());
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        assert!(live.last_deleted().is_empty());
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let out = live.collapse(&mut model, &Options::new(Goal::Vertices(5)), &mut |_| {});
+        let r = out.log[0];
+        let mut gone = live.last_deleted().to_vec();
+        gone.sort_unstable();
+        // The two faces of the collapsed edge, with their corners as they were.
+        let expected: Vec<Index> = (0..8)
+            .filter(|&f| {
+                faces[f as usize].contains(&r.kept) && faces[f as usize].contains(&r.removed[0])
+            })
+            .collect();
+        assert_eq!(gone, expected);
+        for &f in &gone {
+            assert_eq!(live.face(f), faces[f as usize]);
+            assert!(!live.live_faces().any(|g| g == f));
+        }
     }
 
     #[test]

@@ -12,7 +12,12 @@
 //!   vertices' stamps when it was queued; since stamps only grow, the entry is current
 //!   exactly when that sum is unchanged (until 2³² changes pile up on the same vertices,
 //!   which a mesh with 32-bit indices cannot reach). Stale entries are skipped when popped,
-//!   and swept out in one pass when they make up a third of the heap.
+//!   and swept out in one pass when they make up a third of the heap. An addressable heap
+//!   (one slot per candidate, entries replaced or removed in place) was measured instead,
+//!   with the same pop order and outputs, and was slower on the bunny subdivided three
+//!   times (issue #6): the entries a collapse re-costs are the cheap ones around it, near
+//!   the top of the heap, so replacing one walks as far down as popping it stale would,
+//!   and every move also writes the slot's position.
 //! * **Parking.** A candidate refused by a validity check stays refused until something
 //!   around it changes. It is parked on each of its vertices; when a collapse touches one
 //!   of them, the parked candidate goes back on the heap (behind everything queued so far).

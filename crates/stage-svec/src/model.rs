@@ -8,6 +8,22 @@ use std::f64::consts::PI;
 /// takes over).
 const SOLVE_TOLERANCE: f64 = 1e-10;
 
+/// 1 − |nᵢ·nⱼ| of two unit normals is a multiple of 2⁻⁵³ (the subtraction from 1 is exact
+/// on that grid), so the normal factor's sums are kept as integers in these units: terms
+/// added and removed in any order give the same sum, and a sum of zeros stays zero.
+const NORMAL_UNIT: f64 = (1u64 << 53) as f64;
+
+/// A face with more neighbours than this has its normal factor summed afresh (in 128 bits)
+/// whenever it changes: its wrapping 64-bit sum could have overflowed.
+const MAX_INCREMENTAL: u32 = 1000;
+
+/// The term of unit normal `n` and (non-zero) normal `m` in a normal-factor sum, in units
+/// of 2⁻⁵³: exact for unit normals, deterministic always.
+#[inline]
+fn normal_term(n: DVec3, m: DVec3) -> i64 {
+    ((1.0 - n.dot(m).abs()) * NORMAL_UNIT) as i64
+}
+
 /// How far from the merged vertices' centroid the minimiser may lie, in units of their
 /// largest distance to it; farther, Eq. 8 takes over.
 const MAX_REACH: f64 = 4.0;
@@ -42,6 +58,13 @@ pub struct SvecModel {
     /// Plane, quadric weight and area of each face, side by side (a sum over faces reads
     /// one record per face).
     face: Vec<FaceData>,
+    /// Per face, Σ (1 − |nᵢ·nⱼ|) over the faces j sharing a vertex with it, in exact
+    /// integer units of 2⁻⁵³ (wrapping; see [`NORMAL_UNIT`]), and how many faces j there
+    /// are: Nᵢ is kept up to date by adding and removing terms, exactly.
+    normal_sum: Vec<i64>,
+    normal_count: Vec<u32>,
+    /// Wᵢ · (1/9)Sᵢ² (unit-diagonal units) of each face: Qᵢ's weight is this times Nᵢ.
+    shape_plain: Vec<f64>,
     /// Interior angle of each face at each of its corners (computed once per change of
     /// shape, read by the angle deficits and the shape factors).
     angles: Vec<[f64; 3]>,
@@ -56,6 +79,7 @@ pub struct SvecModel {
     feature_collapses: usize,
     /// Work buffers of `merged`.
     touched: Vec<Index>,
+    ring2: Vec<Index>,
     face_mark: Vec<u32>,
     vertex_mark: Vec<u32>,
     generation: u32,
@@ -129,6 +153,9 @@ impl SvecModel {
         let mut m = SvecModel {
             unit: Unit::Triangle,
             face: vec![FaceData::default(); n_faces],
+            normal_sum: vec![0; n_faces],
+            normal_count: vec![0; n_faces],
+            shape_plain: vec![0.0; n_faces],
             angles: vec![[0.0; 3]; n_faces],
             vertex_area: vec![0.0; n_vertices],
             deficit: vec![0.0; n_vertices],
@@ -137,6 +164,7 @@ impl SvecModel {
             volume_constraint: opts.volume_constraint,
             feature_collapses: 0,
             touched: Vec::new(),
+            ring2: Vec::new(),
             face_mark: vec![0; n_faces],
             vertex_mark: vec![0; n_vertices],
             generation: 0,
@@ -233,7 +261,13 @@ impl SvecModel {
         } else {
             DVec3::ZERO
         };
-        self.face[fi].area = 0.5 * len * self.scale * self.scale;
+        let s = 0.5 * len * self.scale * self.scale;
+        self.face[fi].area = s;
+        let [x, y, z] = self.angles[fi];
+        let shape = 2.0 * (1.0 - x.min(y).min(z).cos()) * s;
+        // Distances squared are in world units: scale them to a unit diagonal too.
+        let plain = s * s / 9.0 * self.scale * self.scale;
+        self.shape_plain[fi] = shape * plain;
     }
 
     /// A_v and the angle deficit of vertex `v`.
@@ -243,7 +277,7 @@ impl SvecModel {
         self.vertex_area[v as usize] = a;
     }
 
-    /// Nᵢ (from the normals around face `f`) and then Qᵢ.
+    /// Nᵢ summed afresh from the normals around face `f`, then Qᵢ.
     fn update_quadric(&mut self, mesh: &LiveMesh, f: Index) {
         let fi = f as usize;
         let n = self.face[fi].normal;
@@ -253,23 +287,76 @@ impl SvecModel {
             return;
         }
         let face = mesh.face(f);
-        let (mut sum, mut count) = (0.0, 0usize);
+        let (mut sum, mut count) = (0i128, 0u32);
         for_faces_around(mesh, &face, |g| {
             let m = self.face[g as usize].normal;
             if g != f && m != DVec3::ZERO {
-                sum += 0.5 * (1.0 - n.dot(m).abs());
+                sum += normal_term(n, m) as i128;
                 count += 1;
             }
         });
-        let normal_factor = if count > 0 { sum / count as f64 } else { 0.0 };
-        let a = mesh.position(face[0]);
-        let s = self.face[fi].area;
-        let [x, y, z] = self.angles[fi];
-        let shape = 2.0 * (1.0 - x.min(y).min(z).cos()) * s;
-        // Distances squared are in world units: scale them to a unit diagonal too.
-        let plain = s * s / 9.0 * self.scale * self.scale;
-        self.face[fi].offset = -n.dot(a);
-        self.face[fi].weight = shape * normal_factor * plain;
+        self.normal_sum[fi] = sum as i64;
+        self.normal_count[fi] = count;
+        self.face[fi].offset = -n.dot(mesh.position(face[0]));
+        self.face[fi].weight = self.shape_plain[fi] * normal_factor(sum, count);
+    }
+
+    /// Qᵢ's weight of face `f` from its kept sum (a face with too many neighbours for the
+    /// 64-bit sum is summed afresh).
+    fn update_weight(&mut self, mesh: &LiveMesh, f: Index) {
+        let fi = f as usize;
+        if self.face[fi].normal == DVec3::ZERO {
+            return;
+        }
+        let count = self.normal_count[fi];
+        if count > MAX_INCREMENTAL {
+            self.update_quadric(mesh, f);
+        } else {
+            self.face[fi].weight =
+                self.shape_plain[fi] * normal_factor(self.normal_sum[fi] as i128, count);
+        }
+    }
+
+    /// Replaces the term of normal `old` by that of `new` (a zero normal has no term) in
+    /// the sum of every face around `w` that uses neither `kept` nor `skip`, and marks them
+    /// for a new weight.
+    #[allow(clippy::too_many_arguments)]
+    fn adjust_around(
+        &mut self,
+        mesh: &LiveMesh,
+        w: Index,
+        kept: Index,
+        skip: Index,
+        old: DVec3,
+        new: DVec3,
+        generation: u32,
+    ) {
+        let (had, has) = (old != DVec3::ZERO, new != DVec3::ZERO);
+        let count_change = has as i32 - had as i32;
+        for &i in mesh.faces_around(w) {
+            let face = mesh.face(i);
+            if face.contains(&kept) || face.contains(&skip) {
+                continue;
+            }
+            let ii = i as usize;
+            let n = self.face[ii].normal;
+            if n == DVec3::ZERO {
+                // Its weight is zero whatever its sum; it is summed afresh once reshaped.
+                continue;
+            }
+            let mut delta = 0i64;
+            if has {
+                delta = delta.wrapping_add(normal_term(n, new));
+            }
+            if had {
+                delta = delta.wrapping_sub(normal_term(n, old));
+            }
+            self.normal_sum[ii] = self.normal_sum[ii].wrapping_add(delta);
+            self.normal_count[ii] = self.normal_count[ii].wrapping_add_signed(count_change);
+            if Self::mark(&mut self.face_mark, generation, i) {
+                self.ring2.push(i);
+            }
+        }
     }
 
     /// Σ Qᵢ (each weighted by `phi` when given) over the faces around `verts`.
@@ -372,6 +459,16 @@ impl SvecModel {
     }
 }
 
+/// Nᵢ = mean of (1 − |nᵢ·nⱼ|)/2 from a sum in units of 2⁻⁵³ over `count` faces.
+#[inline]
+fn normal_factor(sum: i128, count: u32) -> f64 {
+    if count > 0 {
+        0.5 * (sum as f64 / NORMAL_UNIT) / count as f64
+    } else {
+        0.0
+    }
+}
+
 /// mean + `sigma` · standard deviation of `values` (∞ when empty).
 fn mean_plus_sigma(values: &[f64], sigma: f64) -> f64 {
     if values.is_empty() {
@@ -436,29 +533,56 @@ impl CostModel for SvecModel {
         }
         let generation = self.generation;
         // The faces around `kept` changed shape; `kept` and its neighbours changed angle
-        // sums and areas; every face sharing a vertex with a changed face changed Nᵢ.
+        // sums and areas. Every face sharing a vertex with a changed or deleted face has a
+        // new Nᵢ: those around `kept` are summed afresh, the others (which share with them
+        // only vertices other than `kept`) get the changed terms replaced and the deleted
+        // ones removed from their kept sums.
         let mut touched = std::mem::take(&mut self.touched);
         touched.clear();
+        self.ring2.clear();
         touched.push(kept);
         Self::mark(&mut self.vertex_mark, generation, kept);
+        // Faces around `kept` are marked first: they are summed afresh below.
         for &f in mesh.faces_around(kept) {
+            Self::mark(&mut self.face_mark, generation, f);
+        }
+        for &f in mesh.faces_around(kept) {
+            let old = self.face[f as usize].normal;
             self.update_shape(mesh, f);
-            for v in mesh.face(f) {
+            let new = self.face[f as usize].normal;
+            let face = mesh.face(f);
+            let c = face.iter().position(|&u| u == kept).unwrap_or(0);
+            let (w1, w2) = (face[(c + 1) % 3], face[(c + 2) % 3]);
+            if old != new {
+                for (w, skip) in [(w1, kept), (w2, w1)] {
+                    self.adjust_around(mesh, w, kept, skip, old, new, generation);
+                }
+            }
+            for v in face {
                 if Self::mark(&mut self.vertex_mark, generation, v) {
                     touched.push(v);
+                }
+            }
+        }
+        for &d in mesh.last_deleted() {
+            let old = self.face[d as usize].normal;
+            for w in mesh.face(d) {
+                if !merged.contains(&w) {
+                    self.adjust_around(mesh, w, kept, kept, old, DVec3::ZERO, generation);
                 }
             }
         }
         for &v in &touched {
             self.update_vertex(mesh, v);
         }
-        for &v in &touched {
-            for &f in mesh.faces_around(v) {
-                if Self::mark(&mut self.face_mark, generation, f) {
-                    self.update_quadric(mesh, f);
-                }
-            }
+        for &f in mesh.faces_around(kept) {
+            self.update_quadric(mesh, f);
         }
+        let ring2 = std::mem::take(&mut self.ring2);
+        for &f in &ring2 {
+            self.update_weight(mesh, f);
+        }
+        self.ring2 = ring2;
         self.touched = touched;
     }
 }
@@ -476,6 +600,58 @@ mod tests {
         let q = Quadric::from_plane_offset(n, -n.dot(point), w);
         assert_eq!(q, Quadric::from_plane(n, point, w));
         assert_ne!(q, Quadric::from_plane_offset(n, -n.dot(point), 2.0 * w));
+    }
+
+    /// The model under test, checked against fresh sums after every collapse.
+    struct Checked(SvecModel, usize);
+
+    impl CostModel for Checked {
+        fn unit(&self) -> Unit {
+            self.0.unit()
+        }
+        fn reach(&self) -> Reach {
+            self.0.reach()
+        }
+        fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan> {
+            self.0.plan(mesh, merge)
+        }
+        fn merged(&mut self, mesh: &LiveMesh, kept: Index, merged: &[Index]) {
+            self.0.merged(mesh, kept, merged);
+            let mut fresh = self.0.clone();
+            for f in mesh.live_faces() {
+                let fi = f as usize;
+                if self.0.face[fi].normal == DVec3::ZERO {
+                    continue;
+                }
+                fresh.update_quadric(mesh, f);
+                assert_eq!(
+                    (self.0.normal_sum[fi], self.0.normal_count[fi]),
+                    (fresh.normal_sum[fi], fresh.normal_count[fi]),
+                    "face {f} after collapse {} into {kept}",
+                    self.1
+                );
+                assert_eq!(
+                    self.0.face[fi].weight, fresh.face[fi].weight,
+                    "face {f} after collapse {} into {kept}",
+                    self.1
+                );
+            }
+            self.1 += 1;
+        }
+    }
+
+    #[test]
+    fn kept_normal_factors_equal_fresh_sums_after_every_collapse() {
+        use coarsen_collapse::{Goal, Options};
+        let mesh = coarsen_shapes::bumpy_sphere(1.0, 3, 0.15, 3.0).unwrap();
+        for unit in [Unit::Triangle, Unit::Edge] {
+            let mut live = LiveMesh::new(&mesh).unwrap();
+            let mut model = SvecModel::new(&live, &SvecOptions::default());
+            model.set_unit(unit);
+            let mut checked = Checked(model, 0);
+            let out = live.collapse(&mut checked, &Options::new(Goal::Faces(200)), &mut |_| {});
+            assert!(out.collapses > 200, "{out:?}");
+        }
     }
 
     #[test]
