@@ -401,13 +401,10 @@ mod tests {
             / m.n_faces() as f64
     }
 
-    /// A sphere whose vertices were pushed around on its surface: relaxing lifts its
-    /// smallest angle, keeps every vertex on the sphere and flips nothing.
-    #[test]
-    fn relaxing_a_jittered_sphere_raises_its_smallest_angle_and_stays_on_it() {
-        let original = coarsen_shapes::icosphere(1.0, 4).unwrap();
-        let mut m = coarsen_shapes::icosphere(1.0, 3).unwrap();
-        let mut s = 7u64;
+    /// Moves each vertex of `m` (a unit sphere) by up to `amount` / 2 along each axis,
+    /// pseudo-randomly from `seed`, and back onto the sphere.
+    fn jitter_on_sphere(m: &mut Mesh, seed: u64, amount: f64) {
+        let mut s = seed;
         for p in &mut m.positions {
             s = s
                 .wrapping_mul(6364136223846793005)
@@ -417,8 +414,17 @@ mod tests {
                 ((s >> 23) % 1000) as f64 / 1000.0 - 0.5,
                 ((s >> 37) % 1000) as f64 / 1000.0 - 0.5,
             );
-            *p = (*p + 0.08 * t).normalize();
+            *p = (*p + amount * t).normalize();
         }
+    }
+
+    /// A sphere whose vertices were pushed around on its surface: relaxing lifts its
+    /// smallest angle, keeps every vertex on the sphere and flips nothing.
+    #[test]
+    fn relaxing_a_jittered_sphere_raises_its_smallest_angle_and_stays_on_it() {
+        let original = coarsen_shapes::icosphere(1.0, 4).unwrap();
+        let mut m = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        jitter_on_sphere(&mut m, 7, 0.08);
         let before = m.clone();
         let mut report = StageReport::default();
         // Moves only, so the faces stay comparable one by one.
@@ -774,18 +780,7 @@ mod tests {
         let original = coarsen_shapes::icosphere(1.0, 6).unwrap();
         assert!(Parts::new(&original.positions).is_some());
         let mut jittered = original.clone();
-        let mut s = 11u64;
-        for p in &mut jittered.positions {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let t = DVec3::new(
-                ((s >> 11) % 1000) as f64 / 1000.0 - 0.5,
-                ((s >> 23) % 1000) as f64 / 1000.0 - 0.5,
-                ((s >> 37) % 1000) as f64 / 1000.0 - 0.5,
-            );
-            *p = (*p + 0.004 * t).normalize();
-        }
+        jitter_on_sphere(&mut jittered, 11, 0.004);
         let params = RelaxParams {
             sweeps: 2,
             flips: false,
