@@ -318,6 +318,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
             surface,
             watch: watch.as_ref(),
             params,
+            cos_turn,
         };
         let moved = sweep.run(&mut mesh.positions, parts.as_ref());
         out.moved.push(moved);

@@ -27,6 +27,8 @@ pub(crate) struct Sweep<'a> {
     pub watch: Option<&'a Watch>,
     /// The stage's parameters.
     pub params: &'a RelaxParams,
+    /// Cosine of `params.max_turn_deg`.
+    pub cos_turn: f64,
 }
 
 /// Scratch buffers of one sweeper.
@@ -102,8 +104,7 @@ impl Sweep<'_> {
         pos: impl Fn(u32) -> DVec3 + Copy,
         sc: &mut Scratch,
     ) -> Option<DVec3> {
-        let (topo, params) = (self.topo, self.params);
-        let cos_turn = params.max_turn_deg.to_radians().cos();
+        let (topo, params, cos_turn) = (self.topo, self.params, self.cos_turn);
         let fan = topo.vertex_faces(v);
         if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
             return None;
