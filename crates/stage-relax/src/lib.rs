@@ -402,6 +402,23 @@ mod tests {
             / m.n_faces() as f64
     }
 
+    /// `f` run on a rayon pool of `threads` threads.
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(f)
+    }
+
+    /// The bits of every coordinate of `m`, for exact comparisons.
+    fn position_bits(m: &Mesh) -> Vec<u64> {
+        m.positions
+            .iter()
+            .flat_map(|p| p.to_array().map(f64::to_bits))
+            .collect()
+    }
+
     /// Moves each vertex of `m` (a unit sphere) by up to `amount` / 2 along each axis,
     /// pseudo-randomly from `seed`, and back onto the sphere.
     fn jitter_on_sphere(m: &mut Mesh, seed: u64, amount: f64) {
@@ -788,11 +805,7 @@ mod tests {
             ..RelaxParams::default()
         };
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            in_pool(threads, || {
                 let surface = Surface::new(&original);
                 let mut m = jittered.clone();
                 let r = relax(&mut m, Some(&surface), &params);
@@ -801,13 +814,7 @@ mod tests {
         };
         let ((a, ra), (b, rb)) = (run(1), run(3));
         assert_eq!(ra, rb);
-        let bits = |m: &Mesh| {
-            m.positions
-                .iter()
-                .flat_map(|p| p.to_array().map(f64::to_bits))
-                .collect::<Vec<_>>()
-        };
-        assert_eq!(bits(&a), bits(&b));
+        assert_eq!(position_bits(&a), position_bits(&b));
         // The parts moved most vertices and lifted the worst angle, on the sphere.
         assert!(ra.moved[0] > a.n_vertices() / 2, "{ra:?}");
         assert!(ra.min_angle_after > ra.min_angle_before + 1.0, "{ra:?}");
@@ -824,11 +831,7 @@ mod tests {
             ..RelaxParams::default()
         };
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            in_pool(threads, || {
                 let surface = Surface::new(&original);
                 let mut m = bumped_grid(8, 0.0625);
                 relax(&mut m, Some(&surface), &params);
@@ -837,12 +840,6 @@ mod tests {
         };
         let (a, b) = (run(1), run(3));
         assert_eq!(a.faces, b.faces);
-        let bits = |m: &Mesh| {
-            m.positions
-                .iter()
-                .flat_map(|p| p.to_array().map(f64::to_bits))
-                .collect::<Vec<_>>()
-        };
-        assert_eq!(bits(&a), bits(&b));
+        assert_eq!(position_bits(&a), position_bits(&b));
     }
 }
