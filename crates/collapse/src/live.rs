@@ -1370,6 +1370,38 @@ mod tests {
     use crate::{QemOptions, QuadricModel};
     use coarsen_mesh::{AttrValues, Mesh};
 
+    /// The unit octahedron's corners: +x, +y, −x, −y, +z, −z.
+    const OCTAHEDRON: [DVec3; 6] = [
+        DVec3::X,
+        DVec3::Y,
+        DVec3::NEG_X,
+        DVec3::NEG_Y,
+        DVec3::Z,
+        DVec3::NEG_Z,
+    ];
+
+    /// An octahedron's faces, outward, given the indices of its +x, +y, −x, −y, +z and −z
+    /// corners.
+    fn octahedron_faces(
+        x: Index,
+        y: Index,
+        mx: Index,
+        my: Index,
+        z: Index,
+        mz: Index,
+    ) -> Vec<[Index; 3]> {
+        vec![
+            [x, y, z],
+            [y, mx, z],
+            [mx, my, z],
+            [my, x, z],
+            [y, x, mz],
+            [mx, y, mz],
+            [my, mx, mz],
+            [x, my, mz],
+        ]
+    }
+
     fn run<M: CostModel>(mesh: &Mesh, model: &mut M, goal: Goal) -> (Mesh, Outcome, LiveMesh) {
         let mut live = LiveMesh::new(mesh).unwrap();
         let outcome = live.collapse(model, &Options::new(goal), &mut |_| {});
@@ -1392,25 +1424,8 @@ mod tests {
 
     #[test]
     fn last_deleted_names_the_faces_the_last_collapse_removed() {
-        let p = [
-            DVec3::X,
-            DVec3::Y,
-            -DVec3::X,
-            -DVec3::Y,
-            DVec3::Z,
-            -DVec3::Z,
-        ];
-        let faces = vec![
-            [0, 1, 4],
-            [1, 2, 4],
-            [2, 3, 4],
-            [3, 0, 4],
-            [1, 0, 5],
-            [2, 1, 5],
-            [3, 2, 5],
-            [0, 3, 5],
-        ];
-        let mesh = Mesh::new(p.to_vec(), faces.clone());
+        let faces = octahedron_faces(0, 1, 2, 3, 4, 5);
+        let mesh = Mesh::new(OCTAHEDRON.to_vec(), faces.clone());
         let mut live = LiveMesh::new(&mesh).unwrap();
         assert!(live.last_deleted().is_empty());
         let mut model = QuadricModel::new(&live, &QemOptions::default());
@@ -1892,30 +1907,11 @@ mod tests {
     #[test]
     fn non_manifold_vertex_is_locked_in_place() {
         // Two octahedra touching at vertex 0 (a bow-tie vertex).
-        let mut positions = vec![
-            DVec3::X,
-            DVec3::Y,
-            -DVec3::X,
-            -DVec3::Y,
-            DVec3::Z,
-            -DVec3::Z,
-        ];
+        let mut positions = OCTAHEDRON.to_vec();
         let offset = DVec3::new(2.0, 0.0, 0.0);
         positions.extend([DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z].map(|p| p + offset));
-        let octa = |x: Index, y: Index, mx: Index, my: Index, z: Index, mz: Index| {
-            vec![
-                [x, y, z],
-                [y, mx, z],
-                [mx, my, z],
-                [my, x, z],
-                [y, x, mz],
-                [mx, y, mz],
-                [my, mx, mz],
-                [x, my, mz],
-            ]
-        };
-        let mut faces = octa(0, 1, 2, 3, 4, 5);
-        faces.extend(octa(6, 7, 0, 8, 9, 10));
+        let mut faces = octahedron_faces(0, 1, 2, 3, 4, 5);
+        faces.extend(octahedron_faces(6, 7, 0, 8, 9, 10));
         let mesh = Mesh::new(positions, faces);
         let live = LiveMesh::new(&mesh).unwrap();
         assert_eq!(live.kind(0), VertexKind::Locked);
