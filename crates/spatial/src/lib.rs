@@ -26,6 +26,7 @@
 
 pub mod bvh;
 pub mod closest;
+mod morton;
 
 pub use bvh::{Bvh, NearSet, Nearest};
 pub use closest::{closest_point_on_segment, closest_point_on_triangle};
