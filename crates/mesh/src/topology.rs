@@ -125,6 +125,26 @@ pub struct Topology {
 
     component_orientable: Vec<bool>,
     component_manifold: Vec<bool>,
+
+    /// The summary's figures that the faces alone decide (degenerate faces by area not
+    /// counted), worked out on the first [`Topology::summary`].
+    counts: Memo<TopologySummary>,
+}
+
+/// A value worked out once, on demand; not part of what makes two topologies equal.
+#[derive(Clone, Debug)]
+struct Memo<T>(std::sync::OnceLock<T>);
+
+impl<T> Default for Memo<T> {
+    fn default() -> Self {
+        Memo(std::sync::OnceLock::new())
+    }
+}
+
+impl<T> PartialEq for Memo<T> {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// What the adjacency pass keeps about one face around the current vertex.
@@ -229,6 +249,13 @@ const CHUNK_VERTICES: usize = 1 << 15;
 /// Vertices with more faces than this always take the general path of the vertex pass
 /// (the quick path compares every pair of faces, in fixed-size arrays).
 const QUICK_MAX_FACES: usize = 16;
+
+/// Elements per chunk of the summary's parallel counts.
+const SUMMARY_CHUNK: usize = 1 << 15;
+
+/// The summary counts per component in parallel up to this many components (each chunk
+/// keeps a count per component).
+const SUMMARY_PARALLEL_COMPONENTS: usize = 1 << 10;
 
 /// Buffers reused from vertex to vertex by the vertex pass.
 #[derive(Default)]
@@ -1509,6 +1536,7 @@ impl Topology {
     /// Vertices whose faces form more than one fan, ascending.
     pub fn non_manifold_vertices(&self) -> Vec<u32> {
         (0..self.n_vertices as u32)
+            .into_par_iter()
             .filter(|&v| self.is_non_manifold_vertex(v))
             .collect()
     }
@@ -1591,13 +1619,42 @@ impl Topology {
 
     /// True when every edge with exactly two faces is used once in each direction.
     pub fn is_consistently_oriented(&self) -> bool {
-        self.edge_flags.iter().all(|f| f & E_FLIPPED == 0)
+        self.edge_flags.par_iter().all(|f| f & E_FLIPPED == 0)
     }
 
     /// True when every edge has one or two faces and every vertex has at most one fan.
     pub fn is_manifold(&self) -> bool {
-        self.edge_flags.iter().all(|f| f & E_MULTI == 0)
-            && self.vertex_flags.iter().all(|f| f & V_NON_MANIFOLD == 0)
+        self.edge_flags.par_iter().all(|f| f & E_MULTI == 0)
+            && self
+                .vertex_flags
+                .par_iter()
+                .all(|f| f & V_NON_MANIFOLD == 0)
+    }
+
+    /// Per component, the sum of what `count(i, counts)` adds for every `i` below `len`:
+    /// in parallel chunks, each with counts of its own, when there are few components.
+    fn component_counts(&self, len: usize, count: impl Fn(usize, &mut [i64]) + Sync) -> Vec<i64> {
+        let nc = self.n_components();
+        if nc > SUMMARY_PARALLEL_COMPONENTS {
+            let mut counts = vec![0i64; nc];
+            (0..len).for_each(|i| count(i, &mut counts));
+            return counts;
+        }
+        (0..len.div_ceil(SUMMARY_CHUNK))
+            .into_par_iter()
+            .map(|k| {
+                let mut counts = vec![0i64; nc];
+                (k * SUMMARY_CHUNK..((k + 1) * SUMMARY_CHUNK).min(len))
+                    .for_each(|i| count(i, &mut counts));
+                counts
+            })
+            .reduce(
+                || vec![0i64; nc],
+                |mut a, b| {
+                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            )
     }
 
     /// The figures of [`TopologySummary`]; `mesh` must be the mesh this was built from
@@ -1624,43 +1681,44 @@ impl Topology {
                     .count()
             })
             .sum();
+        let mut summary = self.counts.0.get_or_init(|| self.count()).clone();
+        summary.n_degenerate_faces += n_tiny;
+        summary
+    }
 
+    /// [`Topology::summary`] without the degenerate faces found by their area.
+    fn count(&self) -> TopologySummary {
         let nc = self.n_components();
-        let (mut vc, mut ec, mut fc, mut bc) = (
-            vec![0i64; nc],
-            vec![0i64; nc],
-            vec![0i64; nc],
-            vec![0i64; nc],
-        );
-        for &c in &self.face_component {
+        let fc = self.component_counts(self.face_component.len(), |f, counts| {
+            let c = self.face_component[f];
             if c != NONE {
-                fc[c as usize] += 1;
+                counts[c as usize] += 1;
             }
-        }
-        for e in 0..self.edges.len() {
+        });
+        let ec = self.component_counts(self.edges.len(), |e, counts| {
             let f = self.edge_faces[self.edge_face_offsets[e] as usize];
-            ec[self.face_component[f as usize] as usize] += 1;
-        }
-        let mut comps: Vec<u32> = Vec::new();
-        for v in 0..self.n_vertices as u32 {
+            counts[self.face_component[f as usize] as usize] += 1;
+        });
+        let vc = self.component_counts(self.n_vertices, |v, counts| {
+            let v = v as u32;
             if self.n_vertex_fans(v) == 1
                 && let Some(fan) = self.vertex_fans(v).next()
             {
                 // One fan: one component (the common case, without the sort).
-                vc[self.face_component[fan[0] as usize] as usize] += 1;
-                continue;
+                counts[self.face_component[fan[0] as usize] as usize] += 1;
+                return;
             }
-            comps.clear();
-            comps.extend(
-                self.vertex_fans(v)
-                    .map(|fan| self.face_component[fan[0] as usize]),
-            );
+            let mut comps: Vec<u32> = self
+                .vertex_fans(v)
+                .map(|fan| self.face_component[fan[0] as usize])
+                .collect();
             comps.sort_unstable();
             comps.dedup();
-            for &c in &comps {
-                vc[c as usize] += 1;
+            for c in comps {
+                counts[c as usize] += 1;
             }
-        }
+        });
+        let mut bc = vec![0i64; nc];
         for &c in &self.loop_component {
             bc[c as usize] += 1;
         }
@@ -1675,31 +1733,45 @@ impl Topology {
             .collect();
         let genus_total = genus.iter().copied().sum::<Option<i64>>();
 
-        let mut on_multi = vec![false; self.n_vertices];
-        let mut n_boundary_edges = 0;
-        let mut n_non_manifold_edges = 0;
-        let mut n_flipped_edges = 0;
-        for (e, &flags) in self.edge_flags.iter().enumerate() {
-            n_boundary_edges += usize::from(flags & E_BOUNDARY != 0);
-            n_non_manifold_edges += usize::from(flags & (E_MULTI | E_FLIPPED) != 0);
-            n_flipped_edges += usize::from(flags & E_FLIPPED != 0);
-            if flags & E_MULTI != 0 {
-                let [a, b] = self.edges[e];
-                on_multi[a as usize] = true;
-                on_multi[b as usize] = true;
-            }
-        }
+        // Counts: the same whatever the chunks and threads.
+        let [n_boundary_edges, n_non_manifold_edges, n_flipped_edges] = self
+            .edge_flags
+            .par_chunks(SUMMARY_CHUNK)
+            .map(|chunk| {
+                chunk.iter().fold([0usize; 3], |[b, m, f], &flags| {
+                    [
+                        b + usize::from(flags & E_BOUNDARY != 0),
+                        m + usize::from(flags & (E_MULTI | E_FLIPPED) != 0),
+                        f + usize::from(flags & E_FLIPPED != 0),
+                    ]
+                })
+            })
+            .reduce(|| [0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
+        // The ends of edges of three or more faces (rare): a non-manifold vertex on none
+        // of them is a bow-tie.
+        let mut on_multi: Vec<u32> = self
+            .edge_flags
+            .par_iter()
+            .enumerate()
+            .filter(|(_, f)| **f & E_MULTI != 0)
+            .flat_map_iter(|(e, _)| self.edges[e])
+            .collect();
+        on_multi.sort_unstable();
         let n_isolated = self
             .vertex_flags
-            .iter()
+            .par_iter()
             .filter(|&&f| f & V_ISOLATED != 0)
             .count();
         let nm_vertices = self.non_manifold_vertices();
         let n_bowtie = nm_vertices
             .iter()
-            .filter(|&&v| !on_multi[v as usize])
+            .filter(|v| on_multi.binary_search(v).is_err())
             .count();
-        let n_used_faces = self.face_component.iter().filter(|&&c| c != NONE).count();
+        let n_used_faces = self
+            .face_component
+            .par_iter()
+            .filter(|&&c| c != NONE)
+            .count();
         let n_ref = self.n_vertices - n_isolated;
         TopologySummary {
             n_vertices: n_ref,
@@ -1714,7 +1786,7 @@ impl Topology {
             n_flipped_edges,
             n_non_manifold_vertices: nm_vertices.len(),
             n_bowtie_vertices: n_bowtie,
-            n_degenerate_faces: self.n_repeated_index_faces + n_tiny,
+            n_degenerate_faces: self.n_repeated_index_faces,
             n_repeated_index_faces: self.n_repeated_index_faces,
             n_out_of_range_faces: self.n_out_of_range_faces,
             consistently_oriented: self.is_consistently_oriented(),
@@ -2047,6 +2119,36 @@ pub(crate) mod tests {
         assert_eq!(s.n_flipped_edges, 1);
         assert!(t.component_is_orientable(0));
         assert_eq!(s.genus, vec![Some(0)]);
+    }
+
+    #[test]
+    fn summary_counts_degenerate_faces_from_the_positions_given() {
+        // The figures the faces decide are kept after the first summary; the degenerate
+        // faces follow the positions (stages move vertices and keep the adjacency).
+        let m = tetrahedron();
+        let t = Topology::build(&m);
+        let first = t.summary(&m);
+        assert_eq!(first.n_degenerate_faces, 0);
+        assert_eq!(t.summary(&m), first);
+        let mut flat = m.clone();
+        // Vertex 0 onto the midpoint of edge 1–2: face [0, 2, 1] becomes a segment, the
+        // other three stay proper triangles.
+        let [_, b, c, _] = [0, 1, 2, 3].map(|i| m.positions[i]);
+        flat.positions[0] = (b + c) / 2.0;
+        let moved = t.summary(&flat);
+        assert_eq!(
+            moved.n_degenerate_faces,
+            1 + t.summary(&m).n_degenerate_faces
+        );
+        assert_eq!(
+            TopologySummary {
+                n_degenerate_faces: 0,
+                ..moved
+            },
+            first
+        );
+        // A fresh adjacency of the moved mesh agrees.
+        assert_eq!(Topology::build(&flat).summary(&flat), t.summary(&flat));
     }
 
     #[test]
