@@ -250,6 +250,12 @@ const CHUNK_VERTICES: usize = 1 << 15;
 /// (the quick path compares every pair of faces, in fixed-size arrays).
 const QUICK_MAX_FACES: usize = 16;
 
+/// Meshes of at least this many faces bucket their corners by vertex in parallel pieces.
+const BUCKET_PARALLEL_MIN: usize = 1 << 16;
+
+/// At most this many pieces (each keeps a count per vertex).
+const BUCKET_PIECES: usize = 4;
+
 /// Elements per chunk of the summary's parallel counts.
 const SUMMARY_CHUNK: usize = 1 << 15;
 
@@ -476,33 +482,74 @@ impl Topology {
     /// reads its input in order instead of looking faces up all over memory.
     fn bucket_vertex_faces(&mut self, faces: &[[Index; 3]], valid: &[bool]) -> Vec<[u32; 3]> {
         let nv = self.n_vertices;
+        // A counting sort in a few parallel pieces of faces, each with counts of its own:
+        // piece k's corners of vertex v go after those of pieces before it, so each
+        // vertex's corners come in face order, as one piece would put them.
+        let pieces = if faces.len() >= BUCKET_PARALLEL_MIN {
+            rayon::current_num_threads().clamp(1, BUCKET_PIECES)
+        } else {
+            1
+        };
+        let per = faces.len().div_ceil(pieces).max(1);
+        let mut counts: Vec<Vec<u32>> = (0..pieces)
+            .into_par_iter()
+            .map(|k| {
+                let mut c = vec![0u32; nv];
+                let lo = (k * per).min(faces.len());
+                let hi = ((k + 1) * per).min(faces.len());
+                for (f, ok) in faces[lo..hi].iter().zip(&valid[lo..hi]) {
+                    if *ok {
+                        for &v in f {
+                            c[v as usize] += 1;
+                        }
+                    }
+                }
+                c
+            })
+            .collect();
+        // Offsets; each piece's counts become its first slot per vertex.
         let mut offsets = vec![0u32; nv + 1];
-        for (f, ok) in faces.iter().zip(valid) {
-            if *ok {
-                for &v in f {
-                    offsets[v as usize + 1] += 1;
-                }
-            }
-        }
+        let mut at = 0u32;
         for v in 0..nv {
-            offsets[v + 1] += offsets[v];
-        }
-        let mut cursor = offsets[..nv].to_vec();
-        let mut corners = vec![[0u32; 3]; offsets[nv] as usize];
-        for (f, (face, ok)) in faces.iter().zip(valid).enumerate() {
-            if *ok {
-                for c in 0..3 {
-                    let slot = &mut cursor[face[c] as usize];
-                    corners[*slot as usize] = [
-                        ((f as u32) << 2) | c as u32,
-                        face[(c + 1) % 3],
-                        face[(c + 2) % 3],
-                    ];
-                    *slot += 1;
-                }
+            offsets[v] = at;
+            for c in counts.iter_mut() {
+                let n = c[v];
+                c[v] = at;
+                at += n;
             }
         }
-        self.vertex_faces = vec![0u32; corners.len()];
+        offsets[nv] = at;
+        // Zeroed memory, taken over in place.
+        let corners: Vec<[AtomicU32; 3]> = vec![[0u32; 3]; at as usize]
+            .into_iter()
+            .map(|c| c.map(AtomicU32::new))
+            .collect();
+        counts
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(k, mut cursor)| {
+                let lo = (k * per).min(faces.len());
+                let hi = ((k + 1) * per).min(faces.len());
+                for (f, (face, ok)) in faces[lo..hi].iter().zip(&valid[lo..hi]).enumerate() {
+                    if *ok {
+                        let f = (lo + f) as u32;
+                        for c in 0..3 {
+                            let slot = &mut cursor[face[c] as usize];
+                            let dst = &corners[*slot as usize];
+                            dst[0].store((f << 2) | c as u32, Ordering::Relaxed);
+                            dst[1].store(face[(c + 1) % 3], Ordering::Relaxed);
+                            dst[2].store(face[(c + 2) % 3], Ordering::Relaxed);
+                            *slot += 1;
+                        }
+                    }
+                }
+            });
+        // In place again.
+        let corners = corners
+            .into_iter()
+            .map(|c| c.map(AtomicU32::into_inner))
+            .collect();
+        self.vertex_faces = vec![0u32; at as usize];
         self.vertex_face_offsets = offsets;
         corners
     }
@@ -2316,11 +2363,13 @@ pub(crate) mod tests {
 
     #[test]
     fn parallel_build_equals_the_serial_one_for_any_thread_count() {
-        // More vertices than one range holds, so `build` takes the parallel path.
+        // More vertices than one range holds and more faces than one bucketing piece, so
+        // `build` takes the parallel paths (the one-thread pool buckets in one piece).
         let clean = torus_grid(300, 240);
         let damaged = damaged_torus(290, 240);
         for m in [&clean, &damaged] {
             assert!(m.n_vertices() > 2 * CHUNK_VERTICES);
+            assert!(m.n_faces() >= BUCKET_PARALLEL_MIN);
             let serial = Topology::build_with(m, true, usize::MAX).unwrap();
             assert_eq!(
                 Topology::build_with(m, false, usize::MAX).unwrap(),
