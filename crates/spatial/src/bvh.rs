@@ -1077,7 +1077,7 @@ mod tests {
     }
 
     #[test]
-    fn parallel_build_gives_the_one_piece_tree_on_any_thread_count() {
+    fn parallel_builds_give_the_same_tree_on_any_thread_count() {
         let mut rng = Rng(17);
         // Over 4·PARALLEL_MIN faces, so that two levels are built in parallel pieces.
         let (pos, faces) = random_mesh(&mut rng, 190, 300);
@@ -1088,44 +1088,24 @@ mod tests {
                 .build()
                 .unwrap()
         };
-        let single = pool(1).install(|| Bvh::build(&pos, &faces));
-        let double = pool(2).install(|| Bvh::build(&pos, &faces));
-        let reference = one_piece(&pos, &faces);
-        assert_eq!(single, reference);
-        assert_eq!(double, reference);
-        for _ in 0..200 {
-            let p = rng.vec(-1.0, 2.0);
-            assert_eq!(
-                double.closest_point(p).unwrap().distance_squared,
-                brute_force(&pos, &faces, p)
-            );
-        }
-    }
-
-    #[test]
-    fn morton_build_is_the_same_on_any_thread_count() {
-        let mut rng = Rng(19);
-        let (pos, faces) = random_mesh(&mut rng, 190, 300);
-        assert!(faces.len() > 4 * PARALLEL_MIN);
-        let pool = |n| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .unwrap()
-        };
-        let single = pool(1).install(|| Bvh::build_with(&pos, &faces, 0));
-        let triple = pool(3).install(|| Bvh::build_with(&pos, &faces, 0));
-        assert_eq!(single, triple);
-        assert_eq!(
-            single.bounds(),
-            Bvh::build_with(&pos, &faces, usize::MAX).bounds()
-        );
-        for _ in 0..200 {
-            let p = rng.vec(-1.0, 2.0);
-            assert_eq!(
-                triple.closest_point(p).unwrap().distance_squared,
-                brute_force(&pos, &faces, p)
-            );
+        // The heuristic's build (its one-piece tree is the reference), then the Morton one.
+        for morton_min in [usize::MAX, 0] {
+            let single = pool(1).install(|| Bvh::build_with(&pos, &faces, morton_min));
+            let triple = pool(3).install(|| Bvh::build_with(&pos, &faces, morton_min));
+            assert_eq!(single, triple, "Morton from {morton_min} faces");
+            let reference = one_piece(&pos, &faces);
+            if morton_min > faces.len() {
+                assert_eq!(single, reference);
+            }
+            // Both hold the exact box of every triangle.
+            assert_eq!(single.bounds(), reference.bounds());
+            for _ in 0..200 {
+                let p = rng.vec(-1.0, 2.0);
+                assert_eq!(
+                    triple.closest_point(p).unwrap().distance_squared,
+                    brute_force(&pos, &faces, p)
+                );
+            }
         }
     }
 
