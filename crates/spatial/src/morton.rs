@@ -10,8 +10,8 @@
 //! heuristic build does.
 
 use crate::bvh::{
-    Bvh, MAX_LEAF, Node, PARALLEL_MIN, Pair, Subtree, corners, f32_at_least, f32_at_most, max3,
-    min3,
+    Bvh, MAX_LEAF, Node, PARALLEL_MIN, Subtree, corners, f32_at_least, f32_at_most, max3, min3,
+    pairs_of,
 };
 use coarsen_geom::Aabb;
 use glam::DVec3;
@@ -43,13 +43,19 @@ fn split_at(codes: &[u64]) -> usize {
     codes.partition_point(|&c| c >> bit & 1 == 0)
 }
 
-/// The box of triangles `tris`, rounded outwards to single precision.
-fn leaf_box(tris: &[[DVec3; 3]]) -> ([f32; 3], [f32; 3]) {
+/// The exact box of triangles `tris`.
+fn box_of(tris: &[[DVec3; 3]]) -> Aabb {
     let mut b = Aabb::EMPTY;
     for t in tris {
         b.min = min3(min3(min3(b.min, t[0]), t[1]), t[2]);
         b.max = max3(max3(max3(b.max, t[0]), t[1]), t[2]);
     }
+    b
+}
+
+/// The box of triangles `tris`, rounded outwards to single precision.
+fn leaf_box(tris: &[[DVec3; 3]]) -> ([f32; 3], [f32; 3]) {
+    let b = box_of(tris);
     (
         b.min.to_array().map(f32_at_most),
         b.max.to_array().map(f32_at_least),
@@ -148,30 +154,15 @@ pub(crate) fn build(positions: &[DVec3], faces: &[[u32; 3]]) -> Bvh {
         .collect();
     let tree = subtree(&codes, &tris, 0);
     drop(codes);
-    // The root and a blank: every pair of children then starts at an even index.
-    let mut nodes = Vec::with_capacity(tree.len() + 1);
-    nodes.extend([Node::BLANK; 2]);
-    tree.flatten_into(&mut nodes, 0);
-    let pairs = nodes.chunks(2).map(|p| Pair([p[0], p[1]])).collect();
-    drop(nodes);
+    let pairs = pairs_of(tree.into_nodes());
     // Minima and maxima are exact, so the chunks may be merged in any order.
-    let root_box = tris
-        .par_chunks(PARALLEL_MIN)
-        .map(|c| {
-            let mut b = Aabb::EMPTY;
-            for t in c {
-                b.min = min3(min3(min3(b.min, t[0]), t[1]), t[2]);
-                b.max = max3(max3(max3(b.max, t[0]), t[1]), t[2]);
-            }
-            b
-        })
-        .reduce(
-            || Aabb::EMPTY,
-            |mut a, b| {
-                a.union(&b);
-                a
-            },
-        );
+    let root_box = tris.par_chunks(PARALLEL_MIN).map(box_of).reduce(
+        || Aabb::EMPTY,
+        |mut a, b| {
+            a.union(&b);
+            a
+        },
+    );
     Bvh {
         pairs,
         tris,
