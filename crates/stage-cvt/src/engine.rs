@@ -169,6 +169,18 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         Self::with_layout(mesh, topo, energy, density, curve)
     }
 
+    /// [`Clusterer::new`] in the mesh's own order at every size: for a few passes from a
+    /// clustering at hand (a warm start, a local repair), where the curve layout would
+    /// cost about what it saves.
+    pub fn for_few_passes(
+        mesh: &'a Mesh,
+        topo: &'a Topology,
+        energy: &'a E,
+        density: Option<&[f64]>,
+    ) -> Result<Self, ClusterError> {
+        Self::with_layout(mesh, topo, energy, density, false)
+    }
+
     /// [`Clusterer::new`] with the layout along the Morton curve (`curve`) or in the
     /// mesh's own order.
     pub(crate) fn with_layout(

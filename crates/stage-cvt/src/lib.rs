@@ -199,7 +199,7 @@ fn run_from<E: Energy>(
     // about what it saves there, and its copies add to the peak memory.
     let warm = labels.len() == mesh.n_faces();
     let mut c = match warm {
-        true => Clusterer::with_layout(mesh, topo, energy, density, false)?,
+        true => Clusterer::for_few_passes(mesh, topo, energy, density)?,
         false => Clusterer::new(mesh, topo, energy, density)?,
     };
     let usable = warm

@@ -505,10 +505,12 @@ pub(crate) fn repair(
     (changed, splits)
 }
 
-/// Runs a few constrained minimisation passes from the faces in `start`.
-pub(crate) fn relax(
-    mesh: &Mesh,
-    topo: &Topology,
+/// A few passes of [`Valette2004`] minimisation from the faces `start` (the faces a repair
+/// changed), the clusterer built on the first call and kept for the next ones.
+pub(crate) fn relax<'m>(
+    clusterer: &mut Option<Clusterer<'m, Valette2004>>,
+    mesh: &'m Mesh,
+    topo: &'m Topology,
     labels: &mut Vec<u32>,
     n: usize,
     start: &[u32],
@@ -517,15 +519,17 @@ pub(crate) fn relax(
     if passes == 0 || start.is_empty() {
         return;
     }
-    let energy = Valette2004;
-    let Ok(mut c) = Clusterer::new(mesh, topo, &energy, None) else {
+    if clusterer.is_none() {
+        *clusterer = Clusterer::for_few_passes(mesh, topo, &Valette2004, None).ok();
+    }
+    let Some(c) = clusterer.as_mut() else {
         return;
     };
     if c.set_labels(std::mem::take(labels), n).is_err() {
         return;
     }
     c.minimize(passes, Some(start), |_, _, _| {});
-    *labels = c.into_labels();
+    labels.extend_from_slice(c.labels());
 }
 
 /// The repair loop: diagnose, repair, relax, until the dual is valid or `max_rounds`.
@@ -549,6 +553,7 @@ pub(crate) fn repaired_dual(
         table.get_or_init(|| face_neighbors(topo, mesh.n_faces()))[f as usize][i]
     };
     let mut stats = DualStats::default();
+    let mut clusterer = None;
     for round in 0..=max_rounds {
         let d = diagnose(mesh, topo, labels, n, expect);
         if round == 0 {
@@ -568,7 +573,15 @@ pub(crate) fn repaired_dual(
                 stats.repairs += splits;
                 // The last rounds do not relax, so that a repair is not undone.
                 if round + 2 < max_rounds {
-                    relax(mesh, topo, labels, n, &changed, relax_passes);
+                    relax(
+                        &mut clusterer,
+                        mesh,
+                        topo,
+                        labels,
+                        n,
+                        &changed,
+                        relax_passes,
+                    );
                 }
             }
             splits

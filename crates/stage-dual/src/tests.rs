@@ -458,3 +458,37 @@ fn a_boundary_loop_along_two_faces_has_no_dual_and_says_so() {
         .unwrap_err();
     assert!(matches!(e, StageError::Input(_)), "{e}");
 }
+
+#[test]
+fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
+    // Latitude-longitude cells of a sphere, relaxed from two of them, twice: the second
+    // time through the clusterer of the first call, or through a new one.
+    let sphere = icosphere(1.0, 4).unwrap();
+    let topo = Topology::build(&sphere);
+    let cell = |f: usize| {
+        let c = sphere.face_centroid(f);
+        let sector = ((c.y.atan2(c.x) + std::f64::consts::PI) / std::f64::consts::TAU * 6.0)
+            .floor()
+            .min(5.0) as u32;
+        let band = ((c.z + 1.0) / 2.0 * 4.0).floor().min(3.0) as u32;
+        band * 6 + sector
+    };
+    let start: Vec<u32> = (0..sphere.n_faces() as u32).collect();
+    let first: Vec<u32> = (0..sphere.n_faces()).map(cell).collect();
+    let n = 24;
+    let mut kept = None;
+    let mut labels = first.clone();
+    build::relax(&mut kept, &sphere, &topo, &mut labels, n, &start, 3);
+    assert!(kept.is_some());
+    assert_ne!(labels, first, "the first relaxation moves faces");
+    // The same change to both, then the second relaxation.
+    let mut fresh_labels = labels.clone();
+    for l in [&mut labels, &mut fresh_labels] {
+        l.iter_mut()
+            .step_by(97)
+            .for_each(|x| *x = (*x + 1) % n as u32);
+    }
+    build::relax(&mut kept, &sphere, &topo, &mut labels, n, &start, 3);
+    build::relax(&mut None, &sphere, &topo, &mut fresh_labels, n, &start, 3);
+    assert_eq!(labels, fresh_labels);
+}
