@@ -195,8 +195,8 @@ fn run_from<E: Energy>(
     density: Option<&[f64]>,
     on_pass: impl FnMut(u32, u64, f64),
 ) -> Result<Clustering, ClusterError> {
-    // A warm start (the post-process's levels) runs few passes: the curve layout costs
-    // about what it saves there, and its copies add to the peak memory.
+    // A warm start (the post-process's levels) runs few passes: no curve layout (see
+    // `Clusterer::for_few_passes`), whose copies would also add to the peak memory.
     let warm = labels.len() == mesh.n_faces();
     let mut c = match warm {
         true => Clusterer::for_few_passes(mesh, topo, energy, density)?,

@@ -461,8 +461,8 @@ fn a_boundary_loop_along_two_faces_has_no_dual_and_says_so() {
 
 #[test]
 fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
-    // Latitude-longitude cells of a sphere, relaxed from two of them, twice: the second
-    // time through the clusterer of the first call, or through a new one.
+    // Latitude-longitude cells of a sphere, relaxed from every face, then changed and
+    // relaxed again: through the clusterer of the first call, or through a new one.
     let sphere = icosphere(1.0, 4).unwrap();
     let topo = Topology::build(&sphere);
     let cell = |f: usize| {
