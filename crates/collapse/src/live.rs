@@ -768,7 +768,7 @@ impl LiveMesh {
         let per_face = if unit == Unit::Edge { 3 } else { 2 };
         let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + 16);
         self.rank_all(model, unit, &mut q, &mut out.refused);
-        q.heapify();
+        q.sort_initial();
         if opts.keep_log {
             out.log.reserve(self.remaining(opts.goal));
         }
