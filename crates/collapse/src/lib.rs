@@ -146,7 +146,7 @@ mod ring;
 mod fixtures;
 
 pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, NoGuard, Reshape};
-pub use live::{LiveMesh, MAX_FACES, Summary};
+pub use live::{LiveMesh, MAX_FACES, Summary, attributes_only};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel};
 

@@ -97,6 +97,23 @@ pub struct Summary {
     pub euler: i64,
 }
 
+/// `mesh`'s attribute columns alone, its positions and faces freed (see
+/// [`LiveMesh::to_mesh_with_attributes`]).
+pub fn attributes_only(mesh: Mesh) -> Mesh {
+    let Mesh {
+        positions,
+        faces,
+        vertex_attrs,
+        face_attrs,
+    } = mesh;
+    drop((positions, faces));
+    Mesh {
+        vertex_attrs,
+        face_attrs,
+        ..Mesh::default()
+    }
+}
+
 /// A mesh under collapse: positions, faces, vertex kinds and vertex → faces lists, all
 /// updated in place by each collapse.
 #[derive(Clone, Debug)]
@@ -683,6 +700,39 @@ impl LiveMesh {
             });
         }
         original.validate_indices()?;
+        Ok(self.compact(original))
+    }
+
+    /// [`LiveMesh::to_mesh`] from the attributes of the mesh this live mesh was built from
+    /// alone: `attributes` is that mesh with its positions and faces dropped
+    /// ([`attributes_only`]), so that a caller need not hold a second copy of a big input
+    /// while collapsing.
+    pub fn to_mesh_with_attributes(
+        &self,
+        attributes: &Mesh,
+    ) -> Result<(Mesh, CarryReport), CollapseError> {
+        let column = |len: usize, counts: &[usize]| counts.iter().find(|&&n| n != len).copied();
+        let vertex_lens: Vec<usize> = attributes
+            .vertex_attrs
+            .iter()
+            .map(|(_, a)| a.len())
+            .collect();
+        let face_lens: Vec<usize> = attributes.face_attrs.iter().map(|(_, a)| a.len()).collect();
+        let bad_vertices = column(self.pos.len(), &vertex_lens);
+        let bad_faces = column(self.faces.len(), &face_lens);
+        if bad_vertices.is_some() || bad_faces.is_some() {
+            return Err(CollapseError::MeshMismatch {
+                vertices: bad_vertices.unwrap_or(self.pos.len()),
+                faces: bad_faces.unwrap_or(self.faces.len()),
+                expected_vertices: self.pos.len(),
+                expected_faces: self.faces.len(),
+            });
+        }
+        Ok(self.compact(attributes))
+    }
+
+    /// The compacted mesh with the attributes of `attributes` (fitting the input) carried.
+    fn compact(&self, attributes: &Mesh) -> (Mesh, CarryReport) {
         // The surviving vertices in the input's order (internal order unless renumbered).
         let mut survivors: Vec<Index> = (0..self.pos.len() as Index)
             .filter(|&v| self.alive[v as usize] && self.kind[v as usize] != VertexKind::Isolated)
@@ -717,7 +767,7 @@ impl LiveMesh {
                 fo.push_parent(f as Index);
             }
         }
-        Ok(original.rebuilt(positions, faces, &vo, &fo))
+        attributes.rebuilt(positions, faces, &vo, &fo)
     }
 
     /// Collapses until `opts.goal` is met, the next collapse would cost more than
@@ -2056,6 +2106,39 @@ mod tests {
             cells.windows(2).all(|w| w[0] < w[1]),
             "faces keep input order"
         );
+    }
+
+    #[test]
+    fn attributes_alone_give_the_same_mesh_and_misfits_are_refused() {
+        let mut mesh = grid(8, 8, bump);
+        let xs = mesh.positions.iter().map(|p| p.x).collect();
+        mesh.vertex_attrs.insert("x", AttrValues::Scalar(xs));
+        let labels = (0..mesh.n_faces() as u32).collect();
+        mesh.face_attrs.insert("cell", AttrValues::Label(labels));
+        let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        live.collapse(&mut model, &Options::new(Goal::Vertices(20)), &mut |_| {});
+        let attributes = attributes_only(mesh.clone());
+        let (out, _) = live.to_mesh_with_attributes(&attributes).unwrap();
+        assert_eq!(out, live.to_mesh(&mesh).unwrap().0);
+        assert_eq!(out.vertex_attrs.scalar("x").unwrap().len(), 20);
+        // A column that does not fit the input is an error, not a panic.
+        let mut short = attributes.clone();
+        short
+            .face_attrs
+            .insert("cell", AttrValues::Label(vec![0; 3]));
+        assert!(matches!(
+            live.to_mesh_with_attributes(&short),
+            Err(CollapseError::MeshMismatch { faces: 3, .. })
+        ));
+        let mut short = attributes;
+        short
+            .vertex_attrs
+            .insert("x", AttrValues::Scalar(vec![0.0; 5]));
+        assert!(matches!(
+            live.to_mesh_with_attributes(&short),
+            Err(CollapseError::MeshMismatch { vertices: 5, .. })
+        ));
     }
 
     #[test]

@@ -221,6 +221,8 @@ impl Stage for SimplifySvec {
         };
         let mut live = LiveMesh::new_renumbered(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        // The live mesh holds the input's arrays now: keep only its attributes to carry.
+        let attributes = coarsen_collapse::attributes_only(mesh);
         if cx.progressive.is_some() {
             live.record_progressive();
         }
@@ -244,7 +246,7 @@ impl Stage for SimplifySvec {
         progress.end();
         let after = live.summary();
         let (out, carry) = live
-            .to_mesh(&mesh)
+            .to_mesh_with_attributes(&attributes)
             .map_err(|e| StageError::Internal(e.to_string()))?;
         if let Some(slot) = cx.progressive.as_mut() {
             **slot = live
