@@ -68,11 +68,41 @@ pub fn angles(a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
     ]
 }
 
-/// Smallest interior angle in radians.
+/// Smallest interior angle in radians: the least of [`angles`], bit for bit.
 #[inline]
 pub fn min_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let [x, y, z] = angles(a, b, c);
-    x.min(y).min(z)
+    // Each corner as (|u × v|, u · v), the arguments `angle_between` gives atan2. With
+    // s ≥ 0, θ₁ < θ₂ exactly when s₁c₂ < s₂c₁, so the least corner is found by products and
+    // only it goes through atan2 (the costly part), unless the products are too close to
+    // order beyond rounding: then all three do, as in `angles`.
+    let corner = |u: DVec3, v: DVec3| (u.cross(v).length(), u.dot(v));
+    let k = [
+        corner(b - a, c - a),
+        corner(c - b, a - b),
+        corner(a - c, b - c),
+    ];
+    let clearly_below = |p: (f64, f64), q: (f64, f64)| {
+        let (x, y) = (p.0 * q.1, q.0 * p.1);
+        y - x > 1e-9 * (x.abs() + y.abs())
+    };
+    let angle = |(s, c): (f64, f64)| {
+        if s == 0.0 && c == 0.0 {
+            0.0
+        } else {
+            s.atan2(c)
+        }
+    };
+    let mut least = 0;
+    for i in 1..3 {
+        if clearly_below(k[i], k[least]) {
+            least = i;
+        }
+    }
+    if (0..3).all(|i| i == least || clearly_below(k[least], k[i])) {
+        angle(k[least])
+    } else {
+        angle(k[0]).min(angle(k[1])).min(angle(k[2]))
+    }
 }
 
 /// Cotangent of the angle between `u` and `v`, clamped to ±1e6 for near-degenerate corners.
@@ -173,6 +203,49 @@ mod tests {
         assert_eq!(quality(a, b, c), 0.0);
         assert_eq!(min_angle(a, b, c), 0.0);
         assert!(cot(DVec3::X, DVec3::X * 2.0).is_finite());
+    }
+
+    #[test]
+    fn min_angle_is_the_least_of_the_angles_bit_for_bit() {
+        // Random triangles, slivers, near-isosceles and near-equilateral ones (where the
+        // products cannot order the corners), repeated and collinear points.
+        fn unit(state: &mut u64) -> f64 {
+            *state ^= *state << 13;
+            *state ^= *state >> 7;
+            *state ^= *state << 17;
+            (*state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+        fn point(state: &mut u64, scale: f64) -> DVec3 {
+            DVec3::new(unit(state), unit(state), unit(state)) * scale
+        }
+        let s = &mut 0x2545_f491_4f6c_dd1du64;
+        let (e0, e1, e2) = equilateral();
+        let mut cases = vec![(e0, e1, e2), (e0, e0, e0), (e0, e1, e1), (e0, e1, 2.0 * e1)];
+        for i in 0..20_000 {
+            let (a, b) = (point(s, 1.0), point(s, 1.0));
+            let t = unit(s);
+            let c = match i % 5 {
+                0 => point(s, 1.0),
+                // A sliver: near the line through a and b.
+                1 => a.lerp(b, t * 3.0) + point(s, 1e-9),
+                // Near-isosceles: near the plane halfway between a and b.
+                2 => a.lerp(b, 0.5) + (b - a).any_orthonormal_vector() * t + point(s, 1e-13),
+                // Near-equilateral.
+                3 => e2 + point(s, 1e-14),
+                _ => a + point(s, 1e-300),
+            };
+            let (a, b) = if i % 5 == 3 { (e0, e1) } else { (a, b) };
+            cases.push((a, b, c));
+        }
+        for (a, b, c) in cases {
+            let [x, y, z] = angles(a, b, c);
+            let least = x.min(y).min(z);
+            assert_eq!(
+                min_angle(a, b, c).to_bits(),
+                least.to_bits(),
+                "{a} {b} {c}: {x} {y} {z}"
+            );
+        }
     }
 
     #[test]
