@@ -69,7 +69,9 @@
 //! So a boundary vertex moves only along its boundary, an interior vertex may collapse onto
 //! the boundary, and an interior edge joining two boundary vertices is never collapsed.
 //!
-//! Checks made before every collapse, with the reason counted in [`Refusals`]:
+//! Checks made before every collapse, with the reason counted in [`Refusals`] (the
+//! degenerate test runs first, as the commonest refusal; a collapse failing several checks
+//! counts under the first that fails):
 //!
 //! * **link** — the faces kept around the new vertex must form exactly one fan: a closed
 //!   fan of at least 3 faces when no merged vertex was on the boundary, one open fan

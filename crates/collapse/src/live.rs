@@ -157,6 +157,8 @@ struct Scratch {
     ring: Vec<(Index, Index)>,
     targets: Vec<Index>,
     kept_faces: Vec<(Index, usize)>,
+    /// Per kept face: its cross product before and after the merge.
+    crosses: Vec<(DVec3, DVec3)>,
     list: Vec<Index>,
     around: Vec<Index>,
     touched: Vec<Index>,
@@ -809,6 +811,7 @@ impl LiveMesh {
             ring: Vec::new(),
             targets: Vec::new(),
             kept_faces: Vec::new(),
+            crosses: Vec::new(),
             list: Vec::new(),
             around: Vec::new(),
             touched: Vec::new(),
@@ -1095,6 +1098,20 @@ impl LiveMesh {
                 s.kept_faces.push((f, c));
             }
         }
+        // Degenerate faces first: the commonest refusal, and cheaper than the link test
+        // (the verdict is the same in any order; only the reason counted can differ).
+        s.crosses.clear();
+        for &(f, c) in &s.kept_faces {
+            let old = self.faces[f as usize].map(|v| self.pos[v as usize]);
+            let mut new = old;
+            new[c] = p;
+            let n_old = triangle::cross(old[0], old[1], old[2]);
+            let n_new = triangle::cross(new[0], new[1], new[2]);
+            if n_old.length() > self.min_cross && n_new.length() <= self.min_cross {
+                return Err(Refusal::Degenerate);
+            }
+            s.crosses.push((n_old, n_new));
+        }
         let on_boundary = verts
             .iter()
             .any(|&v| self.kind[v as usize] == VertexKind::Boundary);
@@ -1104,17 +1121,9 @@ impl LiveMesh {
         }
         let merged_normal: DVec3 = verts.iter().map(|&v| self.region_normal[v as usize]).sum();
         let merged_area: f64 = verts.iter().map(|&v| self.region_area[v as usize]).sum();
-        for &(f, c) in &s.kept_faces {
-            let old = self.faces[f as usize].map(|v| self.pos[v as usize]);
-            let mut new = old;
-            new[c] = p;
-            let n_old = triangle::cross(old[0], old[1], old[2]);
-            let n_new = triangle::cross(new[0], new[1], new[2]);
+        for (&(f, c), &(n_old, n_new)) in s.kept_faces.iter().zip(&s.crosses) {
             let was_degenerate = n_old.length() <= self.min_cross;
             if !was_degenerate {
-                if n_new.length() <= self.min_cross {
-                    return Err(Refusal::Degenerate);
-                }
                 // The normal turns by 90° or more from now, or 60° or more from the input
                 // face's (so that faces cannot drift over many collapses).
                 if n_old.dot(n_new) <= 0.0
@@ -1141,6 +1150,9 @@ impl LiveMesh {
                 }
             }
             if min_quality > 0.0 {
+                let old = self.faces[f as usize].map(|v| self.pos[v as usize]);
+                let mut new = old;
+                new[c] = p;
                 let q_new = triangle::quality(new[0], new[1], new[2]);
                 if q_new < min_quality && q_new < triangle::quality(old[0], old[1], old[2]) {
                     return Err(Refusal::Quality);
