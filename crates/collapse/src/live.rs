@@ -157,8 +157,9 @@ struct Scratch {
     ring: Vec<(Index, Index)>,
     targets: Vec<Index>,
     kept_faces: Vec<(Index, usize)>,
-    /// Per kept face: its cross product before and after the merge.
-    crosses: Vec<(DVec3, DVec3)>,
+    /// Per kept face: its cross product before and after the merge, and whether it was
+    /// degenerate before.
+    crosses: Vec<(DVec3, DVec3, bool)>,
     list: Vec<Index>,
     around: Vec<Index>,
     touched: Vec<Index>,
@@ -713,15 +714,13 @@ impl LiveMesh {
         &self,
         attributes: &Mesh,
     ) -> Result<(Mesh, CarryReport), CollapseError> {
-        let column = |len: usize, counts: &[usize]| counts.iter().find(|&&n| n != len).copied();
-        let vertex_lens: Vec<usize> = attributes
-            .vertex_attrs
-            .iter()
+        // The first column whose length does not fit, if any.
+        let bad_vertices = (attributes.vertex_attrs.iter())
             .map(|(_, a)| a.len())
-            .collect();
-        let face_lens: Vec<usize> = attributes.face_attrs.iter().map(|(_, a)| a.len()).collect();
-        let bad_vertices = column(self.pos.len(), &vertex_lens);
-        let bad_faces = column(self.faces.len(), &face_lens);
+            .find(|&n| n != self.pos.len());
+        let bad_faces = (attributes.face_attrs.iter())
+            .map(|(_, a)| a.len())
+            .find(|&n| n != self.faces.len());
         if bad_vertices.is_some() || bad_faces.is_some() {
             return Err(CollapseError::MeshMismatch {
                 vertices: bad_vertices.unwrap_or(self.pos.len()),
@@ -1107,10 +1106,11 @@ impl LiveMesh {
             new[c] = p;
             let n_old = triangle::cross(old[0], old[1], old[2]);
             let n_new = triangle::cross(new[0], new[1], new[2]);
-            if n_old.length() > self.min_cross && n_new.length() <= self.min_cross {
+            let was_degenerate = n_old.length() <= self.min_cross;
+            if !was_degenerate && n_new.length() <= self.min_cross {
                 return Err(Refusal::Degenerate);
             }
-            s.crosses.push((n_old, n_new));
+            s.crosses.push((n_old, n_new, was_degenerate));
         }
         let on_boundary = verts
             .iter()
@@ -1121,8 +1121,7 @@ impl LiveMesh {
         }
         let merged_normal: DVec3 = verts.iter().map(|&v| self.region_normal[v as usize]).sum();
         let merged_area: f64 = verts.iter().map(|&v| self.region_area[v as usize]).sum();
-        for (&(f, c), &(n_old, n_new)) in s.kept_faces.iter().zip(&s.crosses) {
-            let was_degenerate = n_old.length() <= self.min_cross;
+        for (&(f, c), &(n_old, n_new, was_degenerate)) in s.kept_faces.iter().zip(&s.crosses) {
             if !was_degenerate {
                 // The normal turns by 90° or more from now, or 60° or more from the input
                 // face's (so that faces cannot drift over many collapses).
@@ -2100,13 +2099,20 @@ mod tests {
         assert_eq!(outcome.stop, StopReason::Reached);
     }
 
-    #[test]
-    fn attributes_are_blended_onto_merged_vertices_and_kept_by_faces() {
+    /// A bumped grid with a vertex scalar `x` (its x coordinate) and a face label `cell`
+    /// (its index).
+    fn grid_with_attributes() -> Mesh {
         let mut mesh = grid(8, 8, bump);
         let xs = mesh.positions.iter().map(|p| p.x).collect();
         mesh.vertex_attrs.insert("x", AttrValues::Scalar(xs));
         let labels = (0..mesh.n_faces() as u32).collect();
         mesh.face_attrs.insert("cell", AttrValues::Label(labels));
+        mesh
+    }
+
+    #[test]
+    fn attributes_are_blended_onto_merged_vertices_and_kept_by_faces() {
+        let mesh = grid_with_attributes();
         let (out, outcome) = qem(&mesh, Goal::Vertices(20));
         assert!(outcome.collapses > 0);
         let x = out.vertex_attrs.scalar("x").unwrap();
@@ -2122,11 +2128,7 @@ mod tests {
 
     #[test]
     fn attributes_alone_give_the_same_mesh_and_misfits_are_refused() {
-        let mut mesh = grid(8, 8, bump);
-        let xs = mesh.positions.iter().map(|p| p.x).collect();
-        mesh.vertex_attrs.insert("x", AttrValues::Scalar(xs));
-        let labels = (0..mesh.n_faces() as u32).collect();
-        mesh.face_attrs.insert("cell", AttrValues::Label(labels));
+        let mesh = grid_with_attributes();
         let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
         let mut model = QuadricModel::new(&live, &QemOptions::default());
         live.collapse(&mut model, &Options::new(Goal::Vertices(20)), &mut |_| {});

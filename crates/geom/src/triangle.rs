@@ -29,8 +29,6 @@ pub fn centroid(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
     (a + b + c) / 3.0
 }
 
-/// Angle in radians between vectors `u` and `v`; 0 when either is zero.
-///
 /// Barycentric coordinates of the projection of `p` onto the plane of triangle `abc`
 /// (they sum to 1); the centroid's for a degenerate triangle.
 pub fn barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
@@ -46,11 +44,24 @@ pub fn barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
     [1.0 - v - w, v, w]
 }
 
+/// Angle in radians between vectors `u` and `v`; 0 when either is zero.
+///
 /// Uses `atan2(|u × v|, u · v)`, accurate for angles near 0 and π where `acos` is not.
 #[inline]
 pub fn angle_between(u: DVec3, v: DVec3) -> f64 {
-    let s = u.cross(v).length();
-    let c = u.dot(v);
+    angle_of(sin_cos(u, v))
+}
+
+/// `(|u × v|, u · v)`: the sine and cosine of the angle between `u` and `v`, both scaled by
+/// `|u| |v|`.
+#[inline]
+fn sin_cos(u: DVec3, v: DVec3) -> (f64, f64) {
+    (u.cross(v).length(), u.dot(v))
+}
+
+/// The angle of [`sin_cos`]'s pair `(s, c)`; 0 when either vector was zero.
+#[inline]
+fn angle_of((s, c): (f64, f64)) -> f64 {
     if s == 0.0 && c == 0.0 {
         0.0
     } else {
@@ -71,26 +82,18 @@ pub fn angles(a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
 /// Smallest interior angle in radians: the least of [`angles`], bit for bit.
 #[inline]
 pub fn min_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    // Each corner as (|u × v|, u · v), the arguments `angle_between` gives atan2. With
-    // s ≥ 0, θ₁ < θ₂ exactly when s₁c₂ < s₂c₁, so the least corner is found by products and
-    // only it goes through atan2 (the costly part), unless the products are too close to
-    // order beyond rounding: then all three do, as in `angles`.
-    let corner = |u: DVec3, v: DVec3| (u.cross(v).length(), u.dot(v));
+    // Each corner as its `sin_cos` pair (s, c). With s ≥ 0, θ₁ < θ₂ exactly when
+    // s₁c₂ < s₂c₁, so the least corner is found by products and only it goes through atan2
+    // (the costly part), unless the products are too close to order beyond rounding: then
+    // all three do, as in `angles`.
     let k = [
-        corner(b - a, c - a),
-        corner(c - b, a - b),
-        corner(a - c, b - c),
+        sin_cos(b - a, c - a),
+        sin_cos(c - b, a - b),
+        sin_cos(a - c, b - c),
     ];
     let clearly_below = |p: (f64, f64), q: (f64, f64)| {
         let (x, y) = (p.0 * q.1, q.0 * p.1);
         y - x > 1e-9 * (x.abs() + y.abs())
-    };
-    let angle = |(s, c): (f64, f64)| {
-        if s == 0.0 && c == 0.0 {
-            0.0
-        } else {
-            s.atan2(c)
-        }
     };
     let mut least = 0;
     for i in 1..3 {
@@ -99,9 +102,9 @@ pub fn min_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
         }
     }
     if (0..3).all(|i| i == least || clearly_below(k[least], k[i])) {
-        angle(k[least])
+        angle_of(k[least])
     } else {
-        angle(k[0]).min(angle(k[1])).min(angle(k[2]))
+        angle_of(k[0]).min(angle_of(k[1])).min(angle_of(k[2]))
     }
 }
 
