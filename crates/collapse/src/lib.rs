@@ -39,14 +39,15 @@
 //!    it is non-manifold, instead of refused. Vertices that no face uses are dropped from
 //!    the output (and counted by [`LiveMesh::summary`]).
 //! 2. **Rank candidates**: every edge (or triangle) whose vertex kinds allow a collapse
-//!    (see the table below) is costed by the model and pushed on a binary heap keyed by
-//!    `(cost, insertion sequence)`, so equal costs — zero costs on flat regions in
-//!    particular — are taken first-in first-out, as paper 2 prescribes.
+//!    (see the table below) is costed by the model and queued by `(cost, insertion
+//!    sequence)` (this initial ranking is sorted once; later entries go on a heap), so equal
+//!    costs — zero costs on flat regions in particular — are taken first-in first-out, as
+//!    paper 2 prescribes.
 //! 3. **Collapse** the cheapest candidate unless a check refuses it or it costs more now
 //!    than when it was queued (its neighbourhood changed beyond the model's [`Reach`]: it
 //!    goes back in line at its current cost); entries go stale
 //!    lazily (each holds the sum of its vertices' version stamps) rather than being
-//!    removed from the heap. After a collapse the candidates around the new vertex are
+//!    removed from the queue. After a collapse the candidates around the new vertex are
 //!    re-costed and pushed again, and refused candidates whose neighbourhood changed are
 //!    re-queued. The loop stops at the goal, at the error limit, or when no candidate is
 //!    left.

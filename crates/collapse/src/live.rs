@@ -860,7 +860,7 @@ impl LiveMesh {
                 q.push(plan.cost, e.vertices, e.stamp, true);
                 continue;
             }
-            // The heap is ordered by cost: nothing cheaper is left.
+            // The queue is ordered by cost: nothing cheaper is left.
             if let Some(max) = opts.max_error
                 && plan.cost > max
             {
