@@ -20,7 +20,7 @@
 //! attribute column travels with its vertices and faces.
 
 use crate::sanity::{
-    NonFinite, area_threshold, faces_by_vertex_set, find_non_finite, is_degenerate_area,
+    NonFinite, area_threshold, faces_sharing_vertex_sets, find_non_finite, is_degenerate_area,
 };
 use crate::{Domain, FaceOrigins, Index, IndexError, Mesh, VertexOrigins};
 use coarsen_geom::DVec3;
@@ -245,27 +245,37 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         .enumerate()
         .filter(|&(v, &r)| r as usize != v)
         .count();
-    let faces: Vec<[Index; 3]> = mesh
-        .faces
-        .par_iter()
-        .map(|f| f.map(|v| rep[v as usize]))
-        .collect();
+    let faces: std::borrow::Cow<'_, [[Index; 3]]> = match opts.weld {
+        true => mesh
+            .faces
+            .par_iter()
+            .map(|f| f.map(|v| rep[v as usize]))
+            .collect::<Vec<_>>()
+            .into(),
+        false => mesh.faces.as_slice().into(),
+    };
 
     let mut keep = vec![true; faces.len()];
     if opts.drop_degenerate {
         let threshold = area_threshold(&mesh, opts.degenerate_area_rel);
-        let flat: Vec<bool> = (0..faces.len())
-            .into_par_iter()
-            .map(|f| is_degenerate_area(mesh.face_area(f), threshold))
+        // Per face: 0 kept, 1 repeats an index, 2 zero area.
+        let verdict: Vec<u8> = faces
+            .par_iter()
+            .enumerate()
+            .map(|(f, &[a, b, c])| {
+                if a == b || b == c || a == c {
+                    1
+                } else if is_degenerate_area(mesh.face_area(f), threshold) {
+                    2
+                } else {
+                    0
+                }
+            })
             .collect();
-        for (f, &[a, b, c]) in faces.iter().enumerate() {
-            if a == b || b == c || a == c {
-                keep[f] = false;
-                report.repeated_index_faces += 1;
-            } else if flat[f] {
-                keep[f] = false;
-                report.zero_area_faces += 1;
-            }
+        for (k, &v) in keep.iter_mut().zip(&verdict) {
+            *k = v == 0;
+            report.repeated_index_faces += usize::from(v == 1);
+            report.zero_area_faces += usize::from(v == 2);
         }
     }
     let (dups, opposite) = mark_duplicates(&faces, &mut keep, opts.drop_duplicate_faces);
@@ -291,6 +301,13 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         } else {
             report.unreferenced_vertices += 1;
         }
+    }
+    if old_of_new.len() == nv && keep.iter().all(|&k| k) {
+        // Nothing welded, dropped or renumbered: the mesh goes on as it came.
+        drop(faces);
+        report.vertices_out = nv;
+        report.faces_out = mesh.n_faces();
+        return Ok((mesh, report));
     }
     let kept_faces: Vec<Index> = (0..faces.len() as Index)
         .filter(|&f| keep[f as usize])
@@ -369,7 +386,7 @@ fn weld_map(positions: &[DVec3]) -> Vec<Index> {
 /// Among kept faces, marks same-orientation repeats of an earlier face as dropped (when
 /// `drop`) and counts them; also counts vertex triples present in both orientations.
 fn mark_duplicates(faces: &[[Index; 3]], keep: &mut [bool], drop: bool) -> (usize, usize) {
-    let order = faces_by_vertex_set(faces, |f| keep[f]);
+    let order = faces_sharing_vertex_sets(faces, |f| keep[f]);
     let (mut dups, mut opposite) = (0, 0);
     for group in order.chunk_by(|a, b| a.0 == b.0) {
         // Within a group: one orientation, then the other, each in face order.
@@ -537,6 +554,21 @@ mod tests {
         assert_eq!(out.faces, vec![[0, 1, 2], [0, 2, 3], [2, 1, 0]]);
         assert_eq!(out.face_attrs.label("tag").unwrap(), &[10, 11, 13]);
         assert_eq!(out.n_vertices(), 4);
+    }
+
+    #[test]
+    fn a_clean_mesh_comes_back_as_it_came() {
+        let mut m = Mesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        m.vertex_attrs
+            .insert("k", AttrValues::Scalar(vec![0.5, 1.5, 2.5, 3.5]));
+        m.face_attrs.insert("tag", AttrValues::Label(vec![7, 9]));
+        let (out, r) = clean(m.clone(), &HygieneOptions::default()).unwrap();
+        assert!(r.is_clean());
+        assert_eq!((r.vertices_out, r.faces_out), (4, 2));
+        assert_eq!(out, m);
     }
 
     #[test]

@@ -199,27 +199,74 @@ pub(crate) fn is_degenerate_area(area: f64, threshold: f64) -> bool {
     area == 0.0 || area < threshold
 }
 
-/// Kept faces as `(sorted vertex triple, reversed, face)`, sorted: faces on the same
-/// vertices are adjacent, same orientation together, lowest face first. `reversed` tells
-/// whether the face runs against the increasing order of its sorted triple.
-pub(crate) fn faces_by_vertex_set(
+/// Kept faces that share their vertex set with another kept face, as `(sorted vertex
+/// triple, reversed, face)`, sorted: faces on the same vertices are adjacent, same
+/// orientation together, lowest face first. `reversed` tells whether the face runs against
+/// the increasing order of its sorted triple. Faces with a vertex set of their own (nearly
+/// all of them) are left out.
+pub(crate) fn faces_sharing_vertex_sets(
     faces: &[[Index; 3]],
     keep: impl Fn(usize) -> bool + Sync,
 ) -> Vec<([Index; 3], bool, Index)> {
-    // Every entry holds its face index, so the (parallel) unstable sort has one outcome.
-    let mut order: Vec<([Index; 3], bool, Index)> = faces
+    let entry = |f: usize| {
+        let face = faces[f];
+        let mut s = face;
+        s.sort_unstable();
+        let m = face.iter().position(|&v| v == s[0]).unwrap_or(0);
+        (s, face[(m + 1) % 3] != s[1], f as Index)
+    };
+    let least = |f: usize| faces[f].iter().copied().min().unwrap_or(0) as usize;
+    // Faces on the same vertices share their least vertex: bucket the kept faces by it (a
+    // counting sort, in face order), then sort and group each bucket on its own.
+    let nv = faces
         .iter()
-        .enumerate()
-        .filter(|&(f, _)| keep(f))
-        .map(|(f, &face)| {
-            let mut s = face;
-            s.sort_unstable();
-            let m = face.iter().position(|&v| v == s[0]).unwrap_or(0);
-            (s, face[(m + 1) % 3] != s[1], f as Index)
+        .flatten()
+        .copied()
+        .max()
+        .map_or(0, |m| m as usize + 1);
+    let mut offsets = vec![0u32; nv + 1];
+    for f in 0..faces.len() {
+        if keep(f) {
+            offsets[least(f) + 1] += 1;
+        }
+    }
+    for v in 0..nv {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut bucketed = vec![0 as Index; offsets[nv] as usize];
+    let mut fill = offsets.clone();
+    for f in 0..faces.len() {
+        if keep(f) {
+            let v = least(f);
+            bucketed[fill[v] as usize] = f as Index;
+            fill[v] += 1;
+        }
+    }
+    drop(fill);
+    // Buckets by ranges of vertices, in parallel; the ranges' results join in order.
+    const RANGE: usize = 1 << 14;
+    (0..nv.div_ceil(RANGE))
+        .into_par_iter()
+        .flat_map_iter(|r| {
+            let mut out = Vec::new();
+            let mut bucket = Vec::new();
+            for v in r * RANGE..nv.min((r + 1) * RANGE) {
+                let members = &bucketed[offsets[v] as usize..offsets[v + 1] as usize];
+                if members.len() < 2 {
+                    continue;
+                }
+                bucket.clear();
+                bucket.extend(members.iter().map(|&f| entry(f as usize)));
+                bucket.sort_unstable();
+                for set in bucket.chunk_by(|a, b| a.0 == b.0) {
+                    if set.len() > 1 {
+                        out.extend_from_slice(set);
+                    }
+                }
+            }
+            out
         })
-        .collect();
-    order.par_sort_unstable();
-    order
+        .collect()
 }
 
 fn check_finite(mesh: &Mesh) -> Result<(), SanityError> {
@@ -262,7 +309,7 @@ fn check_faces(mesh: &Mesh, area_rel: f64) -> Result<(), SanityError> {
 /// (a two-sided sheet, which load-time hygiene keeps) count as duplicates only when
 /// `opposite_too` (manifold meshes have none).
 fn check_duplicates(mesh: &Mesh, opposite_too: bool) -> Result<(), SanityError> {
-    let order = faces_by_vertex_set(&mesh.faces, |_| true);
+    let order = faces_sharing_vertex_sets(&mesh.faces, |_| true);
     let mut found: Option<(Index, Index)> = None;
     for set in order.chunk_by(|a, b| a.0 == b.0) {
         // Same orientation always duplicates; opposite only when asked.
@@ -330,6 +377,42 @@ mod tests {
     use super::*;
     use crate::fixtures::{bowtie, tetrahedron};
     use crate::{AttrValues, DVec3};
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x5a17_0001),
+            ..Default::default()
+        })]
+
+        /// The bucketed grouping keeps exactly the groups of two or more that sorting
+        /// every kept face gives, in the same order; few vertices make many repeats and
+        /// large buckets.
+        #[test]
+        fn shared_vertex_sets_match_sorting_every_face(
+            faces in proptest::collection::vec(proptest::array::uniform3(0u32..7), 0..200),
+            mask in proptest::collection::vec(proptest::bool::weighted(0.8), 200),
+        ) {
+            let keep = |f: usize| mask[f];
+            let mut all: Vec<([Index; 3], bool, Index)> = (0..faces.len())
+                .filter(|&f| keep(f))
+                .map(|f| {
+                    let face = faces[f];
+                    let mut s = face;
+                    s.sort_unstable();
+                    let m = face.iter().position(|&v| v == s[0]).unwrap();
+                    (s, face[(m + 1) % 3] != s[1], f as Index)
+                })
+                .collect();
+            all.sort_unstable();
+            let want: Vec<_> = all
+                .chunk_by(|a, b| a.0 == b.0)
+                .filter(|g| g.len() > 1)
+                .flatten()
+                .copied()
+                .collect();
+            proptest::prop_assert_eq!(faces_sharing_vertex_sets(&faces, keep), want);
+        }
+    }
 
     #[test]
     fn clean_tetrahedron_passes_every_check() {
