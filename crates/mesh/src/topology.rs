@@ -1733,6 +1733,12 @@ impl Topology {
         summary
     }
 
+    /// Per component: its genus, or `None` when it is not an orientable manifold (as in
+    /// [`TopologySummary::genus`]; worked out once, with the summary's counts).
+    pub fn component_genus(&self) -> &[Option<i64>] {
+        &self.counts.0.get_or_init(|| self.count()).genus
+    }
+
     /// [`Topology::summary`] without the degenerate faces found by their area.
     fn count(&self) -> TopologySummary {
         let nc = self.n_components();

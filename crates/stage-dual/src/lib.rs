@@ -371,7 +371,20 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
             loops[c] += 1;
         }
     }
-    // χ per component from its vertices, edges and faces (integer counts: any order).
+    // χ = 2 − 2g of each closed component, from the genus the adjacency works out once
+    // (the runner's manifold check has usually asked for it already); counted otherwise.
+    let genus = topo.component_genus();
+    let chi: Vec<i64> =
+        match (0..nc).all(|c| loops[c] > 0 || genus.get(c).is_some_and(Option::is_some)) {
+            true => (0..nc).map(|c| 2 - 2 * genus[c].unwrap_or(0)).collect(),
+            false => counted_euler(topo),
+        };
+    need_for(n, &loops, &chi)
+}
+
+/// Per component: its Euler characteristic V − E + F, counted (integer counts: any order).
+fn counted_euler(topo: &Topology) -> Vec<i64> {
+    let nc = topo.n_components();
     let comp_of_face = topo.face_components();
     // In parallel when each part's tally is small (a soup can have a component per face).
     let count = |len: usize, comp: &(dyn Fn(usize) -> Option<usize> + Sync)| -> Vec<i64> {
@@ -414,13 +427,19 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
         let first = topo.vertex_faces(vert as u32).first();
         first.map(|&face| comp_of_face[face as usize] as usize)
     });
+    (0..nc).map(|c| v[c] - e[c] + f[c]).collect()
+}
+
+/// [`too_few_vertices`] given each component's boundary loops and Euler characteristic.
+fn need_for(n: usize, loops: &[usize], chi: &[i64]) -> Option<String> {
+    let nc = loops.len();
     let mut need = 0usize;
     let mut worst = (0usize, 0usize);
     for c in 0..nc {
         let m = if loops[c] > 0 {
             3 * loops[c]
         } else {
-            let chi = (v[c] - e[c] + f[c]) as f64;
+            let chi = chi[c] as f64;
             ((7.0 + (49.0 - 24.0 * chi).max(0.0).sqrt()) / 2.0).ceil() as usize
         };
         need += m;
