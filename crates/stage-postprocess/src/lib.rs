@@ -101,7 +101,11 @@ impl Stage for Postprocess {
         let mut done = 0;
         let mut passes = Vec::new();
         let mut log = None;
-        let mut level_topo = None;
+        // Each level's adjacency, derived from the one before where the split is uniform
+        // (the first from the coarse mesh's, which the runner's manifold check built).
+        let mut level_topo: Option<Topology> = None;
+        let coarse_topo = cx.topology(&coarse).ok();
+        let mut derived = None;
         for _ in 0..p.times.max(1) {
             if done < p.times {
                 if (fine.n_faces() as u64).saturating_mul(4) > p.max_faces {
@@ -114,9 +118,15 @@ impl Stage for Postprocess {
                     }
                 } else {
                     let all = vec![true; fine.n_faces()];
-                    fine = coarsen_stage_refine::split_once(&fine, &all)
+                    let next = coarsen_stage_refine::split_once(&fine, &all)
                         .map_err(|e| StageError::Input(e.to_string()))?
                         .0;
+                    let before = level_topo.take();
+                    derived = before
+                        .as_ref()
+                        .or(coarse_topo.as_deref())
+                        .and_then(|t| t.of_split(&fine, &next));
+                    fine = next;
                     done += 1;
                 }
             }
@@ -124,7 +134,10 @@ impl Stage for Postprocess {
                 Some(AttrValues::Label(l)) => l,
                 _ => dual_cells(&coarse, &fine, done),
             };
-            let topo = Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?;
+            let topo = match derived.take() {
+                Some(t) => t,
+                None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,
+            };
             // Coarse levels settle the arrangement (ten times tighter; they are cheap); the
             // finest only polishes, and stops at `tolerance`.
             cvt.tolerance = if done >= p.times {

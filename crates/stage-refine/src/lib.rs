@@ -674,6 +674,24 @@ mod tests {
     use coarsen_mesh::{DVec3, SanityOptions, Topology, sanity_check_with};
     use coarsen_shapes::{plane_grid, torus};
 
+    /// The uniform split numbers its vertices and faces the way `Topology::of_split`
+    /// expects: the adjacency derived from the coarse one is the one built (a torus, a disk
+    /// with holes, a sphere, a grid).
+    #[test]
+    fn the_uniform_split_numbers_as_the_derived_adjacency_expects() {
+        let meshes = [
+            torus(2.0, 0.7, 16, 9).unwrap(),
+            coarsen_shapes::disk_with_holes(3, 6, 2.0).unwrap(),
+            coarsen_shapes::icosphere(1.0, 2).unwrap(),
+            plane_grid(5, 4, 1.0).unwrap(),
+        ];
+        for m in &meshes {
+            let fine = split_once(m, &vec![true; m.n_faces()]).unwrap().0;
+            let derived = Topology::build(m).of_split(m, &fine);
+            assert_eq!(derived, Some(Topology::build(&fine)));
+        }
+    }
+
     /// A triangle cut into four, with the centre face last:
     ///
     /// ```text

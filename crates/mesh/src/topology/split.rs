@@ -1,0 +1,612 @@
+//! The adjacency of a uniform 1-to-4 split, derived from the adjacency of the mesh split
+//! instead of built from the split's faces.
+//!
+//! The split this knows numbers its elements the way `refine.red-green`'s uniform split
+//! does: the vertices keep their numbers, the midpoint of edge `e` (this adjacency's edge
+//! numbering) is vertex `n_vertices + e`, and face `f = [v0, v1, v2]`, whose edge `i` runs
+//! from corner `i` to corner `i + 1` and has midpoint `mi`, becomes the four faces
+//! `4f .. 4f + 3`: `[v0, m0, m2]`, `[m0, v1, m1]`, `[m2, m1, v2]`, `[m0, m1, m2]`. Corner
+//! child `c` has the half-edges `vc → mc` (its corner `c`), `mc → m(c+2)` (corner `c + 1`)
+//! and `m(c+2) → vc` (corner `c + 2`); the centre child has `mi → m(i+1)` at corner `i`.
+//!
+//! Every table comes out exactly as [`Topology::build`] would make it (tested against it):
+//! edges sorted, each edge's faces ascending, fans starting where the build starts them,
+//! loops traced from the same edge in the same direction, components numbered by their
+//! lowest face.
+
+use super::*;
+
+/// Vertices per range of the parallel fill.
+const RANGE: usize = 1 << 14;
+
+/// One face around a midpoint: the fine face and its corners after and before the
+/// midpoint.
+#[derive(Clone, Copy)]
+struct Around {
+    face: u32,
+    next: u32,
+    prev: u32,
+}
+
+/// An interior edge from a midpoint to a larger one: the other midpoint and the two fine
+/// faces on it with the corner of the edge in each (the corner child first).
+type Partner = (u32, [(u32, usize); 2]);
+
+/// Per fine vertex: how many entries it has in each table.
+#[derive(Clone, Copy, Default)]
+struct Counts {
+    faces: u32,
+    neighbors: u32,
+    edges: u32,
+    edge_faces: u32,
+}
+
+/// The slices of the output tables that one range of fine vertices fills.
+struct Piece<'a> {
+    v0: usize,
+    v1: usize,
+    faces: &'a mut [u32],
+    neighbors: &'a mut [u32],
+    edges: &'a mut [[u32; 2]],
+    edge_flags: &'a mut [u8],
+    /// Ends of the range's edges' face lists (`edge_face_offsets[1 + e]`).
+    edge_face_ends: &'a mut [u32],
+    edge_faces: &'a mut [u32],
+    flags: &'a mut [u8],
+}
+
+/// Cuts `s` into consecutive pieces of the given lengths.
+fn cut<T>(mut s: &mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+    let mut out = Vec::new();
+    for n in lengths {
+        let (head, tail) = std::mem::take(&mut s).split_at_mut(n);
+        out.push(head);
+        s = tail;
+    }
+    out
+}
+
+/// Exclusive prefix sums of `count` over `n` items, with the total appended.
+fn offsets(n: usize, count: impl Fn(usize) -> u32) -> Vec<u32> {
+    let mut out = Vec::with_capacity(n + 1);
+    let mut at = 0u32;
+    for i in 0..n {
+        out.push(at);
+        at += count(i);
+    }
+    out.push(at);
+    out
+}
+
+impl Topology {
+    /// The adjacency of `fine` when `fine` is the uniform 1-to-4 split of `coarse` (whose
+    /// adjacency this is), numbered as the module docs say; `None` when it is not, or when
+    /// `coarse` is not a consistently oriented manifold without isolated vertices (then
+    /// build it). The same tables as [`Topology::build`] of `fine`, made from these ones.
+    pub fn of_split(&self, coarse: &Mesh, fine: &Mesh) -> Option<Topology> {
+        let (nv, nf, ne) = (self.n_vertices, self.n_faces(), self.edges.len());
+        let (nv2, nf2) = (nv + ne, 4 * nf);
+        let manifold = coarse.n_vertices() == nv
+            && coarse.n_faces() == nf
+            && self.n_repeated_index_faces + self.n_out_of_range_faces == 0
+            && self.n_open_boundary_chains == 0
+            && self
+                .edge_flags
+                .par_iter()
+                .all(|f| f & (E_MULTI | E_FLIPPED) == 0)
+            && self
+                .vertex_flags
+                .par_iter()
+                .all(|f| f & (V_ISOLATED | V_NON_MANIFOLD) == 0);
+        if !manifold
+            || fine.n_vertices() != nv2
+            || fine.n_faces() != nf2
+            || nf2 > MAX_FACES
+            || nv2 >= NONE as usize
+        {
+            return None;
+        }
+        let (cf, fe) = (&coarse.faces, &self.face_edges);
+        let mid = |e: u32| nv as u32 + e;
+        let children = |f: usize| {
+            let [v0, v1, v2] = cf[f];
+            let [m0, m1, m2] = fe[f].map(mid);
+            [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
+        };
+        if fine
+            .faces
+            .par_chunks(4)
+            .enumerate()
+            .any(|(f, four)| four != children(f))
+        {
+            return None;
+        }
+        let corner = |v: u32, f: u32| cf[f as usize].iter().position(|&x| x == v).unwrap_or(0);
+        let slot = |e: u32, f: u32| fe[f as usize].iter().position(|&x| x == e).unwrap_or(0);
+        // The faces around midpoint `e` in one coarse face `f`, counter-clockwise.
+        let around_in = |e: u32, f: u32| {
+            let k = slot(e, f);
+            let (c1, c2) = ((k + 1) % 3, (k + 2) % 3);
+            let (v, m) = (cf[f as usize], fe[f as usize].map(mid));
+            let f4 = 4 * f;
+            [
+                Around {
+                    face: f4 + c1 as u32,
+                    next: v[c1],
+                    prev: m[c1],
+                },
+                Around {
+                    face: f4 + 3,
+                    next: m[c1],
+                    prev: m[c2],
+                },
+                Around {
+                    face: f4 + k as u32,
+                    next: m[c2],
+                    prev: v[k],
+                },
+            ]
+        };
+        // The other edges of the faces of edge `e`, two per face.
+        let partner_ids = |e: u32| {
+            let mut ids = [NONE; 4];
+            let ef = self.edge_faces(e);
+            for (i, &f) in ef.iter().take(2).enumerate() {
+                let k = slot(e, f);
+                ids[2 * i] = fe[f as usize][(k + 2) % 3];
+                ids[2 * i + 1] = fe[f as usize][(k + 1) % 3];
+            }
+            (ids, 2 * ef.len().min(2))
+        };
+        // The interior edges from midpoint `e` to larger midpoints, sorted.
+        let partners = |e: u32, out: &mut Vec<Partner>| {
+            out.clear();
+            for &f in self.edge_faces(e) {
+                let k = slot(e, f);
+                let (c1, c2) = ((k + 1) % 3, (k + 2) % 3);
+                let f4 = 4 * f;
+                let (p2, p1) = (fe[f as usize][c2], fe[f as usize][c1]);
+                if p2 > e {
+                    out.push((mid(p2), [(f4 + k as u32, c1), (f4 + 3, c2)]));
+                }
+                if p1 > e {
+                    out.push((mid(p1), [(f4 + c1 as u32, c2), (f4 + 3, k)]));
+                }
+            }
+            out.sort_unstable_by_key(|p| p.0);
+        };
+        // Entries per fine vertex, then where each vertex's entries start.
+        let counts: Vec<Counts> = (0..nv2)
+            .into_par_iter()
+            .map(|v| {
+                if v < nv {
+                    let k = self.n_vertex_faces(v as u32) as u32;
+                    let n = self.vertex_neighbors(v as u32).len() as u32;
+                    return Some(Counts {
+                        faces: k,
+                        neighbors: n,
+                        edges: n,
+                        edge_faces: 2 * k,
+                    });
+                }
+                let e = (v - nv) as u32;
+                let (ids, n) = partner_ids(e);
+                let ids = &ids[..n];
+                // Two coarse faces sharing two edges: the split would not be a manifold.
+                if (0..n).any(|i| ids[i + 1..].contains(&ids[i])) {
+                    return None;
+                }
+                let larger = ids.iter().filter(|&&p| p > e).count() as u32;
+                Some(Counts {
+                    faces: 3 * n as u32 / 2,
+                    neighbors: n as u32 + 2,
+                    edges: larger,
+                    edge_faces: 2 * larger,
+                })
+            })
+            .collect::<Option<_>>()?;
+        let face_off = offsets(nv2, |v| counts[v].faces);
+        let nbr_off = offsets(nv2, |v| counts[v].neighbors);
+        let edge_off = offsets(nv2, |v| counts[v].edges);
+        let ef_off = offsets(nv2, |v| counts[v].edge_faces);
+        drop(counts);
+        let ne2 = edge_off[nv2] as usize;
+        if ne2 != 2 * ne + 3 * nf {
+            return None;
+        }
+
+        let mut vertex_faces = vec![0u32; face_off[nv2] as usize];
+        let mut vertex_neighbors = vec![0u32; nbr_off[nv2] as usize];
+        let mut edges = vec![[0u32; 2]; ne2];
+        let mut edge_flags = vec![0u8; ne2];
+        let mut edge_face_offsets = vec![0u32; ne2 + 1];
+        let mut edge_faces = vec![0u32; ef_off[nv2] as usize];
+        let mut vertex_flags = vec![0u8; nv2];
+        let face_edges: Vec<[AtomicU32; 3]> = (0..nf2)
+            .into_par_iter()
+            .map(|_| [0, 0, 0].map(AtomicU32::new))
+            .collect();
+        let bounds: Vec<(usize, usize)> = (0..nv2.div_ceil(RANGE))
+            .map(|r| (r * RANGE, nv2.min((r + 1) * RANGE)))
+            .collect();
+        let len = |off: &[u32]| -> std::vec::IntoIter<usize> {
+            let n: Vec<usize> = bounds
+                .iter()
+                .map(|&(v0, v1)| (off[v1] - off[v0]) as usize)
+                .collect();
+            n.into_iter()
+        };
+        let pieces: Vec<Piece<'_>> = {
+            let mut f = cut(&mut vertex_faces, len(&face_off)).into_iter();
+            let mut n = cut(&mut vertex_neighbors, len(&nbr_off)).into_iter();
+            let mut e = cut(&mut edges, len(&edge_off)).into_iter();
+            let mut ef = cut(&mut edge_flags, len(&edge_off)).into_iter();
+            let mut ee = cut(&mut edge_face_offsets[1..], len(&edge_off)).into_iter();
+            let mut efs = cut(&mut edge_faces, len(&ef_off)).into_iter();
+            let mut fl = cut(&mut vertex_flags, bounds.iter().map(|b| b.1 - b.0)).into_iter();
+            bounds
+                .iter()
+                .map(|&(v0, v1)| Piece {
+                    v0,
+                    v1,
+                    faces: f.next().unwrap_or_default(),
+                    neighbors: n.next().unwrap_or_default(),
+                    edges: e.next().unwrap_or_default(),
+                    edge_flags: ef.next().unwrap_or_default(),
+                    edge_face_ends: ee.next().unwrap_or_default(),
+                    edge_faces: efs.next().unwrap_or_default(),
+                    flags: fl.next().unwrap_or_default(),
+                })
+                .collect()
+        };
+        let put = |f: u32, c: usize, e: usize| {
+            face_edges[f as usize][c].store(e as u32, Ordering::Relaxed)
+        };
+        pieces.into_par_iter().for_each(|p| {
+            let (mut fi, mut ni, mut ei, mut efi) = (0, 0, 0, 0);
+            // Where the piece's edge faces start in the whole table.
+            let ef0 = ef_off[p.v0];
+            let mut mids: Vec<u32> = Vec::new();
+            let mut ring: Vec<Around> = Vec::new();
+            let mut pairs: Vec<Partner> = Vec::new();
+            let mut sides: Vec<(u32, u32, usize)> = Vec::new();
+            for (v, &e_base) in (p.v0..p.v1).zip(&edge_off[p.v0..p.v1]) {
+                let e_base = e_base as usize;
+                if v < nv {
+                    let vv = v as u32;
+                    let fan = self.vertex_faces(vv);
+                    let open = self.vertex_flags[v] & V_BOUNDARY != 0;
+                    p.flags[v - p.v0] = self.vertex_flags[v];
+                    // The children at v turn like the coarse faces around it; each has
+                    // the edges to two midpoints at v (corner c and c + 2 of the child).
+                    mids.clear();
+                    sides.clear();
+                    for (j, &f) in fan.iter().enumerate() {
+                        let c = corner(vv, f);
+                        let child = 4 * f + c as u32;
+                        p.faces[fi] = child;
+                        fi += 1;
+                        let (next, prev) =
+                            (mid(fe[f as usize][c]), mid(fe[f as usize][(c + 2) % 3]));
+                        if j == 0 {
+                            mids.push(next);
+                        }
+                        if open || j + 1 < fan.len() {
+                            mids.push(prev);
+                        }
+                        sides.push((next, child, c));
+                        sides.push((prev, child, (c + 2) % 3));
+                    }
+                    p.neighbors[ni..ni + mids.len()].copy_from_slice(&mids);
+                    ni += mids.len();
+                    // Edges to the midpoints around v, in order of the midpoints, each with
+                    // the children on it (ascending).
+                    sides.sort_unstable();
+                    for (j, group) in sides.chunk_by(|a, b| a.0 == b.0).enumerate() {
+                        p.edges[ei] = [vv, group[0].0];
+                        p.edge_flags[ei] = if group.len() == 1 { E_BOUNDARY } else { 0 };
+                        for &(_, child, at) in group {
+                            p.edge_faces[efi] = child;
+                            efi += 1;
+                            put(child, at, e_base + j);
+                        }
+                        p.edge_face_ends[ei] = ef0 + efi as u32;
+                        ei += 1;
+                    }
+                } else {
+                    let e = (v - nv) as u32;
+                    let ef = self.edge_faces(e);
+                    ring.clear();
+                    for &f in ef {
+                        ring.extend(around_in(e, f));
+                    }
+                    let start = match ef.len() {
+                        // Closed: from the lowest face, in the lower coarse face.
+                        2 if slot(e, ef[0]) != 2 => 2,
+                        _ => 0,
+                    };
+                    ring.rotate_left(start);
+                    let boundary = ef.len() == 1;
+                    p.flags[v - p.v0] = if boundary { V_BOUNDARY } else { 0 };
+                    p.neighbors[ni] = ring[0].next;
+                    ni += 1;
+                    let shown = if boundary { ring.len() } else { ring.len() - 1 };
+                    for a in &ring[..shown] {
+                        p.neighbors[ni] = a.prev;
+                        ni += 1;
+                    }
+                    for a in &ring {
+                        p.faces[fi] = a.face;
+                        fi += 1;
+                    }
+                    partners(e, &mut pairs);
+                    for (j, &(m, on)) in pairs.iter().enumerate() {
+                        p.edges[ei] = [v as u32, m];
+                        for (g, c) in on {
+                            p.edge_faces[efi] = g;
+                            efi += 1;
+                            put(g, c, e_base + j);
+                        }
+                        p.edge_face_ends[ei] = ef0 + efi as u32;
+                        ei += 1;
+                    }
+                }
+            }
+        });
+
+        // Boundary loops: each coarse loop with its midpoints between its vertices, from
+        // the tail of its lowest edge (which lies at its lowest vertex), the same way round.
+        let mut loop_offsets = Vec::with_capacity(self.loop_offsets.len());
+        let mut loop_vertices = Vec::with_capacity(2 * self.loop_vertices.len());
+        loop_offsets.push(0);
+        for i in 0..self.n_boundary_loops() {
+            let l = self.boundary_loop(i);
+            let n = l.len();
+            let low = (0..n).min_by_key(|&j| l[j])?;
+            let at = |j: usize| l[(low + j) % n];
+            let first = loop_vertices.len();
+            for j in 0..n {
+                loop_vertices.push(at(j));
+                loop_vertices.push(mid(self.find_edge(at(j), at(j + 1))?));
+            }
+            // The edge into the lowest vertex is the lower one: its midpoint comes first.
+            let into = self.find_edge(at(n - 1), at(0))?;
+            if n < 3 || into < self.find_edge(at(0), at(1))? {
+                loop_vertices[first..].rotate_right(1);
+            }
+            if n < 3 {
+                return None;
+            }
+            loop_offsets.push(loop_vertices.len() as u32);
+        }
+
+        Some(Topology {
+            n_vertices: nv2,
+            face_edges: face_edges
+                .into_iter()
+                .map(|fe| fe.map(AtomicU32::into_inner))
+                .collect(),
+            face_component: (0..nf2)
+                .into_par_iter()
+                .map(|f| self.face_component[f / 4])
+                .collect(),
+            n_repeated_index_faces: 0,
+            n_out_of_range_faces: 0,
+            edges,
+            edge_flags,
+            edge_face_offsets,
+            edge_faces,
+            vertex_edge_offsets: edge_off,
+            vertex_face_offsets: face_off.clone(),
+            vertex_faces,
+            vertex_neighbor_offsets: nbr_off,
+            vertex_neighbors,
+            vertex_fan_offsets: (0..=nv2 as u32).collect(),
+            fan_offsets: face_off,
+            vertex_flags,
+            loop_offsets,
+            loop_vertices,
+            loop_component: self.loop_component.clone(),
+            n_open_boundary_chains: 0,
+            component_orientable: self.component_orientable.clone(),
+            component_manifold: self.component_manifold.clone(),
+            counts: Memo::default(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_geom::DVec3;
+
+    /// The uniform split the module docs describe, made by hand.
+    fn split(m: &Mesh, t: &Topology) -> Mesh {
+        let mut positions = m.positions.clone();
+        positions.extend(
+            t.edges()
+                .iter()
+                .map(|&[a, b]| (m.positions[a as usize] + m.positions[b as usize]) * 0.5),
+        );
+        let nv = m.n_vertices() as u32;
+        let faces = (0..m.n_faces())
+            .flat_map(|f| {
+                let [v0, v1, v2] = m.faces[f];
+                let [m0, m1, m2] = t.face_edges(f as u32).map(|e| nv + e);
+                [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
+            })
+            .collect();
+        Mesh::new(positions, faces)
+    }
+
+    /// A grid of `nx × ny` squares cut into triangles (diagonals alternating), wrapped into a
+    /// torus when `wrap`; faces for which `drop` says so are left out, faces are listed in
+    /// the order `face_order` gives and vertices renumbered by `vertex_of`.
+    fn grid(
+        nx: u32,
+        ny: u32,
+        wrap: bool,
+        drop: impl Fn(u32) -> bool,
+        mut face_order: impl FnMut(&mut Vec<[u32; 3]>),
+        vertex_of: impl Fn(u32) -> u32,
+    ) -> Mesh {
+        let (cols, rows) = if wrap { (nx, ny) } else { (nx + 1, ny + 1) };
+        let id = |i: u32, j: u32| vertex_of((j % rows) * cols + (i % cols));
+        let mut faces = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let [a, b, c, d] = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+                let two = if (i + j) % 2 == 0 {
+                    [[a, b, c], [a, c, d]]
+                } else {
+                    [[a, b, d], [b, c, d]]
+                };
+                for (k, f) in two.into_iter().enumerate() {
+                    if !drop(2 * (j * nx + i) + k as u32) {
+                        faces.push(f);
+                    }
+                }
+            }
+        }
+        face_order(&mut faces);
+        let n = cols * rows;
+        let mut positions = vec![DVec3::ZERO; n as usize];
+        for j in 0..rows {
+            for i in 0..cols {
+                let (u, w) = (i as f64, j as f64);
+                positions[vertex_of(j * cols + i) as usize] =
+                    DVec3::new(u, w, (u * 0.7).sin() * (w * 0.3).cos());
+            }
+        }
+        Mesh::new(positions, faces)
+    }
+
+    /// `of_split` gives exactly the built tables, or `None` (then says so).
+    fn derived_is_built(m: &Mesh) -> bool {
+        let t = Topology::build(m);
+        let fine = split(m, &t);
+        match t.of_split(m, &fine) {
+            Some(d) => {
+                assert_eq!(d, Topology::build(&fine));
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn keep_all(_: u32) -> bool {
+        false
+    }
+
+    #[test]
+    fn the_split_of_closed_meshes_matches_the_build() {
+        assert!(derived_is_built(&crate::fixtures::tetrahedron()));
+        assert!(derived_is_built(&grid(6, 5, true, keep_all, |_| {}, |v| v)));
+        // Reversed face order and vertex numbering: other fan starts and edge orders.
+        let n = 6 * 5;
+        assert!(derived_is_built(&grid(
+            6,
+            5,
+            true,
+            keep_all,
+            |f| f.reverse(),
+            |v| n - 1 - v
+        )));
+    }
+
+    #[test]
+    fn the_split_of_meshes_with_holes_and_parts_matches_the_build() {
+        // A hole in the middle, and a triangle cut away at a corner.
+        let holed = grid(
+            8,
+            8,
+            false,
+            |f| (36..40).contains(&f) || f == 0,
+            |_| {},
+            |v| v,
+        );
+        assert_eq!(Topology::build(&holed).n_boundary_loops(), 2);
+        assert!(derived_is_built(&holed));
+        // Two components: a torus and an open grid side by side, faces interleaved.
+        let a = grid(5, 4, true, keep_all, |_| {}, |v| v);
+        let b = grid(3, 3, false, keep_all, |_| {}, |v| v);
+        let shift = a.n_vertices() as u32;
+        let mut positions = a.positions.clone();
+        positions.extend(b.positions.iter().map(|p| *p + DVec3::X * 20.0));
+        let mut faces = Vec::new();
+        for i in 0..a.n_faces().max(b.n_faces()) {
+            faces.extend(a.faces.get(i).copied());
+            faces.extend(b.faces.get(i).map(|f| f.map(|v| v + shift)));
+        }
+        let both = Mesh::new(positions, faces);
+        assert_eq!(Topology::build(&both).n_components(), 2);
+        assert!(derived_is_built(&both));
+    }
+
+    #[test]
+    fn a_vertex_of_many_faces_splits_like_the_build() {
+        // A cone of 24 faces round an apex (the build's general path), closed by a fan.
+        let k = 24u32;
+        let mut positions = vec![DVec3::Z, DVec3::ZERO];
+        positions.extend((0..k).map(|i| {
+            let a = std::f64::consts::TAU * f64::from(i) / f64::from(k);
+            DVec3::new(a.cos(), a.sin(), 0.0)
+        }));
+        let rim = |i: u32| 2 + i % k;
+        let mut faces: Vec<[u32; 3]> = (0..k).map(|i| [0, rim(i), rim(i + 1)]).collect();
+        faces.extend((0..k).map(|i| [1, rim(i + 1), rim(i)]));
+        assert!(derived_is_built(&Mesh::new(positions, faces)));
+    }
+
+    #[test]
+    fn random_holes_and_orders_match_the_build_or_are_declined() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut derived = 0;
+        for round in 0..40 {
+            let (nx, ny) = (3 + (next() % 6) as u32, 3 + (next() % 6) as u32);
+            let wrap = round % 3 == 0;
+            let holes: Vec<u32> = (0..(next() % 5))
+                .map(|_| (next() % (2 * nx * ny) as u64) as u32)
+                .collect();
+            let n = if wrap { nx * ny } else { (nx + 1) * (ny + 1) };
+            let shift = (next() % u64::from(n)) as u32;
+            let swap = next();
+            let m = grid(
+                nx,
+                ny,
+                wrap,
+                |f| holes.contains(&f),
+                |faces| {
+                    let len = faces.len();
+                    for i in 0..len {
+                        let j = ((swap >> (i % 60)) as usize ^ i) % len;
+                        faces.swap(i, j);
+                    }
+                },
+                |v| (v + shift) % n,
+            );
+            // Holes can leave unused vertices or bow-ties: those are declined.
+            derived += usize::from(derived_is_built(&m));
+        }
+        assert!(derived > 20, "only {derived} of 40 meshes derived");
+    }
+
+    #[test]
+    fn a_mesh_that_is_not_the_split_is_declined() {
+        let m = grid(4, 4, true, keep_all, |_| {}, |v| v);
+        let t = Topology::build(&m);
+        let mut fine = split(&m, &t);
+        fine.faces.swap(0, 1);
+        assert_eq!(t.of_split(&m, &fine), None);
+        // A bow-tie: not a manifold, left to the build.
+        let b = crate::fixtures::bowtie();
+        let tb = Topology::build(&b);
+        assert_eq!(tb.of_split(&b, &split(&b, &tb)), None);
+    }
+}
