@@ -1473,6 +1473,12 @@ impl Topology {
         self.face_edges[f as usize]
     }
 
+    /// Per face: its edges, entry `i` from corner `i` to corner `i + 1` ([`NONE`] for
+    /// skipped faces).
+    pub fn face_edge_table(&self) -> &[[u32; 3]] {
+        &self.face_edges
+    }
+
     /// The edge joining `a` and `b`, if any.
     pub fn find_edge(&self, a: u32, b: u32) -> Option<u32> {
         let (lo, hi) = if a < b { (a, b) } else { (b, a) };

@@ -118,14 +118,12 @@ impl Stage for Postprocess {
                     }
                 } else {
                     let all = vec![true; fine.n_faces()];
-                    let next = coarsen_stage_refine::split_once(&fine, &all)
+                    let before = level_topo.take();
+                    let topo = before.as_ref().or(coarse_topo.as_deref());
+                    let next = coarsen_stage_refine::split_once_with(&fine, &all, topo)
                         .map_err(|e| StageError::Input(e.to_string()))?
                         .0;
-                    let before = level_topo.take();
-                    derived = before
-                        .as_ref()
-                        .or(coarse_topo.as_deref())
-                        .and_then(|t| t.of_split(&fine, &next));
+                    derived = topo.and_then(|t| t.of_split(&fine, &next));
                     fine = next;
                     done += 1;
                 }

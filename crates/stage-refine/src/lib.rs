@@ -423,6 +423,16 @@ pub fn split_once(
     mesh: &Mesh,
     red: &[bool],
 ) -> Result<(Mesh, SplitCounts, CarryReport), RefineError> {
+    split_once_with(mesh, red, None)
+}
+
+/// [`split_once`], with the edges numbered by `topo` (the adjacency of `mesh`, which
+/// numbers them the same way) instead of a table built for the split; the same result.
+pub fn split_once_with(
+    mesh: &Mesh,
+    red: &[bool],
+    topo: Option<&coarsen_mesh::Topology>,
+) -> Result<(Mesh, SplitCounts, CarryReport), RefineError> {
     if red.len() != mesh.n_faces() {
         return Err(RefineError::RedLength {
             len: red.len(),
@@ -434,7 +444,10 @@ pub fn split_once(
     let splittable: Vec<bool> = (0..mesh.n_faces())
         .map(|f| mesh.face_area(f) >= threshold)
         .collect();
-    let table = EdgeTable::build(mesh.n_vertices(), &mesh.faces);
+    let table = match topo.and_then(|t| EdgeTable::from_topology(mesh, t)) {
+        Some(t) => t,
+        None => EdgeTable::build(mesh.n_vertices(), &mesh.faces),
+    };
     let plan = Plan::new(&table, mesh.n_vertices(), red, &splittable);
     let c = plan.counts;
     if c.faces > MAX_FACES || c.vertices >= u32::MAX as usize {
@@ -690,6 +703,23 @@ mod tests {
             let derived = Topology::build(m).of_split(m, &fine);
             assert_eq!(derived, Some(Topology::build(&fine)));
         }
+    }
+
+    /// The edge table read from the adjacency is the one built, and a split through it
+    /// gives the same mesh (a red-green split with green closures, on a holed disk).
+    #[test]
+    fn the_edge_table_from_the_adjacency_is_the_built_one() {
+        let m = coarsen_shapes::disk_with_holes(2, 5, 2.0).unwrap();
+        let topo = Topology::build(&m);
+        let built = split::EdgeTable::build(m.n_vertices(), &m.faces);
+        assert_eq!(split::EdgeTable::from_topology(&m, &topo), Some(built));
+        let red: Vec<bool> = (0..m.n_faces()).map(|f| f % 3 == 0).collect();
+        let (a, ca, _) = split_once(&m, &red).unwrap();
+        let (b, cb, _) = split_once_with(&m, &red, Some(&topo)).unwrap();
+        assert_eq!((a, ca), (b, cb));
+        // An adjacency of another mesh is not used.
+        let other = Topology::build(&torus(2.0, 0.7, 8, 6).unwrap());
+        assert_eq!(split::EdgeTable::from_topology(&m, &other), None);
     }
 
     /// A triangle cut into four, with the centre face last:

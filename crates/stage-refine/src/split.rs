@@ -6,7 +6,9 @@
 //! 1. [`EdgeTable::build`] numbers the undirected edges (counting sort by the smaller
 //!    endpoint, then a small sort per bucket), so that every face corner knows its edge.
 //!    (`Topology` numbers the edges the same way but also builds fans, boundary loops and
-//!    components, which a pass does not need: about 10 ms on the bunny against 2–3 ms.)
+//!    components, which a pass does not need: about 10 ms on the bunny against 2–3 ms. A
+//!    caller that holds the adjacency already reads the table from it instead:
+//!    [`EdgeTable::from_topology`], through `split_once_with`.)
 //! 2. [`Plan::new`] marks every edge of a red triangle for splitting. The closure is the
 //!    paper's: a triangle that is not red is split by the number of its marked edges
 //!    (1 → 2 triangles, 2 → 3, 3 → 4) and marks nothing itself, so marking never spreads and
@@ -15,7 +17,8 @@
 //!    is too small to split (see [`Plan::new`]).
 //! 3. [`split`] appends one midpoint per marked edge and replaces every face by its
 //!    children, recording where each came from so that `Mesh::rebuilt` carries the
-//!    attributes (a midpoint takes the mean of its edge's ends).
+//!    attributes (a midpoint takes the mean of its edge's ends). A uniform split (every
+//!    face red) writes its children in parallel.
 //!
 //! ```text
 //!  red, or 3 marked      1 marked          2 marked (a-b, b-c)
@@ -31,21 +34,35 @@
 //! shape.
 
 use coarsen_geom::{DVec3, triangle};
-use coarsen_mesh::{FaceOrigins, Index, Mesh, VertexOrigins};
+use coarsen_mesh::{FaceOrigins, Index, Mesh, Topology, VertexOrigins};
+use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// Undirected edges of a face array, numbered in `(smaller, larger)` endpoint order.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct EdgeTable {
-    /// Per corner slot `3·f + i`: the edge from corner `i` to corner `i + 1` of face `f`.
-    pub(crate) face_edges: Vec<u32>,
+pub(crate) struct EdgeTable<'a> {
+    /// Per face `f`, entry `i`: the edge from corner `i` to corner `i + 1`.
+    pub(crate) face_edges: Cow<'a, [[u32; 3]]>,
     /// Endpoints `[a, b]` of each edge, `a < b`, sorted.
-    pub(crate) ends: Vec<[u32; 2]>,
+    pub(crate) ends: Cow<'a, [[u32; 2]]>,
 }
 
-impl EdgeTable {
+impl<'a> EdgeTable<'a> {
+    /// The edge table of `mesh` read from `topo`, its adjacency, which numbers edges the
+    /// same way; `None` when `topo` does not fit `mesh` or skips a face.
+    pub(crate) fn from_topology(mesh: &Mesh, topo: &'a Topology) -> Option<EdgeTable<'a>> {
+        let fits = topo.n_vertices() == mesh.n_vertices()
+            && topo.n_faces() == mesh.n_faces()
+            && topo.n_repeated_index_faces() + topo.n_out_of_range_faces() == 0;
+        fits.then(|| EdgeTable {
+            face_edges: Cow::Borrowed(topo.face_edge_table()),
+            ends: Cow::Borrowed(topo.edges()),
+        })
+    }
+
     /// Numbers the edges of `faces` over `n_vertices` vertices. Faces must index vertices
     /// below `n_vertices` and repeat no index (the caller checks both).
-    pub(crate) fn build(n_vertices: usize, faces: &[[Index; 3]]) -> EdgeTable {
+    pub(crate) fn build(n_vertices: usize, faces: &[[Index; 3]]) -> EdgeTable<'static> {
         // Counting sort of the corner slots by their edge's smaller endpoint.
         let mut offsets = vec![0u32; n_vertices + 1];
         for f in faces {
@@ -68,7 +85,7 @@ impl EdgeTable {
                 fill[lo] += 1;
             }
         }
-        let mut face_edges = vec![0u32; 3 * faces.len()];
+        let mut face_edges = vec![[0u32; 3]; faces.len()];
         let mut ends = Vec::with_capacity(3 * faces.len() / 2 + 16);
         for lo in 0..n_vertices {
             let bucket = &mut keys[offsets[lo] as usize..offsets[lo + 1] as usize];
@@ -80,20 +97,20 @@ impl EdgeTable {
                     ends.push([lo as u32, hi as u32]);
                     last = hi;
                 }
-                face_edges[(key & 0xffff_ffff) as usize] = (ends.len() - 1) as u32;
+                let slot = (key & 0xffff_ffff) as usize;
+                face_edges[slot / 3][slot % 3] = (ends.len() - 1) as u32;
             }
         }
-        EdgeTable { face_edges, ends }
+        EdgeTable {
+            face_edges: Cow::Owned(face_edges),
+            ends: Cow::Owned(ends),
+        }
     }
 
     /// The three edges of face `f`, edge `i` from corner `i` to corner `i + 1`.
     #[inline]
     pub(crate) fn of_face(&self, f: usize) -> [u32; 3] {
-        [
-            self.face_edges[3 * f],
-            self.face_edges[3 * f + 1],
-            self.face_edges[3 * f + 2],
-        ]
+        self.face_edges[f]
     }
 }
 
@@ -223,40 +240,49 @@ pub(crate) struct Split {
 /// Splits `mesh` as `plan` says. Children keep their parent's orientation; a face with two
 /// marked edges cuts its remaining quadrilateral along the diagonal giving the better worst
 /// Frey–Borouchaki quality (the diagonal from the unsplit corner on a tie).
-pub(crate) fn split(mesh: &Mesh, table: &EdgeTable, plan: &Plan) -> Split {
+pub(crate) fn split(mesh: &Mesh, table: &EdgeTable<'_>, plan: &Plan) -> Split {
     let nv = mesh.n_vertices();
     let c = &plan.counts;
+    let mut mid = vec![Index::MAX; table.ends.len()];
+    let mut next = nv as Index;
+    for (m, &marked) in mid.iter_mut().zip(&plan.marked) {
+        if marked {
+            *m = next;
+            next += 1;
+        }
+    }
     let mut positions = Vec::with_capacity(c.vertices);
     positions.extend_from_slice(&mesh.positions);
     let mut vertex_origins = VertexOrigins::with_capacity(c.vertices);
     (0..nv as Index).for_each(|v| vertex_origins.push_copy(v));
-    let mut mid = vec![Index::MAX; table.ends.len()];
-    for (e, &[a, b]) in table.ends.iter().enumerate() {
-        if plan.marked[e] {
-            mid[e] = positions.len() as Index;
-            positions.push((mesh.positions[a as usize] + mesh.positions[b as usize]) * 0.5);
-            vertex_origins.push_edge(a, b, 0.5);
-        }
+    for (&[a, b], _) in table.ends.iter().zip(&plan.marked).filter(|(_, m)| **m) {
+        positions.push((mesh.positions[a as usize] + mesh.positions[b as usize]) * 0.5);
+        vertex_origins.push_edge(a, b, 0.5);
     }
-    let mut faces = Vec::with_capacity(c.faces);
-    let mut parents = Vec::with_capacity(c.faces);
-    for (f, &v) in mesh.faces.iter().enumerate() {
-        let e = table.of_face(f);
-        let m = e.map(|e| mid[e as usize]);
-        let before = faces.len();
+    // Each face's children, in face order.
+    let children = |f: usize, out: &mut [[Index; 3]]| -> usize {
+        let v = mesh.faces[f];
+        let m = table.of_face(f).map(|e| mid[e as usize]);
         match plan.mask[f] {
-            0 => faces.push(v),
-            7 => faces.extend([
-                [v[0], m[0], m[2]],
-                [m[0], v[1], m[1]],
-                [m[2], m[1], v[2]],
-                [m[0], m[1], m[2]],
-            ]),
+            0 => {
+                out[0] = v;
+                1
+            }
+            7 => {
+                out[..4].copy_from_slice(&[
+                    [v[0], m[0], m[2]],
+                    [m[0], v[1], m[1]],
+                    [m[2], m[1], v[2]],
+                    [m[0], m[1], m[2]],
+                ]);
+                4
+            }
             1 | 2 | 4 => {
                 // Rotate so that the marked edge runs a → b.
                 let i = plan.mask[f].trailing_zeros() as usize;
                 let (a, b, c) = (v[i], v[(i + 1) % 3], v[(i + 2) % 3]);
-                faces.extend([[a, m[i], c], [m[i], b, c]]);
+                out[..2].copy_from_slice(&[[a, m[i], c], [m[i], b, c]]);
+                2
             }
             mask => {
                 // Two marked edges: rotate so that they are a → b and b → c; c → a stays.
@@ -264,21 +290,43 @@ pub(crate) fn split(mesh: &Mesh, table: &EdgeTable, plan: &Plan) -> Split {
                 let (i, j) = ((k + 1) % 3, (k + 2) % 3);
                 let (a, b, c) = (v[i], v[j], v[k]);
                 let (mab, mbc) = (m[i], m[j]);
-                faces.push([mab, b, mbc]);
+                out[0] = [mab, b, mbc];
                 let p = |x: Index| positions[x as usize];
                 let q = |x: [Index; 3]| triangle::quality(p(x[0]), p(x[1]), p(x[2]));
                 let from_a = [[a, mab, mbc], [a, mbc, c]];
                 let from_mab = [[a, mab, c], [mab, mbc, c]];
                 let worst = |t: &[[Index; 3]; 2]| q(t[0]).min(q(t[1]));
-                faces.extend(if worst(&from_mab) > worst(&from_a) {
-                    from_mab
+                out[1..3].copy_from_slice(if worst(&from_mab) > worst(&from_a) {
+                    &from_mab
                 } else {
-                    from_a
+                    &from_a
                 });
+                3
             }
         }
-        parents.extend(std::iter::repeat_n(f as Index, faces.len() - before));
-    }
+    };
+    let (faces, parents) = if plan.mask.iter().all(|&m| m == 7) {
+        // Uniform: four children per face, filled in parallel.
+        let mut faces = vec![[0; 3]; 4 * mesh.n_faces()];
+        faces.par_chunks_mut(4).enumerate().for_each(|(f, out)| {
+            children(f, out);
+        });
+        let parents = (0..4 * mesh.n_faces())
+            .into_par_iter()
+            .map(|i| (i / 4) as Index)
+            .collect();
+        (faces, parents)
+    } else {
+        let mut faces = Vec::with_capacity(c.faces);
+        let mut parents = Vec::with_capacity(c.faces);
+        let mut out = [[0; 3]; 4];
+        for f in 0..mesh.n_faces() {
+            let n = children(f, &mut out);
+            faces.extend_from_slice(&out[..n]);
+            parents.extend(std::iter::repeat_n(f as Index, n));
+        }
+        (faces, parents)
+    };
     debug_assert_eq!(faces.len(), c.faces);
     debug_assert_eq!(positions.len(), c.vertices);
     Split {
