@@ -4,7 +4,10 @@
 //!   closed tori of about 70K and 1M faces (every vertex of valence 6, the common case);
 //! * `topology/build grid 70K`: an open grid, whose border takes the boundary paths;
 //! * `topology/summary torus 70K`: the counts of the metrics report (components,
-//!   boundary loops, genus) from a built topology.
+//!   boundary loops, genus) from a built topology;
+//! * `topology/split 1M: build` and `topology/split 1M: of_split`: the adjacency of the
+//!   uniform 1-to-4 split of a 250K-face torus, built from its faces or derived from the
+//!   torus's adjacency by [`Topology::of_split`] (compare the two in the same run).
 //!
 //! The meshes are built here (the shapes crate depends on this one).
 
@@ -60,6 +63,26 @@ fn grid(n: u32) -> Mesh {
     Mesh::new(positions, faces)
 }
 
+/// The uniform 1-to-4 split that [`Topology::of_split`] knows (midpoint of edge `e` is
+/// vertex `n + e`; face `f`'s children are `4f .. 4f + 3`).
+fn split(m: &Mesh, t: &Topology) -> Mesh {
+    let mut positions = m.positions.clone();
+    positions.extend(
+        t.edges()
+            .iter()
+            .map(|&[a, b]| (m.positions[a as usize] + m.positions[b as usize]) * 0.5),
+    );
+    let nv = m.n_vertices() as u32;
+    let faces = (0..m.n_faces())
+        .flat_map(|f| {
+            let [v0, v1, v2] = m.faces[f];
+            let [m0, m1, m2] = t.face_edges(f as u32).map(|e| nv + e);
+            [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
+        })
+        .collect();
+    Mesh::new(positions, faces)
+}
+
 fn bench_topology(c: &mut Criterion) {
     let mut g = c.benchmark_group("topology");
     g.sample_size(20);
@@ -78,6 +101,17 @@ fn bench_topology(c: &mut Criterion) {
     g.throughput(Throughput::Elements(small.n_faces() as u64));
     g.bench_function("summary torus 70K", |b| {
         b.iter(|| black_box(&built).summary(black_box(small)))
+    });
+    let coarse = torus(300, 417);
+    let coarse_topo = Topology::build(&coarse);
+    let fine = split(&coarse, &coarse_topo);
+    eprintln!("split 1M: {} faces", fine.n_faces());
+    g.throughput(Throughput::Elements(fine.n_faces() as u64));
+    g.bench_function("split 1M: build", |b| {
+        b.iter(|| Topology::build(black_box(&fine)))
+    });
+    g.bench_function("split 1M: of_split", |b| {
+        b.iter(|| black_box(&coarse_topo).of_split(black_box(&coarse), black_box(&fine)))
     });
     g.finish();
 }
