@@ -63,26 +63,6 @@ fn grid(n: u32) -> Mesh {
     Mesh::new(positions, faces)
 }
 
-/// The uniform 1-to-4 split that [`Topology::of_split`] knows (midpoint of edge `e` is
-/// vertex `n + e`; face `f`'s children are `4f .. 4f + 3`).
-fn split(m: &Mesh, t: &Topology) -> Mesh {
-    let mut positions = m.positions.clone();
-    positions.extend(
-        t.edges()
-            .iter()
-            .map(|&[a, b]| (m.positions[a as usize] + m.positions[b as usize]) * 0.5),
-    );
-    let nv = m.n_vertices() as u32;
-    let faces = (0..m.n_faces())
-        .flat_map(|f| {
-            let [v0, v1, v2] = m.faces[f];
-            let [m0, m1, m2] = t.face_edges(f as u32).map(|e| nv + e);
-            [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
-        })
-        .collect();
-    Mesh::new(positions, faces)
-}
-
 fn bench_topology(c: &mut Criterion) {
     let mut g = c.benchmark_group("topology");
     g.sample_size(20);
@@ -104,7 +84,7 @@ fn bench_topology(c: &mut Criterion) {
     });
     let coarse = torus(300, 417);
     let coarse_topo = Topology::build(&coarse);
-    let fine = split(&coarse, &coarse_topo);
+    let fine = coarse_topo.uniform_split(&coarse);
     eprintln!("split 1M: {} faces", fine.n_faces());
     g.throughput(Throughput::Elements(fine.n_faces() as u64));
     g.bench_function("split 1M: build", |b| {

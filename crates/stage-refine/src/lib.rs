@@ -700,8 +700,13 @@ mod tests {
         ];
         for m in &meshes {
             let fine = split_once(m, &vec![true; m.n_faces()]).unwrap().0;
-            let derived = Topology::build(m).of_split(m, &fine);
-            assert_eq!(derived, Some(Topology::build(&fine)));
+            let coarse = Topology::build(m);
+            let reference = coarse.uniform_split(m);
+            assert_eq!(
+                (&fine.positions, &fine.faces),
+                (&reference.positions, &reference.faces)
+            );
+            assert_eq!(coarse.of_split(m, &fine), Some(Topology::build(&fine)));
         }
     }
 

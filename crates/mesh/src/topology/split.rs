@@ -79,6 +79,29 @@ fn offsets(n: usize, count: impl Fn(usize) -> u32) -> Vec<u32> {
 }
 
 impl Topology {
+    /// The uniform 1-to-4 split of `mesh` (whose adjacency this is) in the numbering the
+    /// module docs give, each midpoint halfway along its edge; attributes are not carried
+    /// (`refine.red-green` makes the same split with them).
+    pub fn uniform_split(&self, mesh: &Mesh) -> Mesh {
+        let nv = mesh.n_vertices() as u32;
+        let mut positions = mesh.positions.clone();
+        positions.extend(
+            self.edges
+                .iter()
+                .map(|&[a, b]| (mesh.positions[a as usize] + mesh.positions[b as usize]) * 0.5),
+        );
+        let faces = mesh
+            .faces
+            .iter()
+            .zip(&self.face_edges)
+            .flat_map(|(&[v0, v1, v2], e)| {
+                let [m0, m1, m2] = e.map(|e| nv + e);
+                [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
+            })
+            .collect();
+        Mesh::new(positions, faces)
+    }
+
     /// The adjacency of `fine` when `fine` is the uniform 1-to-4 split of `coarse` (whose
     /// adjacency this is), numbered as the module docs say; `None` when it is not, or when
     /// `coarse` is not a consistently oriented manifold without isolated vertices (then
@@ -420,25 +443,6 @@ mod tests {
     use super::*;
     use coarsen_geom::DVec3;
 
-    /// The uniform split the module docs describe, made by hand.
-    fn split(m: &Mesh, t: &Topology) -> Mesh {
-        let mut positions = m.positions.clone();
-        positions.extend(
-            t.edges()
-                .iter()
-                .map(|&[a, b]| (m.positions[a as usize] + m.positions[b as usize]) * 0.5),
-        );
-        let nv = m.n_vertices() as u32;
-        let faces = (0..m.n_faces())
-            .flat_map(|f| {
-                let [v0, v1, v2] = m.faces[f];
-                let [m0, m1, m2] = t.face_edges(f as u32).map(|e| nv + e);
-                [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
-            })
-            .collect();
-        Mesh::new(positions, faces)
-    }
-
     /// A grid of `nx × ny` squares cut into triangles (diagonals alternating), wrapped into a
     /// torus when `wrap`; faces for which `drop` says so are left out, faces are listed in
     /// the order `face_order` gives and vertices renumbered by `vertex_of`.
@@ -484,7 +488,7 @@ mod tests {
     /// `of_split` gives exactly the built tables, or `None` (then says so).
     fn derived_is_built(m: &Mesh) -> bool {
         let t = Topology::build(m);
-        let fine = split(m, &t);
+        let fine = t.uniform_split(m);
         match t.of_split(m, &fine) {
             Some(d) => {
                 assert_eq!(d, Topology::build(&fine));
@@ -601,12 +605,12 @@ mod tests {
     fn a_mesh_that_is_not_the_split_is_declined() {
         let m = grid(4, 4, true, keep_all, |_| {}, |v| v);
         let t = Topology::build(&m);
-        let mut fine = split(&m, &t);
+        let mut fine = t.uniform_split(&m);
         fine.faces.swap(0, 1);
         assert_eq!(t.of_split(&m, &fine), None);
         // A bow-tie: not a manifold, left to the build.
         let b = crate::fixtures::bowtie();
         let tb = Topology::build(&b);
-        assert_eq!(tb.of_split(&b, &split(&b, &tb)), None);
+        assert_eq!(tb.of_split(&b, &tb.uniform_split(&b)), None);
     }
 }
