@@ -133,9 +133,18 @@ pub struct Topology {
     component_orientable: Vec<bool>,
     component_manifold: Vec<bool>,
 
-    /// The summary's figures that the faces alone decide (degenerate faces by area not
-    /// counted), worked out on the first [`Topology::summary`].
-    counts: Memo<TopologySummary>,
+    /// What the faces alone decide, worked out on the first [`Topology::summary`] or
+    /// [`Topology::component_euler`].
+    counts: Memo<Counts>,
+}
+
+/// The counts behind [`Topology::summary`] and [`Topology::component_euler`].
+#[derive(Clone, Debug)]
+struct Counts {
+    /// The summary's figures, degenerate faces by area not counted.
+    summary: TopologySummary,
+    /// Per component: V − E + F.
+    euler: Vec<i64>,
 }
 
 /// A value worked out once, on demand; not part of what makes two topologies equal.
@@ -1741,19 +1750,20 @@ impl Topology {
                     .count()
             })
             .sum();
-        let mut summary = self.counts.0.get_or_init(|| self.count()).clone();
+        let mut summary = self.counts.0.get_or_init(|| self.count()).summary.clone();
         summary.n_degenerate_faces += n_tiny;
         summary
     }
 
-    /// Per component: its genus, or `None` when it is not an orientable manifold (as in
-    /// [`TopologySummary::genus`]; worked out once, with the summary's counts).
-    pub fn component_genus(&self) -> &[Option<i64>] {
-        &self.counts.0.get_or_init(|| self.count()).genus
+    /// Per component: its Euler characteristic V − E + F, a vertex counted in every
+    /// component it touches (worked out once, with the summary's counts).
+    pub fn component_euler(&self) -> &[i64] {
+        &self.counts.0.get_or_init(|| self.count()).euler
     }
 
-    /// [`Topology::summary`] without the degenerate faces found by their area.
-    fn count(&self) -> TopologySummary {
+    /// The counts of [`Topology::summary`] (without the degenerate faces found by their
+    /// area) and of [`Topology::component_euler`].
+    fn count(&self) -> Counts {
         let nc = self.n_components();
         let fc = self.component_counts(self.face_component.len(), |f, counts| {
             let c = self.face_component[f];
@@ -1839,7 +1849,7 @@ impl Topology {
             .filter(|&&c| c != NONE)
             .count();
         let n_ref = self.n_vertices - n_isolated;
-        TopologySummary {
+        let summary = TopologySummary {
             n_vertices: n_ref,
             n_isolated_vertices: n_isolated,
             n_faces: self.n_faces(),
@@ -1860,7 +1870,9 @@ impl Topology {
             euler: n_ref as i64 - self.edges.len() as i64 + n_used_faces as i64,
             genus,
             genus_total,
-        }
+        };
+        let euler = (0..nc).map(|c| vc[c] - ec[c] + fc[c]).collect();
+        Counts { summary, euler }
     }
 }
 
@@ -2038,6 +2050,27 @@ pub(crate) mod tests {
             assert_eq!(t.n_vertex_fans(v), 1);
             assert!(!t.is_boundary_vertex(v));
         }
+    }
+
+    #[test]
+    fn euler_characteristics_are_counted_per_component() {
+        // A torus, then a tetrahedron, then a single triangle (χ 0, 2 and 1).
+        let torus = torus_grid(5, 4);
+        let tet = crate::fixtures::tetrahedron();
+        let mut positions = torus.positions.clone();
+        let mut faces = torus.faces.clone();
+        let shift = positions.len() as u32;
+        positions.extend(&tet.positions);
+        faces.extend(tet.faces.iter().map(|f| f.map(|v| v + shift)));
+        let shift = positions.len() as u32;
+        positions.extend([
+            DVec3::new(9.0, 0.0, 0.0),
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(9.0, 1.0, 0.0),
+        ]);
+        faces.push([shift, shift + 1, shift + 2]);
+        let t = Topology::build(&Mesh::new(positions, faces));
+        assert_eq!(t.component_euler(), &[0, 2, 1]);
     }
 
     #[test]

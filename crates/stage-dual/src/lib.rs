@@ -371,68 +371,9 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
             loops[c] += 1;
         }
     }
-    // χ = 2 − 2g of each closed component, from the genus the adjacency works out once
-    // (the runner's manifold check has usually asked for it already); counted otherwise.
-    let genus = topo.component_genus();
-    let chi: Vec<i64> =
-        match (0..nc).all(|c| loops[c] > 0 || genus.get(c).is_some_and(Option::is_some)) {
-            true => (0..nc).map(|c| 2 - 2 * genus[c].unwrap_or(0)).collect(),
-            false => counted_euler(topo),
-        };
-    need_for(n, &loops, &chi)
-}
-
-/// Per component: its Euler characteristic V − E + F, counted (integer counts: any order).
-fn counted_euler(topo: &Topology) -> Vec<i64> {
-    let nc = topo.n_components();
-    let comp_of_face = topo.face_components();
-    // In parallel when each part's tally is small (a soup can have a component per face).
-    let count = |len: usize, comp: &(dyn Fn(usize) -> Option<usize> + Sync)| -> Vec<i64> {
-        if nc > 1 << 12 {
-            let mut acc = vec![0i64; nc];
-            (0..len)
-                .filter_map(comp)
-                .filter(|&c| c < nc)
-                .for_each(|c| acc[c] += 1);
-            return acc;
-        }
-        (0..len)
-            .into_par_iter()
-            .with_min_len(1 << 14)
-            .fold(
-                || vec![0i64; nc],
-                |mut acc, i| {
-                    if let Some(c) = comp(i).filter(|&c| c < nc) {
-                        acc[c] += 1;
-                    }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0i64; nc],
-                |mut a, b| {
-                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            )
-    };
-    let f = count(comp_of_face.len(), &|face| {
-        (!topo.is_skipped_face(face as u32)).then_some(comp_of_face[face] as usize)
-    });
-    let e = count(topo.n_edges(), &|edge| {
-        let first = topo.edge_faces(edge as u32).first();
-        first.map(|&face| comp_of_face[face as usize] as usize)
-    });
-    let v = count(topo.n_vertices(), &|vert| {
-        let first = topo.vertex_faces(vert as u32).first();
-        first.map(|&face| comp_of_face[face as usize] as usize)
-    });
-    (0..nc).map(|c| v[c] - e[c] + f[c]).collect()
-}
-
-/// [`too_few_vertices`] given each component's boundary loops and Euler characteristic.
-fn need_for(n: usize, loops: &[usize], chi: &[i64]) -> Option<String> {
-    let nc = loops.len();
+    // χ of each component, worked out once by the adjacency (the runner's manifold check
+    // has usually asked for it already).
+    let chi = topo.component_euler();
     let mut need = 0usize;
     let mut worst = (0usize, 0usize);
     for c in 0..nc {
