@@ -34,7 +34,7 @@ type Partner = (u32, [(u32, usize); 2]);
 
 /// Per fine vertex: how many entries it has in each table.
 #[derive(Clone, Copy, Default)]
-struct Counts {
+struct Entries {
     faces: u32,
     neighbors: u32,
     edges: u32,
@@ -199,13 +199,13 @@ impl Topology {
             out.sort_unstable_by_key(|p| p.0);
         };
         // Entries per fine vertex, then where each vertex's entries start.
-        let counts: Vec<Counts> = (0..nv2)
+        let counts: Vec<Entries> = (0..nv2)
             .into_par_iter()
             .map(|v| {
                 if v < nv {
                     let k = self.n_vertex_faces(v as u32) as u32;
                     let n = self.vertex_neighbors(v as u32).len() as u32;
-                    return Some(Counts {
+                    return Some(Entries {
                         faces: k,
                         neighbors: n,
                         edges: n,
@@ -220,7 +220,7 @@ impl Topology {
                     return None;
                 }
                 let larger = ids.iter().filter(|&&p| p > e).count() as u32;
-                Some(Counts {
+                Some(Entries {
                     faces: 3 * n as u32 / 2,
                     neighbors: n as u32 + 2,
                     edges: larger,
