@@ -143,7 +143,6 @@ mod live;
 mod progressive;
 mod qem;
 mod queue;
-mod ring;
 
 #[cfg(test)]
 mod fixtures;

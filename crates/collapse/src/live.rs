@@ -3,12 +3,12 @@
 use crate::faces::FaceLists;
 use crate::progressive::{ChangedFace, DeletedFace, Progressive, Step, fingerprint};
 use crate::queue::{Entry, Queue};
-use crate::ring::{RingShape, ring_shape};
 use crate::{
     CollapseError, CollapseRecord, CostModel, FaceGuard, Goal, Index, Merge, NONE, NoGuard,
     Options, Outcome, Plan, Reach, Refusals, Reshape, StopReason, Unit, VertexKind,
 };
 use coarsen_geom::{Aabb, DVec3, is_finite, triangle};
+use coarsen_mesh::ring::{RingShape, ring_shape};
 use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};
 use rayon::prelude::*;
 

@@ -412,17 +412,8 @@ mod tests {
         assert_eq!(report.dropped, vec![(Domain::Face, "cluster".into())]);
     }
 
-    /// A fixed seed unless `PROPTEST_RNG_SEED` is set, so CI runs the same cases every time.
-    fn fixed_seed() -> proptest::test_runner::Config {
-        let mut c = proptest::test_runner::Config::default();
-        if matches!(c.rng_seed, proptest::test_runner::RngSeed::Random) {
-            c.rng_seed = proptest::test_runner::RngSeed::Fixed(0xCA44_0001);
-        }
-        c
-    }
-
     proptest::proptest! {
-        #![proptest_config(fixed_seed())]
+        #![proptest_config(crate::fixtures::fixed_seed(0xCA44_0001))]
 
         #[test]
         fn blended_values_stay_within_the_range_of_their_sources(

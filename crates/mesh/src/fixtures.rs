@@ -40,3 +40,13 @@ pub(crate) fn bowtie() -> Mesh {
         vec![[0, 2, 1], [0, 3, 4]],
     )
 }
+
+/// Proptest settings with the fixed seed `seed` unless `PROPTEST_RNG_SEED` is set, so CI
+/// runs the same cases every time.
+pub(crate) fn fixed_seed(seed: u64) -> proptest::test_runner::Config {
+    let mut c = proptest::test_runner::Config::default();
+    if matches!(c.rng_seed, proptest::test_runner::RngSeed::Random) {
+        c.rng_seed = proptest::test_runner::RngSeed::Fixed(seed);
+    }
+    c
+}

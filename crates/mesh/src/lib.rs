@@ -10,6 +10,7 @@
 //! * [`sanity`]: the exhaustive invariant check that tests and debug runs call after
 //!   every stage.
 //! * [`hygiene`]: the explicit, reported clean-up steps applied after loading a file.
+//! * [`ring`]: whether the faces around a vertex form one oriented fan.
 //!
 //! The mesh knows no stage, no pipeline file and no file format.
 //!
@@ -26,6 +27,7 @@
 pub mod attribute;
 pub mod carry;
 pub mod hygiene;
+pub mod ring;
 pub mod sanity;
 pub mod scale;
 pub mod topology;

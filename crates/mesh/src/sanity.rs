@@ -379,10 +379,7 @@ mod tests {
     use crate::{AttrValues, DVec3};
 
     proptest::proptest! {
-        #![proptest_config(proptest::test_runner::Config {
-            rng_seed: proptest::test_runner::RngSeed::Fixed(0x5a17_0001),
-            ..Default::default()
-        })]
+        #![proptest_config(crate::fixtures::fixed_seed(0x5a17_0001))]
 
         /// The bucketed grouping keeps exactly the groups of two or more that sorting
         /// every kept face gives, in the same order; few vertices make many repeats and

@@ -235,6 +235,87 @@ impl Slot {
         }
     }
 }
+/// Vertex → incident corners of the faces with `valid[f]`, in ascending face order, by
+/// counting sort in a few parallel pieces: the offsets (`nv + 1`) and the entries.
+///
+/// Each entry is `[face << 2 | corner, next, prev]`: the corner and its two neighbours
+/// around the face (faces number below 2³⁰, see [`MAX_FACES`]), so that a pass over the
+/// vertices reads its input in order instead of looking faces up all over memory. Every
+/// index of a valid face must be below `nv`.
+pub(crate) fn vertex_corners(
+    faces: &[[Index; 3]],
+    valid: &[bool],
+    nv: usize,
+) -> (Vec<u32>, Vec<[u32; 3]>) {
+    // A counting sort in a few parallel pieces of faces, each with counts of its own:
+    // piece k's corners of vertex v go after those of pieces before it, so each
+    // vertex's corners come in face order, as one piece would put them.
+    let pieces = if faces.len() >= BUCKET_PARALLEL_MIN {
+        rayon::current_num_threads().clamp(1, BUCKET_PIECES)
+    } else {
+        1
+    };
+    let per = faces.len().div_ceil(pieces).max(1);
+    let mut counts: Vec<Vec<u32>> = (0..pieces)
+        .into_par_iter()
+        .map(|k| {
+            let mut c = vec![0u32; nv];
+            let lo = (k * per).min(faces.len());
+            let hi = ((k + 1) * per).min(faces.len());
+            for (f, ok) in faces[lo..hi].iter().zip(&valid[lo..hi]) {
+                if *ok {
+                    for &v in f {
+                        c[v as usize] += 1;
+                    }
+                }
+            }
+            c
+        })
+        .collect();
+    // Offsets; each piece's counts become its first slot per vertex.
+    let mut offsets = vec![0u32; nv + 1];
+    let mut at = 0u32;
+    for v in 0..nv {
+        offsets[v] = at;
+        for c in counts.iter_mut() {
+            let n = c[v];
+            c[v] = at;
+            at += n;
+        }
+    }
+    offsets[nv] = at;
+    // Zeroed memory, taken over in place.
+    let corners: Vec<[AtomicU32; 3]> = vec![[0u32; 3]; at as usize]
+        .into_iter()
+        .map(|c| c.map(AtomicU32::new))
+        .collect();
+    counts
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(k, mut cursor)| {
+            let lo = (k * per).min(faces.len());
+            let hi = ((k + 1) * per).min(faces.len());
+            for (f, (face, ok)) in faces[lo..hi].iter().zip(&valid[lo..hi]).enumerate() {
+                if *ok {
+                    let f = (lo + f) as u32;
+                    for c in 0..3 {
+                        let slot = &mut cursor[face[c] as usize];
+                        let dst = &corners[*slot as usize];
+                        dst[0].store((f << 2) | c as u32, Ordering::Relaxed);
+                        dst[1].store(face[(c + 1) % 3], Ordering::Relaxed);
+                        dst[2].store(face[(c + 2) % 3], Ordering::Relaxed);
+                        *slot += 1;
+                    }
+                }
+            }
+        });
+    // In place again.
+    let corners = corners
+        .into_iter()
+        .map(|c| c.map(AtomicU32::into_inner))
+        .collect();
+    (offsets, corners)
+}
 
 /// Root of `x` in a union-find forest, halving the path on the way.
 #[inline]
@@ -491,81 +572,11 @@ impl Topology {
         valid
     }
 
-    /// Vertex → incident corners (ascending face order), by counting sort.
-    ///
-    /// Each entry is `[face << 2 | corner, next, prev]`: the corner and its two neighbours
-    /// around the face (faces number below 2³⁰, see [`MAX_FACES`]), so that the vertex pass
-    /// reads its input in order instead of looking faces up all over memory.
+    /// Vertex → incident corners (ascending face order), by counting sort (see
+    /// [`vertex_corners`]); sizes `vertex_faces` to match.
     fn bucket_vertex_faces(&mut self, faces: &[[Index; 3]], valid: &[bool]) -> Vec<[u32; 3]> {
-        let nv = self.n_vertices;
-        // A counting sort in a few parallel pieces of faces, each with counts of its own:
-        // piece k's corners of vertex v go after those of pieces before it, so each
-        // vertex's corners come in face order, as one piece would put them.
-        let pieces = if faces.len() >= BUCKET_PARALLEL_MIN {
-            rayon::current_num_threads().clamp(1, BUCKET_PIECES)
-        } else {
-            1
-        };
-        let per = faces.len().div_ceil(pieces).max(1);
-        let mut counts: Vec<Vec<u32>> = (0..pieces)
-            .into_par_iter()
-            .map(|k| {
-                let mut c = vec![0u32; nv];
-                let lo = (k * per).min(faces.len());
-                let hi = ((k + 1) * per).min(faces.len());
-                for (f, ok) in faces[lo..hi].iter().zip(&valid[lo..hi]) {
-                    if *ok {
-                        for &v in f {
-                            c[v as usize] += 1;
-                        }
-                    }
-                }
-                c
-            })
-            .collect();
-        // Offsets; each piece's counts become its first slot per vertex.
-        let mut offsets = vec![0u32; nv + 1];
-        let mut at = 0u32;
-        for v in 0..nv {
-            offsets[v] = at;
-            for c in counts.iter_mut() {
-                let n = c[v];
-                c[v] = at;
-                at += n;
-            }
-        }
-        offsets[nv] = at;
-        // Zeroed memory, taken over in place.
-        let corners: Vec<[AtomicU32; 3]> = vec![[0u32; 3]; at as usize]
-            .into_iter()
-            .map(|c| c.map(AtomicU32::new))
-            .collect();
-        counts
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(k, mut cursor)| {
-                let lo = (k * per).min(faces.len());
-                let hi = ((k + 1) * per).min(faces.len());
-                for (f, (face, ok)) in faces[lo..hi].iter().zip(&valid[lo..hi]).enumerate() {
-                    if *ok {
-                        let f = (lo + f) as u32;
-                        for c in 0..3 {
-                            let slot = &mut cursor[face[c] as usize];
-                            let dst = &corners[*slot as usize];
-                            dst[0].store((f << 2) | c as u32, Ordering::Relaxed);
-                            dst[1].store(face[(c + 1) % 3], Ordering::Relaxed);
-                            dst[2].store(face[(c + 2) % 3], Ordering::Relaxed);
-                            *slot += 1;
-                        }
-                    }
-                }
-            });
-        // In place again.
-        let corners = corners
-            .into_iter()
-            .map(|c| c.map(AtomicU32::into_inner))
-            .collect();
-        self.vertex_faces = vec![0u32; at as usize];
+        let (offsets, corners) = vertex_corners(faces, valid, self.n_vertices);
+        self.vertex_faces = vec![0u32; corners.len()];
         self.vertex_face_offsets = offsets;
         corners
     }
@@ -2076,6 +2087,7 @@ pub(crate) mod tests {
     #[test]
     fn torus_grid_has_genus_one() {
         let m = torus_grid(8, 5);
+        assert!(crate::ring::one_fan_everywhere(&m));
         let t = Topology::build(&m);
         check_consistency(&m, &t);
         check_fans_ccw(&m, &t);
@@ -2453,17 +2465,8 @@ pub(crate) mod tests {
             .summary(m)
     }
 
-    /// A fixed seed unless `PROPTEST_RNG_SEED` is set, so CI runs the same cases every time.
-    fn fixed_seed() -> proptest::test_runner::Config {
-        let mut c = proptest::test_runner::Config::default();
-        if matches!(c.rng_seed, proptest::test_runner::RngSeed::Random) {
-            c.rng_seed = proptest::test_runner::RngSeed::Fixed(0x7090_0001);
-        }
-        c
-    }
-
     proptest::proptest! {
-        #![proptest_config(fixed_seed())]
+        #![proptest_config(crate::fixtures::fixed_seed(0x7090_0001))]
 
         #[test]
         fn random_soups_never_panic_and_tables_agree(
@@ -2482,6 +2485,9 @@ pub(crate) mod tests {
                 - t.n_open_boundary_chains();
             proptest::prop_assert_eq!(listed, s.n_boundary_edges);
             proptest::prop_assert_eq!(s.genus.len(), s.n_components);
+            if crate::ring::one_fan_everywhere(&m) {
+                proptest::prop_assert_eq!(s.n_non_manifold_vertices + s.n_non_manifold_edges, 0);
+            }
         }
 
         #[test]
@@ -2515,6 +2521,9 @@ pub(crate) mod tests {
             proptest::prop_assert_eq!(listed, s.n_boundary_edges);
             if s.manifold && s.consistently_oriented {
                 check_fans_ccw(&m, &t);
+            }
+            if crate::ring::one_fan_everywhere(&m) {
+                proptest::prop_assert_eq!(s.n_non_manifold_vertices + s.n_non_manifold_edges, 0);
             }
         }
     }
