@@ -21,6 +21,11 @@ const LAYOUT_MIN_FACES: usize = 1 << 20;
 /// Parts the clusters are split into for the parallel sweep (fixed: the result must not
 /// depend on the thread count).
 const PARTS: usize = 8;
+/// Faces may fall asleep in a pass after one that changed fewer than this share of the
+/// clusters (see `sweep::Part::sleepers`): on the 4.4M-face bunny into 30,000 clusters with
+/// r = 2, passes 100 to 200 (a few hundred clusters changed per pass) take 0.55 s instead
+/// of 1.6 s; earlier, most sleepers would be woken again at once.
+pub(crate) const SLEEP_SHARE: f64 = 0.125;
 
 /// Meshes with fewer faces are swept as one part.
 const PARALLEL_MIN_FACES: usize = 20_000;
@@ -91,6 +96,9 @@ pub struct PassLog {
     pub initial_energy: f64,
     /// Improving moves refused because they would empty, split or pinch a cluster.
     pub refused: u64,
+    /// Faces that fell asleep: left out of the passes, with nothing around them changed,
+    /// until a cluster next to them changes (the result is the same as visiting them).
+    pub slept: u64,
 }
 
 /// A small deterministic PRNG (SplitMix64).
@@ -154,6 +162,8 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     terms: Vec<f64>,
     /// Stop when a pass lowers the energy by less than this fraction of it.
     tolerance: f64,
+    /// See [`SLEEP_SHARE`].
+    sleep_share: f64,
 }
 
 impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
@@ -327,6 +337,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             sums: Vec::new(),
             terms: Vec::new(),
             tolerance: 0.0,
+            sleep_share: SLEEP_SHARE,
         })
     }
 
@@ -334,6 +345,13 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// `tolerance` times its value (0, the default, stops only when nothing moves).
     pub fn set_tolerance(&mut self, tolerance: f64) {
         self.tolerance = tolerance;
+    }
+
+    /// Lets faces fall asleep after passes that changed fewer than `share` of the
+    /// clusters (0: never; above 1: from the first pass).
+    #[cfg(test)]
+    pub(crate) fn set_sleep_share(&mut self, share: f64) {
+        self.sleep_share = share;
     }
 
     /// The cluster of every face.
@@ -641,9 +659,15 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let mut sums: Vec<Sums> = order.iter().map(|&c| self.sums[c as usize]).collect();
         let mut terms: Vec<f64> = order.iter().map(|&c| self.terms[c as usize]).collect();
         let mut last_mod = vec![0u32; n];
+        let mut sleepers = vec![Vec::new(); n];
+        let asleep = bitset();
         let mut own = sweep::owners(&labels, &starts);
         let mut previous = log.initial_energy;
+        let mut changed = n;
+        let mut sleeping = false;
         for pass in 1..=max_passes {
+            let may_sleep = (changed as f64) < self.sleep_share * n as f64;
+            sleeping |= may_sleep;
             let view = sweep::View {
                 corners: &self.corners,
                 fan_off: &self.fan_off,
@@ -655,17 +679,25 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 labels: &labels,
                 cur: &cur,
                 next: &next,
+                asleep: &asleep,
+                may_sleep,
+                sleeping,
             };
-            let (moves, refused) = sweep::pass(
+            let (moves, refused, slept) = sweep::pass(
                 &view,
                 &starts,
                 &mut own,
-                &mut sums,
-                &mut terms,
-                &mut last_mod,
+                sweep::State {
+                    sums: &mut sums,
+                    terms: &mut terms,
+                    last_mod: &mut last_mod,
+                    sleepers: &mut sleepers,
+                },
                 pass,
             );
             log.refused += refused;
+            log.slept += slept;
+            changed = last_mod.iter().filter(|&&m| m == pass).count();
             std::mem::swap(&mut cur, &mut next);
             next.iter_mut().for_each(|w| *w.get_mut() = 0);
             let energy: f64 = terms.iter().sum();

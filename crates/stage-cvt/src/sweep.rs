@@ -10,6 +10,12 @@
 //! here are the clusterer's layout (renumbered along a Morton curve). The number of parts
 //! depends on the problem size, never on the thread count: the result is the same bytes
 //! with one thread or many. With one part the passes are the plain sequential ACVD sweep.
+//!
+//! Once few clusters change per pass, a face whose clusters (its own and its neighbours')
+//! changed neither in the previous pass nor so far in this one falls asleep instead of
+//! being visited, to no effect, pass after pass; it wakes when one of those clusters
+//! changes, in time for the visit the plain sweep would have made count. The moves are
+//! the same, in the same order.
 
 use crate::energy::{Energy, FacePoint, Sums};
 use crate::engine::fan_runs;
@@ -35,6 +41,14 @@ pub(crate) struct View<'v, E: Energy + ?Sized> {
     pub cur: &'v [AtomicU64],
     /// Faces to sweep in the next pass.
     pub next: &'v [AtomicU64],
+    /// Faces asleep (see [`Part::sleepers`]).
+    pub asleep: &'v [AtomicU64],
+    /// Whether faces may fall asleep in this pass: only once few clusters change per
+    /// pass, when most of them would sleep for many passes (else waking them costs more
+    /// than visiting them).
+    pub may_sleep: bool,
+    /// Whether any face may be asleep (faces could fall asleep in this pass or before).
+    pub sleeping: bool,
 }
 
 /// The running state of a range of clusters: `sums[c - range.start]` is cluster `c`'s.
@@ -44,6 +58,11 @@ pub(crate) struct Part<'p> {
     pub terms: &'p mut [f64],
     /// Per cluster: the last pass that changed it.
     pub last_mod: &'p mut [u32],
+    /// Per cluster: faces asleep next to it. A face whose cluster and neighbouring clusters
+    /// all changed neither in the previous pass nor so far in this one would only be
+    /// visited to no effect until one of them changes: it leaves the active set and waits
+    /// on each of their lists (entries of faces woken since are stale, and skipped).
+    pub sleepers: &'p mut [Vec<u32>],
 }
 
 /// What one part's sweep did.
@@ -51,6 +70,8 @@ pub(crate) struct Part<'p> {
 pub(crate) struct Swept {
     pub moves: u64,
     pub refused: u64,
+    /// Faces that fell asleep.
+    pub slept: u64,
     /// Faces on a border with another part, in face order, for the second phase.
     pub deferred: Vec<u32>,
 }
@@ -58,6 +79,13 @@ pub(crate) struct Swept {
 #[inline]
 fn set(bits: &[AtomicU64], f: u32) {
     bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
+}
+
+/// Clears `f` in `bits`; true when it was set.
+#[inline]
+fn take(bits: &[AtomicU64], f: u32) -> bool {
+    let (word, bit) = (&bits[f as usize / 64], 1 << (f % 64));
+    word.load(Relaxed) & bit != 0 && word.fetch_and(!bit, Relaxed) & bit != 0
 }
 
 /// What a visit of one face found.
@@ -69,6 +97,8 @@ enum Visit {
     Deferred,
     /// On a cluster border, not moved.
     Stayed,
+    /// On a cluster border, with nothing around changed since its last visit.
+    Unchanged,
     /// Moved to another cluster.
     Moved,
 }
@@ -112,7 +142,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
         }
         let fresh = |c: u32| part.last_mod[(c - lo) as usize] + 1 >= pass;
         if !(fresh(from) || cands[..k].iter().any(|&c| fresh(c))) {
-            return Visit::Stayed;
+            return Visit::Unchanged;
         }
         let ft = self.face_sums[t as usize].sums();
         let fi = (from - lo) as usize;
@@ -153,7 +183,61 @@ impl<E: Energy + ?Sized> View<'_, E> {
         part.last_mod[fi] = pass;
         part.last_mod[ti] = pass;
         self.labels[t as usize].store(to, Relaxed);
+        for i in [fi, ti] {
+            if self.sleeping && !part.sleepers[i].is_empty() {
+                self.wake(&mut part.sleepers[i], &part.range, t, defer);
+            }
+        }
         Visit::Moved
+    }
+
+    /// Puts face `t` of `part` to sleep on the lists of its cluster and of the
+    /// neighbouring clusters (all in the part).
+    #[inline(never)]
+    fn fall_asleep(&self, t: u32, part: &mut Part<'_>) {
+        let lo = part.range.start;
+        let from = self.label(t);
+        part.sleepers[(from - lo) as usize].push(t);
+        let mut seen = [from; 3];
+        for (i, g) in self.nbr[t as usize].into_iter().enumerate() {
+            if g != NONE {
+                let c = self.label(g);
+                if !seen[..i].contains(&c) && c != from {
+                    part.sleepers[(c - lo) as usize].push(t);
+                }
+                seen[i] = c;
+            }
+        }
+        set(self.asleep, t);
+    }
+
+    /// Wakes the faces asleep on a cluster that face `t` just changed: those after `t`
+    /// for this pass when in a part's sweep (`in_part`), the others for the next. A part
+    /// looks only at faces in its clusters (`range`): a stale entry may name a face that
+    /// another part owns now, whose state is that part's alone.
+    #[inline(never)]
+    fn wake(&self, sleepers: &mut Vec<u32>, range: &Range<u32>, t: u32, in_part: bool) {
+        for f in sleepers.drain(..) {
+            if (!in_part || range.contains(&self.label(f))) && take(self.asleep, f) {
+                set(
+                    if in_part && f > t {
+                        self.cur
+                    } else {
+                        self.next
+                    },
+                    f,
+                );
+            }
+        }
+    }
+
+    /// Marks face `g` (next to a face that moved) for a visit in `bits`, awake.
+    #[inline]
+    fn activate(&self, bits: &[AtomicU64], g: u32) {
+        set(bits, g);
+        if self.sleeping {
+            take(self.asleep, g);
+        }
     }
 
     /// The first phase of a pass for one part: its active faces (`own` marks the faces
@@ -177,13 +261,18 @@ impl<E: Energy + ?Sized> View<'_, E> {
                 let t = (w * 64) as u32 + b;
                 match self.visit(t, &mut part, pass, true, &mut out.refused) {
                     Visit::Inside => continue,
+                    Visit::Unchanged if self.may_sleep => {
+                        self.fall_asleep(t, &mut part);
+                        out.slept += 1;
+                        continue;
+                    }
                     Visit::Deferred => out.deferred.push(t),
-                    Visit::Stayed => {}
+                    Visit::Stayed | Visit::Unchanged => {}
                     Visit::Moved => {
                         out.moves += 1;
                         for g in self.nbr[t as usize] {
                             if g != NONE {
-                                set(if g > t { self.cur } else { self.next }, g);
+                                self.activate(if g > t { self.cur } else { self.next }, g);
                             }
                         }
                     }
@@ -221,7 +310,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
                 }
                 for g in self.nbr[t as usize] {
                     if g != NONE {
-                        set(self.next, g);
+                        self.activate(self.next, g);
                     }
                 }
             }
@@ -230,27 +319,38 @@ impl<E: Energy + ?Sized> View<'_, E> {
     }
 }
 
-/// Splits `sums`, `terms` and `last_mod` (indexed by label) at the part boundaries
-/// `starts` (ascending, first 0, last the cluster count).
-pub(crate) fn split_parts<'p>(
-    starts: &[u32],
-    mut sums: &'p mut [Sums],
-    mut terms: &'p mut [f64],
-    mut last_mod: &'p mut [u32],
-) -> Vec<Part<'p>> {
+/// The running state of all clusters, indexed by label.
+pub(crate) struct State<'s> {
+    pub sums: &'s mut [Sums],
+    pub terms: &'s mut [f64],
+    pub last_mod: &'s mut [u32],
+    pub sleepers: &'s mut [Vec<u32>],
+}
+
+/// Splits `state` at the part boundaries `starts` (ascending, first 0, last the cluster
+/// count).
+pub(crate) fn split_parts<'p>(starts: &[u32], state: State<'p>) -> Vec<Part<'p>> {
+    let State {
+        mut sums,
+        mut terms,
+        mut last_mod,
+        mut sleepers,
+    } = state;
     let mut parts = Vec::with_capacity(starts.len().saturating_sub(1));
     for w in starts.windows(2) {
         let len = (w[1] - w[0]) as usize;
         let (s, rest_s) = std::mem::take(&mut sums).split_at_mut(len);
         let (t, rest_t) = std::mem::take(&mut terms).split_at_mut(len);
         let (l, rest_l) = std::mem::take(&mut last_mod).split_at_mut(len);
+        let (z, rest_z) = std::mem::take(&mut sleepers).split_at_mut(len);
         parts.push(Part {
             range: w[0]..w[1],
             sums: s,
             terms: t,
             last_mod: l,
+            sleepers: z,
         });
-        (sums, terms, last_mod) = (rest_s, rest_t, rest_l);
+        (sums, terms, last_mod, sleepers) = (rest_s, rest_t, rest_l, rest_z);
     }
     parts
 }
@@ -266,17 +366,30 @@ pub(crate) fn owners(labels: &[AtomicU32], starts: &[u32]) -> Vec<Vec<u64>> {
     own
 }
 
-/// One pass over all parts (in parallel) and then the border faces: `(moves, refused)`.
+/// One pass over all parts (in parallel) and then the border faces: `(moves, refused,
+/// slept)`.
 pub(crate) fn pass<E: Energy + ?Sized>(
     view: &View<'_, E>,
     starts: &[u32],
     own: &mut [Vec<u64>],
-    sums: &mut [Sums],
-    terms: &mut [f64],
-    last_mod: &mut [u32],
+    state: State<'_>,
     pass: u32,
-) -> (u64, u64) {
-    let parts = split_parts(starts, sums, terms, last_mod);
+) -> (u64, u64, u64) {
+    let State {
+        sums,
+        terms,
+        last_mod,
+        sleepers,
+    } = state;
+    let parts = split_parts(
+        starts,
+        State {
+            sums: &mut *sums,
+            terms: &mut *terms,
+            last_mod: &mut *last_mod,
+            sleepers: &mut *sleepers,
+        },
+    );
     let swept: Vec<Swept> = if parts.len() == 1 {
         parts
             .into_iter()
@@ -290,11 +403,12 @@ pub(crate) fn pass<E: Energy + ?Sized>(
             .map(|(p, o)| view.sweep_part(p, o, pass))
             .collect()
     };
-    let (mut moves, mut refused) = (0, 0);
+    let (mut moves, mut refused, mut slept) = (0, 0, 0);
     let mut border = Vec::new();
     for s in swept {
         moves += s.moves;
         refused += s.refused;
+        slept += s.slept;
         border.extend(s.deferred);
     }
     if !border.is_empty() {
@@ -305,10 +419,11 @@ pub(crate) fn pass<E: Energy + ?Sized>(
             sums,
             terms,
             last_mod,
+            sleepers,
         };
         let s = view.sweep_border(all, starts, own, &border, pass);
         moves += s.moves;
         refused += s.refused;
     }
-    (moves, refused)
+    (moves, refused, slept)
 }

@@ -457,3 +457,46 @@ fn a_cluster_in_two_pieces_is_reported_disconnected() {
     c.set_labels(joined, 2).unwrap();
     assert_eq!(c.connected_clusters(), vec![true, true]);
 }
+
+#[test]
+fn sleeping_faces_change_nothing() {
+    // Big enough for the parallel sweep; run to the end (no tolerance) so that late
+    // passes change few clusters and faces fall asleep, in the parts and on their borders.
+    let mesh = icosphere(1.0, 6).unwrap();
+    let topo = Topology::build(&mesh);
+    let energy = Shu2009 { r: 2.0 };
+    let run = |share: f64, threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut c = Clusterer::new(&mesh, &topo, &energy, None).unwrap();
+            c.seed(1500, 7).unwrap();
+            c.set_sleep_share(share);
+            let log = c.minimize(300, None, |_, _, _| {});
+            (c.into_labels(), log)
+        })
+    };
+    let (awake, awake_log) = run(0.0, 1);
+    assert_eq!(awake_log.slept, 0);
+    assert!(awake_log.moves.len() > 20, "{:?}", awake_log.moves);
+    check_invariant(&mesh, &awake, 1500);
+    // By default, and from the first pass on (most sleepers woken again at once).
+    for share in [engine::SLEEP_SHARE, 2.0] {
+        for threads in [1, 3] {
+            let (labels, log) = run(share, threads);
+            assert!(log.slept > 1000, "share {share}: {} slept", log.slept);
+            assert_eq!(labels, awake, "share {share}, {threads} threads");
+            assert_eq!(
+                log.moves, awake_log.moves,
+                "share {share}, {threads} threads"
+            );
+            assert_eq!(
+                log.energy, awake_log.energy,
+                "share {share}, {threads} threads"
+            );
+            assert_eq!(log.refused, awake_log.refused);
+        }
+    }
+}
