@@ -144,11 +144,19 @@ struct VertexSums {
 ///
 /// Values are in the mesh's units (K in 1/length², H in 1/length). Every value is finite.
 pub fn estimate(mesh: &Mesh, params: &CurvatureParams) -> Result<Estimate, CurvatureError> {
+    estimate_with(mesh, params, &Topology::try_build(mesh)?)
+}
+
+/// [`estimate`] with the adjacency of `mesh` at hand.
+pub fn estimate_with(
+    mesh: &Mesh,
+    params: &CurvatureParams,
+    topo: &Topology,
+) -> Result<Estimate, CurvatureError> {
     mesh.validate_indices()?;
     let (positions, half_side) = normalise_positions(&mesh.positions)?;
-    let topo = Topology::try_build(mesh)?;
     let faces = face_terms(&positions, &mesh.faces, params);
-    let sums = vertex_sums(&mesh.faces, &faces, &topo);
+    let sums = vertex_sums(&mesh.faces, &faces, topo);
 
     let mut counts = Counts::default();
     for s in &sums {
@@ -183,7 +191,7 @@ pub fn estimate(mesh: &Mesh, params: &CurvatureParams) -> Result<Estimate, Curva
             VertexClass::Boundary | VertexClass::NonManifold | VertexClass::DegenerateArea
         )
     };
-    counts.from_neighbors = fill_special_vertices(&topo, &special, &mut resolved, &mut k, &mut h);
+    counts.from_neighbors = fill_special_vertices(topo, &special, &mut resolved, &mut k, &mut h);
     // What no ring reached: a boundary vertex keeps its one-sided estimate, the rest 0.
     for (v, s) in sums.iter().enumerate() {
         if resolved[v] || !special(v) {

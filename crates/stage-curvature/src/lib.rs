@@ -76,7 +76,7 @@
 
 pub mod estimate;
 
-pub use estimate::{Counts, CurvatureError, Estimate, VertexClass, estimate};
+pub use estimate::{Counts, CurvatureError, Estimate, VertexClass, estimate, estimate_with};
 
 use coarsen_stage::{
     AttrKind, AttrRef, AttrValues, Context, Contract, Mesh, Params, Stage, StageError, StageReport,
@@ -179,8 +179,11 @@ impl Stage for Curvature {
     }
 
     fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
-        let e = estimate(&mesh, &self.0)
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
+        // The adjacency stays for the stages after (refinement numbers its first edges
+        // with it).
+        let input_error = |e: String| StageError::Input(format!("`{}`: {e}", Self::KIND));
+        let topo = cx.topology(&mesh).map_err(|e| input_error(e.to_string()))?;
+        let e = estimate_with(&mesh, &self.0, &topo).map_err(|e| input_error(e.to_string()))?;
         report(cx.report, &self.0, &e);
         let Estimate {
             gaussian,

@@ -464,13 +464,15 @@ pub fn split_once_with(
 /// Refines `mesh` by red-green passes driven by the vertex scalar `params.field` until the
 /// stopping rule holds (see the crate docs). Returns the refined mesh and what was done.
 pub fn refine(mesh: Mesh, params: &RefineParams) -> Result<(Mesh, Outcome), RefineError> {
-    refine_with(mesh, params, &mut |_| {})
+    refine_with(mesh, params, None, &mut |_| {})
 }
 
-/// [`refine`], calling `on_pass` after every pass (for progress display).
+/// [`refine`], numbering the first pass's edges by `topo` (the adjacency of `mesh`, when at
+/// hand; the same numbering) and calling `on_pass` after every pass (for progress display).
 pub fn refine_with(
     mesh: Mesh,
     params: &RefineParams,
+    mut topo: Option<&coarsen_mesh::Topology>,
     on_pass: &mut dyn FnMut(&PassRecord),
 ) -> Result<(Mesh, Outcome), RefineError> {
     let p = params;
@@ -497,7 +499,10 @@ pub fn refine_with(
         let delta = state.criterion.delta;
         let candidates: Vec<bool> = state.d.iter().map(|&d| d > delta).collect();
         let splittable: Vec<bool> = state.areas.iter().map(|&a| a >= threshold).collect();
-        let table = EdgeTable::build(mesh.n_vertices(), &mesh.faces);
+        let table = match topo.take().and_then(|t| EdgeTable::from_topology(&mesh, t)) {
+            Some(t) => t,
+            None => EdgeTable::build(mesh.n_vertices(), &mesh.faces),
+        };
         let plan = Plan::new(&table, mesh.n_vertices(), &candidates, &splittable);
         let c = plan.counts;
         if c.red == 0 {
@@ -602,7 +607,8 @@ impl Stage for RefineRedGreen {
                 &format!("λ {:.2}, {} faces", r.lambda.unwrap_or(f64::NAN), r.faces),
             );
         };
-        let result = refine_with(mesh, &self.0, &mut on_pass);
+        let topo = cx.topology_at_hand(&mesh);
+        let result = refine_with(mesh, &self.0, topo.as_deref(), &mut on_pass);
         progress.end();
         let (out, outcome) = result.map_err(|e| match e {
             RefineError::Internal(m) => StageError::Internal(format!("`{}`: {m}", Self::KIND)),

@@ -186,6 +186,12 @@ impl<'a> Context<'a> {
         }
     }
 
+    /// The adjacency of `mesh` when a stage before left it (see [`Context::topology`]);
+    /// nothing is built.
+    pub fn topology_at_hand(&self, mesh: &Mesh) -> Option<std::sync::Arc<coarsen_mesh::Topology>> {
+        self.shared.and_then(|s| s.topology_at_hand(mesh))
+    }
+
     /// Like [`Context::input_index`], for a value built from the run input and its
     /// adjacency ([`Context::input_topology`]).
     pub fn input_index_with_topology<T: std::any::Any + Send + Sync>(

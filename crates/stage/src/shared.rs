@@ -80,6 +80,17 @@ impl Shared {
             .unwrap_or_else(PoisonError::into_inner) = None;
     }
 
+    /// The adjacency kept from a stage before when `mesh` has the same vertex count and
+    /// faces as the mesh it was built from; nothing is built.
+    pub fn topology_at_hand(&self, mesh: &Mesh) -> Option<Arc<Topology>> {
+        self.adjacency
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_ref()
+            .filter(|a| a.n_vertices == mesh.n_vertices() && a.faces == mesh.faces)
+            .map(|a| Arc::clone(&a.topology))
+    }
+
     /// The adjacency of `mesh`: the one built last when `mesh` has the same vertex count
     /// and faces as the mesh it was built from, else a new one (which replaces it).
     pub fn topology(&self, mesh: &Mesh) -> Result<Arc<Topology>, TopologyError> {
@@ -169,5 +180,20 @@ mod tests {
         m.positions.push(DVec3::NEG_ONE); // a new isolated vertex changes the adjacency
         let t4 = shared.topology(&m).unwrap();
         assert!(!Arc::ptr_eq(&t3, &t4));
+    }
+
+    #[test]
+    fn the_topology_at_hand_is_only_ever_the_kept_one() {
+        let shared = Shared::new();
+        let mut m = two_triangles();
+        assert!(shared.topology_at_hand(&m).is_none(), "nothing built yet");
+        let t = shared.topology(&m).unwrap();
+        assert!(Arc::ptr_eq(&shared.topology_at_hand(&m).unwrap(), &t));
+        m.faces.pop();
+        assert!(shared.topology_at_hand(&m).is_none(), "other faces");
+        assert!(Arc::ptr_eq(
+            &shared.topology_at_hand(&two_triangles()).unwrap(),
+            &t
+        ));
     }
 }
