@@ -604,6 +604,36 @@ mod tests {
         );
     }
 
+    /// Pairs planned on an adjacency kept across pairs (rebuilt only when a candidate
+    /// touches what changed since) are the pairs of rebuilding it before every pair.
+    #[test]
+    fn rebalancing_on_kept_adjacency_matches_rebuilding_it_every_pair() {
+        let sphere = coarsen_shapes::icosphere(1.0, 4).unwrap();
+        let mut jittered = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        jitter_on_sphere(&mut jittered, 11, 0.12);
+        let surface = Surface::new(&sphere);
+        for (name, m, surface) in [
+            ("strip", uneven_strip(), None),
+            ("sphere", jittered.clone(), None),
+            ("sphere on its input", jittered, Some(&surface)),
+        ] {
+            let floor = 40f64.to_radians();
+            let cos_turn = 30f64.to_radians().cos();
+            let (mut fresh, mut kept) = (m.clone(), m);
+            let (a, built_a) = rebalance_with(&mut fresh, surface, 40, cos_turn, floor, true);
+            let (b, built_b) = rebalance_with(&mut kept, surface, 40, cos_turn, floor, false);
+            assert!(a >= 5, "{name}: {a} pairs");
+            assert_eq!(a, b, "{name}");
+            // On the strip every pair lands next to the one before.
+            assert!(
+                name == "strip" || built_b < built_a,
+                "{name}: {built_b} builds against {built_a}"
+            );
+            assert_eq!(fresh.faces, kept.faces, "{name}");
+            assert_eq!(position_bits(&fresh), position_bits(&kept), "{name}");
+        }
+    }
+
     /// Attributes follow rebalancing: a vertex scalar equal to x stays equal to x (split
     /// and collapsed vertices sit at edge midpoints, their values blend the ends), and a
     /// face label keeps one value per face.

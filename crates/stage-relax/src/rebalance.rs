@@ -1,5 +1,10 @@
 //! Split/collapse pairs that move vertices from short edges to long ones, the vertex
 //! count kept.
+//!
+//! Each pair is chosen on the mesh as the pair before left it. Rather than rebuilding the
+//! adjacency for every pair, one is kept until a candidate touches a vertex whose faces
+//! changed since it was built (then it is rebuilt); the edges and their face counts follow
+//! every pair. The pairs are the same as with a fresh adjacency each time (tested).
 
 use super::*;
 
@@ -247,6 +252,168 @@ pub(crate) fn rebalance(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
+    rebalance_with(mesh, surface, max_pairs, cos_turn, floor, false).0
+}
+
+/// The adjacency a pair is planned with: built for the mesh as it was some pairs ago, with
+/// the vertices whose faces changed since (`dirty`) and the current edges, sorted, with
+/// their face counts. A pair that involves only clean vertices plans exactly as on a fresh
+/// adjacency; one that would need a dirty vertex asks for a rebuild.
+struct Snapshot {
+    topo: Topology,
+    ends: Vec<Vec<u32>>,
+    dirty: Vec<bool>,
+    edges: Vec<([u32; 2], u32)>,
+}
+
+impl Snapshot {
+    fn new(mesh: &Mesh) -> Option<Snapshot> {
+        let topo = Topology::try_build(mesh).ok()?;
+        let edges = (0..topo.n_edges() as u32)
+            .map(|e| (topo.edge(e), topo.edge_faces(e).len() as u32))
+            .collect();
+        Some(Snapshot {
+            ends: boundary_neighbours(&topo, mesh.n_vertices()),
+            dirty: vec![false; mesh.n_vertices()],
+            edges,
+            topo,
+        })
+    }
+
+    fn clean(&self, [a, b]: [u32; 2]) -> bool {
+        !self.dirty[a as usize] && !self.dirty[b as usize]
+    }
+
+    /// The snapshot's id of clean edge `ab`.
+    fn id(&self, [a, b]: [u32; 2]) -> Option<u32> {
+        self.topo.find_edge(a, b)
+    }
+
+    /// Counts the edges of `face` once more (`add`) or once less.
+    fn count(&mut self, face: [u32; 3], add: bool) {
+        for i in 0..3 {
+            let (a, b) = (face[i], face[(i + 1) % 3]);
+            let key = [a.min(b), a.max(b)];
+            match (self.edges.binary_search_by(|(k, _)| k.cmp(&key)), add) {
+                (Ok(i), true) => self.edges[i].1 += 1,
+                (Err(i), true) => self.edges.insert(i, (key, 1)),
+                (Ok(i), false) if self.edges[i].1 > 1 => self.edges[i].1 -= 1,
+                (Ok(i), false) => {
+                    self.edges.remove(i);
+                }
+                (Err(_), false) => {}
+            }
+        }
+    }
+}
+
+/// What one round of [`rebalance`] found.
+enum Found {
+    /// This pair: the split edge's ends and faces, its new faces and midpoint, and the
+    /// collapse.
+    Pair {
+        ends: [u32; 2],
+        old: [u32; 2],
+        new: [[u32; 3]; 4],
+        at: DVec3,
+        col: Collapse,
+    },
+    /// Nothing more to do.
+    Nothing,
+    /// A candidate touches a vertex whose faces changed since the snapshot.
+    Stale,
+}
+
+/// The next pair (see [`rebalance`]), planned on `snap`.
+fn find_pair(
+    mesh: &Mesh,
+    snap: &Snapshot,
+    surface: Option<&Surface<'_>>,
+    cos_turn: f64,
+    floor: f64,
+) -> Found {
+    let edges = &snap.edges;
+    if edges.is_empty() {
+        return Found::Nothing;
+    }
+    let len = |[a, b]: [u32; 2]| mesh.positions[a as usize].distance(mesh.positions[b as usize]);
+    let mean = edges.iter().map(|&(ab, _)| len(ab)).sum::<f64>() / edges.len() as f64;
+    let topo = &snap.topo;
+    // Interior edges long enough; on a dirty edge the boundary test is unknown, so it is
+    // listed at the lower bar and planning it asks for a fresh snapshot.
+    let mut splits: Vec<(f64, usize)> = edges
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, faces))| *faces == 2)
+        .map(|(i, &(ab, _))| {
+            let bridge = !snap.clean(ab)
+                || (topo.is_boundary_vertex(ab[0]) && topo.is_boundary_vertex(ab[1]));
+            (len(ab), i, bridge)
+        })
+        .filter(|&(l, _, bridge)| l > if bridge { SPLIT_RATIO } else { LONG_RATIO } * mean)
+        .map(|(l, i, _)| (l, i))
+        .collect();
+    splits.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    let mut collapses: Vec<(f64, usize)> = edges
+        .iter()
+        .enumerate()
+        .map(|(i, &(ab, _))| (len(ab), i))
+        .filter(|&(l, _)| l < COLLAPSE_RATIO * mean)
+        .collect();
+    collapses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    'pair: for &(_, si) in &splits {
+        let sab = edges[si].0;
+        let Some(s) = snap.id(sab).filter(|_| snap.clean(sab)) else {
+            return Found::Stale;
+        };
+        let [c, d] = sab;
+        let mid = mesh.positions[c as usize].lerp(mesh.positions[d as usize], 0.5);
+        let at = surface.and_then(|sf| sf.project(mid)).unwrap_or(mid);
+        let around: Vec<u32> = topo
+            .edge_faces(s)
+            .iter()
+            .flat_map(|&f| mesh.faces[f as usize])
+            .collect();
+        for &(_, ki) in &collapses {
+            let kab = edges[ki].0;
+            let [a, b] = kab;
+            if around.contains(&a) || around.contains(&b) {
+                continue;
+            }
+            let Some(k) = snap.id(kab).filter(|_| snap.clean(kab)) else {
+                return Found::Stale;
+            };
+            let Some(col) = plan_collapse(mesh, topo, &snap.ends, surface, k, cos_turn, floor)
+            else {
+                continue;
+            };
+            let Some((old, new)) = plan_split(mesh, topo, surface, s, col.gone, at, cos_turn)
+            else {
+                continue 'pair;
+            };
+            return Found::Pair {
+                ends: sab,
+                old,
+                new,
+                at,
+                col,
+            };
+        }
+    }
+    Found::Nothing
+}
+
+/// [`rebalance`]; with `fresh`, the adjacency is rebuilt before every pair (the plain
+/// algorithm the snapshots must reproduce). Returns the pairs made and the adjacencies
+/// built.
+pub(crate) fn rebalance_with(
+    mesh: &mut Mesh,
+    surface: Option<&Surface<'_>>,
+    max_pairs: u32,
+    cos_turn: f64,
+    floor: f64,
+    fresh: bool,
+) -> (usize, usize) {
     let Origins {
         before,
         mut v_from,
@@ -254,105 +421,109 @@ pub(crate) fn rebalance(
     } = Origins::start(mesh);
     let carry = before.is_some();
     let mut done = 0;
+    let mut snapshot: Option<Snapshot> = None;
+    let mut built = 0;
     while done < max_pairs as usize {
-        let Ok(topo) = Topology::try_build(mesh) else {
+        if snapshot.is_none() {
+            snapshot = Snapshot::new(mesh);
+            built += 1;
+        }
+        let Some(snap) = snapshot.as_mut() else {
             break;
         };
-        let n_edges = topo.n_edges();
-        if n_edges == 0 {
-            break;
-        }
-        let len = |e: u32| edge_length(mesh, &topo, e);
-        let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
-        let ends = boundary_neighbours(&topo, mesh.n_vertices());
-        let mut splits: Vec<(f64, u32)> = (0..n_edges as u32)
-            .filter(|&e| topo.edge_faces(e).len() == 2)
-            .map(|e| {
-                let [a, b] = topo.edge(e);
-                let bridge = topo.is_boundary_vertex(a) && topo.is_boundary_vertex(b);
-                (len(e), e, bridge)
-            })
-            .filter(|&(l, _, bridge)| l > if bridge { SPLIT_RATIO } else { LONG_RATIO } * mean)
-            .map(|(l, e, _)| (l, e))
-            .collect();
-        splits.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-        let mut collapses: Vec<(f64, u32)> = (0..n_edges as u32)
-            .map(|e| (len(e), e))
-            .filter(|&(l, _)| l < COLLAPSE_RATIO * mean)
-            .collect();
-        collapses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-        let mut made = false;
-        'pair: for &(_, s) in &splits {
-            let [c, d] = topo.edge(s);
-            let mid = mesh.positions[c as usize].lerp(mesh.positions[d as usize], 0.5);
-            let at = surface.and_then(|sf| sf.project(mid)).unwrap_or(mid);
-            let around: Vec<u32> = topo
-                .edge_faces(s)
-                .iter()
-                .flat_map(|&f| mesh.faces[f as usize])
-                .collect();
-            for &(_, k) in &collapses {
-                let [a, b] = topo.edge(k);
-                if around.contains(&a) || around.contains(&b) {
-                    continue;
-                }
-                let Some(col) = plan_collapse(mesh, &topo, &ends, surface, k, cos_turn, floor)
-                else {
-                    continue;
-                };
-                let Some((old, new)) = plan_split(mesh, &topo, surface, s, col.gone, at, cos_turn)
-                else {
-                    continue 'pair;
-                };
-                if carry {
-                    if col.at != mesh.positions[col.keep as usize] {
-                        v_from[col.keep as usize] =
-                            blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
-                    }
-                    v_from[col.gone as usize] =
-                        blend_origins(&v_from[c as usize], &v_from[d as usize]);
-                    let parents = [old[0], old[0], old[1], old[1]].map(|f| f_from[f as usize]);
-                    let slots = [old[0], old[1]]
-                        .into_iter()
-                        .chain(col.freed.iter().copied());
-                    for (i, f) in slots.enumerate() {
-                        f_from[f as usize] = parents[i];
-                    }
-                    if col.freed.len() == 1 {
-                        f_from.push(parents[3]);
-                    }
-                }
-                // Collapse: `gone` becomes `keep`; its edge's faces are freed.
-                for &f in topo.vertex_faces(col.gone) {
-                    for w in &mut mesh.faces[f as usize] {
-                        if *w == col.gone {
-                            *w = col.keep;
-                        }
-                    }
-                }
-                mesh.positions[col.keep as usize] = col.at;
-                mesh.positions[col.gone as usize] = at;
-                // The split's two faces and the collapse's freed ones (two, or one on the
-                // boundary: then the last new face is appended).
-                let mut slots = vec![old[0], old[1]];
-                slots.extend(&col.freed);
-                for (i, t) in new.into_iter().enumerate() {
-                    match slots.get(i) {
-                        Some(&f) => mesh.faces[f as usize] = t,
-                        None => mesh.faces.push(t),
-                    }
-                }
-                done += 1;
-                made = true;
-                break 'pair;
+        let (ends, old, new, at, col) = match find_pair(mesh, snap, surface, cos_turn, floor) {
+            Found::Nothing => break,
+            Found::Stale => {
+                snapshot = None;
+                continue;
+            }
+            Found::Pair {
+                ends,
+                old,
+                new,
+                at,
+                col,
+            } => (ends, old, new, at, col),
+        };
+        let [c, d] = ends;
+        if carry {
+            if col.at != mesh.positions[col.keep as usize] {
+                v_from[col.keep as usize] =
+                    blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+            }
+            v_from[col.gone as usize] = blend_origins(&v_from[c as usize], &v_from[d as usize]);
+            let parents = [old[0], old[0], old[1], old[1]].map(|f| f_from[f as usize]);
+            let slots = [old[0], old[1]]
+                .into_iter()
+                .chain(col.freed.iter().copied());
+            for (i, f) in slots.enumerate() {
+                f_from[f as usize] = parents[i];
+            }
+            if col.freed.len() == 1 {
+                f_from.push(parents[3]);
             }
         }
-        if !made {
-            break;
+        // The faces the pair changes, as they were.
+        let mut changed: Vec<(u32, [u32; 3])> = Vec::new();
+        let touched = snap
+            .topo
+            .vertex_faces(col.gone)
+            .iter()
+            .chain(&old)
+            .chain(&col.freed);
+        for &f in touched {
+            if !changed.iter().any(|&(g, _)| g == f) {
+                changed.push((f, mesh.faces[f as usize]));
+            }
+        }
+        // Collapse: `gone` becomes `keep`; its edge's faces are freed.
+        for &f in snap.topo.vertex_faces(col.gone) {
+            for w in &mut mesh.faces[f as usize] {
+                if *w == col.gone {
+                    *w = col.keep;
+                }
+            }
+        }
+        mesh.positions[col.keep as usize] = col.at;
+        mesh.positions[col.gone as usize] = at;
+        // The split's two faces and the collapse's freed ones (two, or one on the
+        // boundary: then the last new face is appended).
+        let mut slots = vec![old[0], old[1]];
+        slots.extend(&col.freed);
+        let mut appended = None;
+        for (i, t) in new.into_iter().enumerate() {
+            match slots.get(i) {
+                Some(&f) => mesh.faces[f as usize] = t,
+                None => {
+                    appended = Some(mesh.faces.len() as u32);
+                    mesh.faces.push(t);
+                }
+            }
+        }
+        done += 1;
+        if fresh {
+            snapshot = None;
+            continue;
+        }
+        // The snapshot's edges and dirty vertices follow the change.
+        for &(f, was) in &changed {
+            let now = mesh.faces[f as usize];
+            snap.count(was, false);
+            snap.count(now, true);
+            for v in was.into_iter().chain(now) {
+                snap.dirty[v as usize] = true;
+            }
+        }
+        if let Some(f) = appended {
+            let now = mesh.faces[f as usize];
+            snap.count(now, true);
+            for v in now {
+                snap.dirty[v as usize] = true;
+            }
         }
     }
     if let Some(before) = before.filter(|_| done > 0) {
         carry_attributes(mesh, &before, v_from, f_from);
     }
-    done
+    (done, built)
 }
