@@ -40,7 +40,6 @@ pub fn ring_shape(edges: &mut [(Index, Index)], targets: &mut Vec<Index>) -> Rin
 
 /// [`ring_shape`] of a non-empty ring by sorting its edges and targets.
 fn sorted_ring_shape(edges: &mut [(Index, Index)], targets: &mut Vec<Index>) -> RingShape {
-    let n = edges.len();
     edges.sort_unstable();
     if edges.windows(2).any(|w| w[0].0 == w[1].0) {
         return RingShape::Invalid;
@@ -51,10 +50,44 @@ fn sorted_ring_shape(edges: &mut [(Index, Index)], targets: &mut Vec<Index>) -> 
     if targets.windows(2).any(|w| w[0] == w[1]) {
         return RingShape::Invalid;
     }
-    let mut starts = edges
-        .iter()
-        .filter(|e| targets.binary_search(&e.0).is_err())
-        .map(|e| e.0);
+    let edges = &*edges;
+    follow(
+        edges,
+        |v| targets.binary_search(&v).is_ok(),
+        |v| {
+            edges
+                .binary_search_by_key(&v, |e| e.0)
+                .ok()
+                .map(|i| edges[i].1)
+        },
+    )
+}
+
+/// [`ring_shape`] of a few edges, by scanning: the same verdicts without sorting.
+fn small_ring_shape(edges: &[(Index, Index)]) -> RingShape {
+    for (i, e) in edges.iter().enumerate() {
+        if edges[..i].iter().any(|d| d.0 == e.0 || d.1 == e.1) {
+            return RingShape::Invalid;
+        }
+    }
+    follow(
+        edges,
+        |v| edges.iter().any(|d| d.1 == v),
+        |v| edges.iter().find(|e| e.0 == v).map(|e| e.1),
+    )
+}
+
+/// The shape of the non-empty ring `edges`, whose sources are distinct and whose targets
+/// are distinct (so each vertex has at most one successor), given which vertices are
+/// targets and each vertex's successor: one cycle, one path, or anything else.
+#[inline]
+fn follow(
+    edges: &[(Index, Index)],
+    is_target: impl Fn(Index) -> bool,
+    successor: impl Fn(Index) -> Option<Index>,
+) -> RingShape {
+    let n = edges.len();
+    let mut starts = edges.iter().filter(|e| !is_target(e.0)).map(|e| e.0);
     let first = starts.next();
     if starts.next().is_some() {
         return RingShape::Invalid;
@@ -63,42 +96,8 @@ fn sorted_ring_shape(edges: &mut [(Index, Index)], targets: &mut Vec<Index>) -> 
     // Follow the unique successor from `origin`, counting edges.
     let mut at = origin;
     let mut steps = 0;
-    while let Ok(i) = edges.binary_search_by_key(&at, |e| e.0) {
-        at = edges[i].1;
-        steps += 1;
-        if at == origin || steps > n {
-            break;
-        }
-    }
-    match first {
-        None if steps == n && at == origin && n >= 3 => RingShape::Cycle,
-        Some(_) if steps == n => RingShape::Path,
-        _ => RingShape::Invalid,
-    }
-}
-
-/// [`ring_shape`] of a few edges, by scanning: the same verdicts without sorting.
-fn small_ring_shape(edges: &[(Index, Index)]) -> RingShape {
-    let n = edges.len();
-    for (i, e) in edges.iter().enumerate() {
-        if edges[..i].iter().any(|d| d.0 == e.0 || d.1 == e.1) {
-            return RingShape::Invalid;
-        }
-    }
-    // Sources and targets are distinct now: each vertex has at most one successor.
-    let mut starts = edges
-        .iter()
-        .filter(|e| !edges.iter().any(|d| d.1 == e.0))
-        .map(|e| e.0);
-    let first = starts.next();
-    if starts.next().is_some() {
-        return RingShape::Invalid;
-    }
-    let origin = first.unwrap_or(edges[0].0);
-    let mut at = origin;
-    let mut steps = 0;
-    while let Some(e) = edges.iter().find(|e| e.0 == at) {
-        at = e.1;
+    while let Some(next) = successor(at) {
+        at = next;
         steps += 1;
         if at == origin || steps > n {
             break;
