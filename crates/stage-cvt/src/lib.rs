@@ -150,16 +150,29 @@ pub fn cluster(
     density: Option<&[f64]>,
     on_pass: impl FnMut(u32, u64, f64),
 ) -> Result<Clustering, ClusterError> {
-    cluster_from(mesh, topo, Vec::new(), n, params, density, on_pass)
+    cluster_from(mesh, topo, Start::Seeds, n, params, density, on_pass)
 }
 
-/// Like [`cluster`], but starting from the clustering `labels` (`0..n`, every cluster
-/// non-empty and connected — e.g. a previous clustering carried to a finer mesh) instead
-/// of fresh seeds. Falls back to fresh seeds when `labels` is not such a clustering.
+/// Where [`cluster_from`] starts.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Start {
+    /// Fresh seeds, grown into regions.
+    Seeds,
+    /// A clustering of the mesh (`0..n` per face): taken when every cluster is non-empty
+    /// and connected, else fresh seeds.
+    Labels(Vec<u32>),
+    /// A clustering of the mesh this one is the uniform 1-to-4 split of, carried to the
+    /// child faces: connected wherever the coarse one was, so only the labels and the
+    /// cluster sizes are checked (the post-process's finer levels).
+    Carried(Vec<u32>),
+}
+
+/// Like [`cluster`], but starting from `start` (a warm start runs the minimisation from
+/// a clustering at hand, e.g. a previous one carried to a finer mesh).
 pub fn cluster_from(
     mesh: &Mesh,
     topo: &Topology,
-    labels: Vec<u32>,
+    start: Start,
     n: usize,
     params: &CvtParams,
     density: Option<&[f64]>,
@@ -168,18 +181,11 @@ pub fn cluster_from(
     match params.energy {
         EnergyKind::Shu2009 => {
             let energy = Shu2009 { r: params.r };
-            run_from(mesh, topo, labels, n, params, &energy, density, on_pass)
+            run_from(mesh, topo, start, n, params, &energy, density, on_pass)
         }
-        EnergyKind::Valette2004 => run_from(
-            mesh,
-            topo,
-            labels,
-            n,
-            params,
-            &Valette2004,
-            density,
-            on_pass,
-        ),
+        EnergyKind::Valette2004 => {
+            run_from(mesh, topo, start, n, params, &Valette2004, density, on_pass)
+        }
     }
 }
 
@@ -188,7 +194,7 @@ pub fn cluster_from(
 fn run_from<E: Energy>(
     mesh: &Mesh,
     topo: &Topology,
-    labels: Vec<u32>,
+    start: Start,
     n: usize,
     params: &CvtParams,
     energy: &E,
@@ -197,6 +203,11 @@ fn run_from<E: Energy>(
 ) -> Result<Clustering, ClusterError> {
     // A warm start (the post-process's levels) runs few passes: no curve layout (see
     // `Clusterer::for_few_passes`), whose copies would also add to the peak memory.
+    let (labels, carried) = match start {
+        Start::Seeds => (Vec::new(), false),
+        Start::Labels(l) => (l, false),
+        Start::Carried(l) => (l, true),
+    };
     let warm = labels.len() == mesh.n_faces();
     let mut c = match warm {
         true => Clusterer::for_few_passes(mesh, topo, energy, density)?,
@@ -205,7 +216,11 @@ fn run_from<E: Energy>(
     let usable = warm
         && c.set_labels(labels, n).is_ok()
         && c.cluster_sums().iter().all(|s| s.count > 0.5)
-        && c.connected_clusters().iter().all(|&k| k);
+        && (carried || c.connected_clusters().iter().all(|&k| k));
+    debug_assert!(
+        !(usable && carried) || c.connected_clusters().iter().all(|&k| k),
+        "a carried clustering came out disconnected"
+    );
     if !usable {
         c.seed(n, params.seed)?;
     }

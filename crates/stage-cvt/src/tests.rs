@@ -403,7 +403,16 @@ fn bad_label_columns_are_errors_not_panics() {
         energy: EnergyKind::Valette2004,
         ..CvtParams::default()
     };
-    let r = cluster_from(&mesh, &topo, vec![0; 5], 10, &p, None, |_, _, _| {}).unwrap();
+    let r = cluster_from(
+        &mesh,
+        &topo,
+        Start::Labels(vec![0; 5]),
+        10,
+        &p,
+        None,
+        |_, _, _| {},
+    )
+    .unwrap();
     check_invariant(&mesh, &r.labels, 10);
 }
 
@@ -499,4 +508,31 @@ fn sleeping_faces_change_nothing() {
             assert_eq!(log.refused, awake_log.refused);
         }
     }
+}
+
+#[test]
+fn a_clustering_carried_through_a_uniform_split_is_taken_as_it_is() {
+    let mesh = icosphere(1.0, 3).unwrap();
+    let topo = Topology::build(&mesh);
+    let p = CvtParams::default();
+    let coarse = cluster(&mesh, &topo, 60, &p, None, |_, _, _| {}).unwrap();
+    let fine = topo.uniform_split(&mesh);
+    let fine_topo = Topology::build(&fine);
+    // Faces 4f .. 4f + 3 are face f's children.
+    let carried: Vec<u32> = (0..fine.n_faces()).map(|f| coarse.labels[f / 4]).collect();
+    check_invariant(&fine, &carried, 60);
+    let run = |start| cluster_from(&fine, &fine_topo, start, 60, &p, None, |_, _, _| {}).unwrap();
+    let trusted = run(Start::Carried(carried.clone()));
+    let checked = run(Start::Labels(carried));
+    check_invariant(&fine, &trusted.labels, 60);
+    assert_eq!(trusted.labels, checked.labels);
+    assert_eq!(trusted.log, checked.log);
+    // A warm start: far less to move than from fresh seeds.
+    let fresh = run(Start::Seeds);
+    assert!(
+        trusted.log.moves.iter().sum::<u64>() < fresh.log.moves.iter().sum::<u64>(),
+        "{:?} vs {:?}",
+        trusted.log.moves,
+        fresh.log.moves
+    );
 }

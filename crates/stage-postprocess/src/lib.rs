@@ -13,7 +13,7 @@ use coarsen_stage::{
     AttrValues, Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError,
     params,
 };
-use coarsen_stage_cvt::{CvtParams, EnergyKind};
+use coarsen_stage_cvt::{CvtParams, EnergyKind, Start};
 use coarsen_stage_dual::Placement;
 use rayon::prelude::*;
 
@@ -128,9 +128,12 @@ impl Stage for Postprocess {
                     done += 1;
                 }
             }
-            let start = match fine.face_attrs.remove(CLUSTER) {
-                Some(AttrValues::Label(l)) => l,
-                _ => dual_cells(&coarse, &fine, done),
+            // A finer level starts from the level before's clustering, carried to the
+            // child faces by the split; the first from the dual cells.
+            let start = match (fine.face_attrs.remove(CLUSTER), log.is_some()) {
+                (Some(AttrValues::Label(l)), true) => Start::Carried(l),
+                (Some(AttrValues::Label(l)), false) => Start::Labels(l),
+                _ => Start::Labels(dual_cells(&coarse, &fine, done)),
             };
             let topo = match derived.take() {
                 Some(t) => t,
