@@ -164,6 +164,8 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     tolerance: f64,
     /// See [`SLEEP_SHARE`].
     sleep_share: f64,
+    /// The mesh's adjacency.
+    topo: &'a Topology,
 }
 
 impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
@@ -338,6 +340,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             terms: Vec::new(),
             tolerance: 0.0,
             sleep_share: SLEEP_SHARE,
+            topo,
         })
     }
 
@@ -392,6 +395,16 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// [`Clusterer::components`] in the layout's numbering (of faces and components).
     fn layout_components(&self) -> (Vec<u32>, usize) {
         let nf = self.nbr.len();
+        // One component across edges, none of more than two faces: one across the edges
+        // of two faces too, with no search.
+        let topo = self.topo;
+        if topo.n_components() == 1
+            && (0..topo.n_edges() as u32)
+                .into_par_iter()
+                .all(|e| !topo.is_non_manifold_edge(e))
+        {
+            return (vec![0; nf], 1);
+        }
         let mut comp = vec![NONE; nf];
         let mut n = 0u32;
         let mut stack = Vec::new();

@@ -536,3 +536,38 @@ fn a_clustering_carried_through_a_uniform_split_is_taken_as_it_is() {
         fresh.log.moves
     );
 }
+
+#[test]
+fn components_count_only_edges_of_two_faces() {
+    // One piece: the adjacency's single component is taken as it is.
+    let sphere = icosphere(1.0, 2).unwrap();
+    let topo = Topology::build(&sphere);
+    let e = Valette2004;
+    let c = Clusterer::new(&sphere, &topo, &e, None).unwrap();
+    assert_eq!(c.components(), (vec![0; sphere.n_faces()], 1));
+    // Two tetrahedra on one shared edge (four faces on it): one component for the
+    // adjacency, two for the clustering, which never moves a face across that edge.
+    let p = [
+        DVec3::ZERO,
+        DVec3::X,
+        DVec3::Y,
+        DVec3::Z,
+        DVec3::new(1.0, 1.0, -1.0),
+        DVec3::new(-1.0, 0.5, -1.0),
+    ];
+    let faces = vec![
+        [0, 2, 1],
+        [0, 1, 3],
+        [1, 2, 3],
+        [2, 0, 3],
+        [0, 1, 4],
+        [1, 5, 4],
+        [5, 0, 4],
+        [0, 5, 1],
+    ];
+    let m = Mesh::new(p.to_vec(), faces);
+    let topo = Topology::build(&m);
+    assert_eq!(topo.n_components(), 1);
+    let c = Clusterer::new(&m, &topo, &e, None).unwrap();
+    assert_eq!(c.components(), (vec![0, 0, 0, 0, 1, 1, 1, 1], 2));
+}
