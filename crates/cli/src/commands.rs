@@ -114,6 +114,7 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
             .as_ref()
             .map(|_| &observe as &dyn Fn(&StageRecord, &Mesh)),
         progressive: args.progressive.as_ref().map(|_| &slot),
+        ..RunOptions::default()
     };
     let (mesh, mut report) = pipeline
         .run(input.mesh, opts)

@@ -11,6 +11,7 @@
 //!   every stage.
 //! * [`hygiene`]: the explicit, reported clean-up steps applied after loading a file.
 //! * [`ring`]: whether the faces around a vertex form one oriented fan.
+//! * [`order`]: vertices and faces renumbered along a Morton curve, for memory locality.
 //!
 //! The mesh knows no stage, no pipeline file and no file format.
 //!
@@ -27,6 +28,7 @@
 pub mod attribute;
 pub mod carry;
 pub mod hygiene;
+pub mod order;
 pub mod ring;
 pub mod sanity;
 pub mod scale;

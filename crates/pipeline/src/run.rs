@@ -8,6 +8,14 @@
 //! adjacency altogether when every vertex is one oriented fan
 //! ([`coarsen_mesh::ring::one_fan_everywhere`]), a far cheaper test (0.16 against 0.8 s
 //! on the bunny subdivided three times, 4.4M faces).
+//!
+//! A large input (see [`RunOptions::reorder_min_faces`]) is first renumbered along a
+//! Morton curve ([`coarsen_mesh::order::along_curve`]): the same surface, its vertices and
+//! faces close in memory when they are close in space. Every stage then reads memory more
+//! in order — on the bunny subdivided three times, uniform-cvt takes about a tenth less
+//! time and qem about a sixth less. Stages see the renumbered mesh as the run's input and
+//! original. A run that records a progressive record keeps the input's numbering, so that
+//! rebuilding its finest level gives the input back vertex for vertex.
 
 use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, sanity};
@@ -43,7 +51,13 @@ pub struct RunOptions<'a> {
     /// Where the last stage that records its collapses leaves its progressive record
     /// (see [`Pipeline::recording_stage`]); `None` records nothing. Default `None`.
     pub progressive: Option<&'a Mutex<Option<Handback>>>,
+    /// Inputs of at least this many faces are renumbered along a Morton curve before the
+    /// first stage (see the module docs); `usize::MAX` never. Default 2²⁰.
+    pub reorder_min_faces: usize,
 }
+
+/// The default of [`RunOptions::reorder_min_faces`].
+pub const REORDER_MIN_FACES: usize = 1 << 20;
 
 impl Default for RunOptions<'_> {
     fn default() -> Self {
@@ -52,6 +66,7 @@ impl Default for RunOptions<'_> {
             sanity: cfg!(debug_assertions),
             after_stage: None,
             progressive: None,
+            reorder_min_faces: REORDER_MIN_FACES,
         }
     }
 }
@@ -113,9 +128,22 @@ impl Pipeline {
 
     /// Runs every stage in order on `input`.
     ///
-    /// `input` is also kept as the original for stages that measure against it or
-    /// project onto it. The report's `input` and `input_notes` are left for the caller.
+    /// `input` (renumbered when large, see the module docs) is also kept as the original
+    /// for stages that measure against it or project onto it. The report's `input` and
+    /// `input_notes` are left for the caller.
     pub fn run(&self, input: Mesh, opts: RunOptions<'_>) -> Result<(Mesh, RunReport), RunError> {
+        let start = Instant::now();
+        let input = if input.n_faces() >= opts.reorder_min_faces && opts.progressive.is_none() {
+            let t = Instant::now();
+            let ordered = coarsen_mesh::order::along_curve(input);
+            tracing::info!(
+                seconds = t.elapsed().as_secs_f64(),
+                "input renumbered along a Morton curve"
+            );
+            ordered
+        } else {
+            input
+        };
         let original = input.clone();
         let mut mesh = input;
         let mut report = RunReport {
@@ -125,7 +153,6 @@ impl Pipeline {
             input_faces: mesh.n_faces(),
             ..Default::default()
         };
-        let start = Instant::now();
         let shared = coarsen_stage::Shared::new();
         for (i, s) in self.stages.iter().enumerate() {
             let index = i + 1;

@@ -395,3 +395,68 @@ fn a_collapse_stage_takes_edges_of_three_faces_as_they_are() {
     assert_eq!(out.n_vertices(), mesh.n_vertices());
     assert!(report.stages[1].warnings.is_empty());
 }
+
+/// A grid of `n × n` quads (two triangles each) at z = −1, vertices and faces listed
+/// backwards (far from curve order).
+fn backwards_grid(n: u32) -> Mesh {
+    let nv = (n + 1) * (n + 1);
+    let at = |x: u32, y: u32| nv - 1 - (y * (n + 1) + x);
+    let mut positions = vec![DVec3::ZERO; nv as usize];
+    for y in 0..=n {
+        for x in 0..=n {
+            positions[at(x, y) as usize] = DVec3::new(x as f64, y as f64, -1.0);
+        }
+    }
+    let mut faces = Vec::new();
+    for y in 0..n {
+        for x in 0..n {
+            faces.push([at(x, y), at(x + 1, y), at(x + 1, y + 1)]);
+            faces.push([at(x, y), at(x + 1, y + 1), at(x, y + 1)]);
+        }
+    }
+    faces.reverse();
+    Mesh::new(positions, faces)
+}
+
+#[test]
+fn large_inputs_are_renumbered_along_the_curve_unless_a_record_is_kept() {
+    let marks_only = parse(
+        "[pipeline]\nname = \"m\"\ndescription = \"m\"\n[[stage]]\nkind = \"test.mark\"\n",
+        &Overrides::default(),
+    )
+    .unwrap();
+    let input = backwards_grid(12);
+    let ordered = coarsen_mesh::order::along_curve(input.clone());
+    assert_ne!(ordered.faces, input.faces);
+    let run = |reorder_min_faces: usize, record: bool| {
+        let slot = std::sync::Mutex::new(None);
+        let opts = RunOptions {
+            reorder_min_faces,
+            progressive: record.then_some(&slot),
+            ..Default::default()
+        };
+        marks_only.run(input.clone(), opts).unwrap().0
+    };
+    // Large (at or above the bar): the stages see the renumbered mesh.
+    let out = run(input.n_faces(), false);
+    assert_eq!(
+        (&out.positions, &out.faces),
+        (&ordered.positions, &ordered.faces)
+    );
+    // Below the bar, or with a progressive record asked for: the input's numbering.
+    for out in [run(input.n_faces() + 1, false), run(0, true)] {
+        assert_eq!(
+            (&out.positions, &out.faces),
+            (&input.positions, &input.faces)
+        );
+    }
+    // Small meshes by default.
+    assert_eq!(
+        marks_only
+            .run(input.clone(), RunOptions::default())
+            .unwrap()
+            .0
+            .faces,
+        input.faces
+    );
+}

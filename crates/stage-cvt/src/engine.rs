@@ -7,6 +7,7 @@
 use crate::energy::{Energy, FacePoint, Sums};
 use crate::sweep;
 use coarsen_geom::{DVec3, triangle};
+use coarsen_mesh::order::{CurveOrder, morton};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
@@ -144,7 +145,7 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     nbr: Vec<[u32; 3]>,
     /// Per layout face: its corners as layout vertices (without the curve layout, the
     /// mesh's faces themselves).
-    corners: Cow<'a, [[u32; 3]]>,
+    pub(crate) corners: Cow<'a, [[u32; 3]]>,
     /// Per layout vertex: its faces (layout numbering, in the adjacency's fan order) are
     /// `fan[fan_off[v]..fan_off[v + 1]]` (without the curve layout, the adjacency's table).
     fan_off: Cow<'a, [u32]>,
@@ -224,51 +225,26 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         };
         let nv = mesh.n_vertices();
         let pos_of = |v: u32| (mesh.positions[v as usize] - center) * scale;
-        let (vorder, vmap, order) = if curve {
-            // The layout: vertices along a Morton curve of their positions (keys
-            // tie-broken by vertex, so the parallel sort is deterministic), faces by their
-            // first corner on that curve (ties in face order).
-            let mut keyed: Vec<(u64, u32)> = (0..nv as u32)
-                .into_par_iter()
-                .map(|v| (morton(pos_of(v)), v))
-                .collect();
-            keyed.par_sort_unstable();
-            let vorder: Vec<u32> = keyed.into_par_iter().map(|k| k.1).collect();
-            let mut vmap = vec![NONE; nv];
-            for (i, &v) in vorder.iter().enumerate() {
-                vmap[v as usize] = i as u32;
-            }
-            let first: Vec<u32> = mesh
-                .faces
-                .par_iter()
-                .map(|f| f.iter().map(|&v| vmap[v as usize]).min().unwrap_or(0))
-                .collect();
-            let mut at = vec![0u32; nv + 1];
-            for &k in &first {
-                at[k as usize + 1] += 1;
-            }
-            for i in 0..nv {
-                at[i + 1] += at[i];
-            }
-            let mut order = vec![0u32; nf];
-            for (f, &k) in first.iter().enumerate() {
-                order[at[k as usize] as usize] = f as u32;
-                at[k as usize] += 1;
-            }
-            (vorder, vmap, order)
-        } else {
-            // Small meshes keep their own order (their data stays in cache anyway).
-            (
+        // The layout: vertices along a Morton curve of their positions, faces by their
+        // first corner on that curve (`coarsen_mesh::order`, whose normalisation is the
+        // one above). A mesh already in that order (the runner renumbers large inputs so)
+        // is laid out as it is, its own tables borrowed.
+        let layout = if curve { CurveOrder::of(mesh) } else { None };
+        let curve = layout.is_some();
+        let own_tables = layout.as_ref().is_none_or(CurveOrder::is_identity);
+        let (vorder, vmap, order) = match layout {
+            Some(o) => (o.vertices, o.vertex_rank, o.faces),
+            None => (
                 (0..nv as u32).collect(),
                 (0..nv as u32).collect(),
                 (0..nf as u32).collect(),
-            )
+            ),
         };
         let mut rank = vec![0u32; nf];
         for (i, &f) in order.iter().enumerate() {
             rank[f as usize] = i as u32;
         }
-        let corners: Cow<'a, [[u32; 3]]> = match curve {
+        let corners: Cow<'a, [[u32; 3]]> = match !own_tables {
             true => Cow::Owned(
                 order
                     .par_iter()
@@ -300,7 +276,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             })
             .collect();
         drop(pos);
-        let (fan_off, fan) = match curve {
+        let (fan_off, fan) = match !own_tables {
             true => {
                 let (off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
                 (Cow::Owned(off), Cow::Owned(fan))
@@ -912,21 +888,6 @@ pub(crate) fn fan_runs(
         }
     }
     runs
-}
-
-/// The Morton (Z-order) key of a point of the normalised box [-1, 1]³, 21 bits per axis.
-fn morton(p: DVec3) -> u64 {
-    let spread = |x: f64| -> u64 {
-        let mut v = (((x.clamp(-1.0, 1.0) + 1.0) * 0.5) * ((1u64 << 21) - 1) as f64) as u64;
-        v &= 0x1f_ffff;
-        v = (v | v << 32) & 0x1f_0000_0000_ffff;
-        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
-        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
-        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
-        v = (v | v << 2) & 0x1249_2492_4924_9249;
-        v
-    };
-    spread(p.x) | spread(p.y) << 1 | spread(p.z) << 2
 }
 
 /// Splits `n` among components: one each, the rest in proportion to `mass` (largest

@@ -377,6 +377,52 @@ fn the_layout_is_invisible_in_the_public_numbering() {
 }
 
 #[test]
+fn a_mesh_already_along_the_curve_is_laid_out_as_it_is_and_clusters_the_same() {
+    // Shuffled faces and vertices, and the same mesh renumbered along the curve (as the
+    // runner renumbers large inputs).
+    let mut m = torus(2.0, 0.7, 48, 24).unwrap();
+    let mut rng = SplitMix64::new(3);
+    for i in (1..m.faces.len()).rev() {
+        let j = rng.below(i + 1);
+        m.faces.swap(i, j);
+    }
+    let nv = m.n_vertices();
+    let mut vmap: Vec<u32> = (0..nv as u32).collect();
+    for i in (1..nv).rev() {
+        let j = rng.below(i + 1);
+        vmap.swap(i, j);
+    }
+    let mut positions = vec![DVec3::ZERO; nv];
+    for (v, &to) in vmap.iter().enumerate() {
+        positions[to as usize] = m.positions[v];
+    }
+    m.positions = positions;
+    m.faces
+        .iter_mut()
+        .for_each(|f| *f = f.map(|v| vmap[v as usize]));
+    let order = coarsen_mesh::order::CurveOrder::of(&m).unwrap();
+    let ordered = coarsen_mesh::order::along_curve(m.clone());
+    let e = Valette2004;
+    let run = |mesh: &Mesh| {
+        let topo = Topology::build(mesh);
+        let mut c = Clusterer::with_layout(mesh, &topo, &e, None, true).unwrap();
+        let borrowed = matches!(c.corners, std::borrow::Cow::Borrowed(_));
+        c.seed(60, 9).unwrap();
+        let log = c.minimize(200, None, |_, _, _| {});
+        (c.into_labels(), log, borrowed)
+    };
+    let (shuffled, log_s, borrowed_s) = run(&m);
+    let (along, log_a, borrowed_a) = run(&ordered);
+    assert!(!borrowed_s && borrowed_a);
+    // The same layout order, so the same sweep: the same clusters, moves and energies.
+    for (i, &f) in order.faces.iter().enumerate() {
+        assert_eq!(along[i], shuffled[f as usize], "face {f}");
+    }
+    assert_eq!(log_a, log_s);
+    check_invariant(&ordered, &along, 60);
+}
+
+#[test]
 fn bad_label_columns_are_errors_not_panics() {
     let mesh = icosphere(1.0, 2).unwrap();
     let topo = Topology::build(&mesh);

@@ -12,13 +12,16 @@
 //!   (`cargo bench -p coarsen-stage-qem --bench qem -- scale` runs only this case), with
 //!   wall time beside the CPU time (the engine's initial ranking runs on rayon's threads).
 //!
-//! coarsen's time covers the whole stage (adjacency, quadrics, collapses, compaction with
-//! attribute carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
+//! coarsen's time covers what a run does with the input: the renumbering along a Morton
+//! curve that the runner gives inputs of 2²⁰ faces or more (`coarsen_pipeline::run`),
+//! then the whole stage (adjacency, quadrics, collapses, compaction with attribute
+//! carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
 //! positions (the copy itself not timed), with no error limit. meshoptimizer collapses onto
 //! existing vertices without the f64 optimal placement, so the ratio is a speed reference,
 //! not a like-for-like comparison.
 
 use coarsen_mesh::Mesh;
+use coarsen_pipeline::REORDER_MIN_FACES;
 use coarsen_stage::{Context, Stage, StageReport, Target};
 use coarsen_stage_qem::{QemParams, SimplifyQem};
 use coarsen_stage_svec::{SimplifySvec, SvecParams};
@@ -89,12 +92,17 @@ fn coarsen(mesh: &Mesh, target: Target) -> Mesh {
     run_stage(SimplifyQem::new(QemParams::default()), mesh, target)
 }
 
-/// Runs `stage` on a copy of `mesh` to `target`.
+/// Runs `stage` on a copy of `mesh` to `target`, the copy renumbered first when the
+/// runner would renumber it.
 fn run_stage<S: Stage>(stage: S, mesh: &Mesh, target: Target) -> Mesh {
+    let input = match mesh.n_faces() >= REORDER_MIN_FACES {
+        true => coarsen_mesh::order::along_curve(mesh.clone()),
+        false => mesh.clone(),
+    };
     let mut report = StageReport::default();
-    let mut cx = Context::new(mesh, &mut report);
+    let mut cx = Context::new(&input, &mut report);
     cx.target = Some(target);
-    stage.run(mesh.clone(), &mut cx).expect("the stage runs")
+    stage.run(input.clone(), &mut cx).expect("the stage runs")
 }
 
 /// Issue #6's bar: `big` to 60 000 faces once by meshoptimizer, QEM and SVEC, in turns.
