@@ -13,7 +13,7 @@
 //!   wall time beside the CPU time (the engine's initial ranking runs on rayon's threads).
 //!
 //! coarsen's time covers what a run does with the input: the renumbering along a Morton
-//! curve that the runner gives inputs of 2²⁰ faces or more (`coarsen_pipeline::run`),
+//! curve that the runner gives inputs of 2¹⁸ faces or more (`coarsen_pipeline::run`),
 //! then the whole stage (adjacency, quadrics, collapses, compaction with attribute
 //! carrying); meshoptimizer's covers `meshopt::simplify` on an `f32` copy of the
 //! positions (the copy itself not timed), with no error limit. meshoptimizer collapses onto
