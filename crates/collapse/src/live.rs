@@ -221,6 +221,12 @@ fn corner_of(face: [Index; 3], v: Index) -> usize {
     }
 }
 
+/// The smallest cross product of a face that is not degenerate, in a mesh of box
+/// diagonal `diagonal`.
+fn min_cross_of(diagonal: f64) -> f64 {
+    2.0 * DEGENERATE_AREA * diagonal * diagonal
+}
+
 impl LiveMesh {
     /// Takes `mesh` apart for collapsing and classifies its vertices (see the crate docs).
     ///
@@ -345,73 +351,84 @@ impl LiveMesh {
         let use_face: Vec<bool> = face_state.iter().map(|&s| s == LIVE).collect();
         let lists = FaceLists::build(n, &mesh.faces, &use_face);
 
-        let mut kind = vec![VertexKind::Isolated; n];
-        let mut ring = Vec::new();
-        let mut targets = Vec::new();
-        for (v, k) in kind.iter_mut().enumerate() {
-            let around = lists.get(v as Index);
-            if around.is_empty() {
-                continue;
-            }
-            ring.clear();
-            ring.extend(around.iter().map(|&f| {
-                let face = mesh.faces[f as usize];
-                ring_edge(face, corner_of(face, v as Index))
-            }));
-            *k = match ring_shape(&mut ring, &mut targets) {
-                RingShape::Cycle => VertexKind::Interior,
-                RingShape::Path => VertexKind::Boundary,
-                RingShape::Invalid => VertexKind::Locked,
-            };
-        }
-        for (face, _) in mesh
-            .faces
-            .iter()
-            .zip(&face_state)
-            .filter(|(_, s)| **s == PASSIVE)
-        {
-            for &v in face {
-                kind[v as usize] = VertexKind::Locked;
-            }
-        }
-
-        let bbox = Aabb::from_points(
-            mesh.positions
-                .iter()
-                .zip(&kind)
-                .filter(|(_, k)| **k != VertexKind::Isolated)
-                .map(|(p, _)| p),
-        );
-        let diagonal = bbox.diagonal();
-        let min_cross = 2.0 * DEGENERATE_AREA * diagonal * diagonal;
-        let input_normal = mesh
-            .faces
-            .iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|v| mesh.positions[v as usize]);
-                let n = triangle::cross(a, b, c);
-                if n.length() > min_cross {
-                    n.normalize()
-                } else {
-                    DVec3::ZERO
+        let cross_of = |f: usize| {
+            let [a, b, c] = mesh.faces[f].map(|v| mesh.positions[v as usize]);
+            triangle::cross(a, b, c)
+        };
+        // The vertex kinds and face normals in parallel, beside the per-vertex sums of the
+        // live faces' cross products and their lengths (added in face order).
+        let ((kind, diagonal, input_normal), (region_normal, region_area)) = rayon::join(
+            || {
+                let mut kind: Vec<VertexKind> = (0..n)
+                    .into_par_iter()
+                    .map_init(
+                        || (Vec::new(), Vec::new()),
+                        |(ring, targets), v| {
+                            let around = lists.get(v as Index);
+                            if around.is_empty() {
+                                return VertexKind::Isolated;
+                            }
+                            ring.clear();
+                            ring.extend(around.iter().map(|&f| {
+                                let face = mesh.faces[f as usize];
+                                ring_edge(face, corner_of(face, v as Index))
+                            }));
+                            match ring_shape(ring, targets) {
+                                RingShape::Cycle => VertexKind::Interior,
+                                RingShape::Path => VertexKind::Boundary,
+                                RingShape::Invalid => VertexKind::Locked,
+                            }
+                        },
+                    )
+                    .collect();
+                for (face, _) in mesh
+                    .faces
+                    .iter()
+                    .zip(&face_state)
+                    .filter(|(_, s)| **s == PASSIVE)
+                {
+                    for &v in face {
+                        kind[v as usize] = VertexKind::Locked;
+                    }
                 }
-            })
-            .collect();
-        let mut region_normal = vec![DVec3::ZERO; n];
-        let mut region_area = vec![0.0; n];
-        for (face, _) in mesh
-            .faces
-            .iter()
-            .zip(&face_state)
-            .filter(|(_, s)| **s == LIVE)
-        {
-            let [a, b, c] = face.map(|v| mesh.positions[v as usize]);
-            let cross = triangle::cross(a, b, c);
-            for &v in face {
-                region_normal[v as usize] += cross;
-                region_area[v as usize] += cross.length();
-            }
-        }
+                let bbox = Aabb::from_points(
+                    mesh.positions
+                        .iter()
+                        .zip(&kind)
+                        .filter(|(_, k)| **k != VertexKind::Isolated)
+                        .map(|(p, _)| p),
+                );
+                let diagonal = bbox.diagonal();
+                let min_cross = min_cross_of(diagonal);
+                let input_normal: Vec<DVec3> = (0..mesh.n_faces())
+                    .into_par_iter()
+                    .map(|f| {
+                        let n = cross_of(f);
+                        if n.length() > min_cross {
+                            n.normalize()
+                        } else {
+                            DVec3::ZERO
+                        }
+                    })
+                    .collect();
+                (kind, diagonal, input_normal)
+            },
+            || {
+                let mut region_normal = vec![DVec3::ZERO; n];
+                let mut region_area = vec![0.0; n];
+                for (f, face) in mesh.faces.iter().enumerate() {
+                    if face_state[f] == LIVE {
+                        let cross = cross_of(f);
+                        for &v in face {
+                            region_normal[v as usize] += cross;
+                            region_area[v as usize] += cross.length();
+                        }
+                    }
+                }
+                (region_normal, region_area)
+            },
+        );
+        let min_cross = min_cross_of(diagonal);
         let n_faces = mesh.n_faces();
         let Mesh {
             positions, faces, ..
