@@ -57,7 +57,8 @@ pub fn section(big: &Mesh) -> Result<String> {
         s,
         "Each row is a child process that reads the binary PLY and runs the pipeline; *peak* is its \
          memory high-water mark (`VmHWM`), *load* the same for a child that only reads the file. \
-         Stage times in pipeline order; total includes reading the file.\n"
+         Stage times in pipeline order; total includes reading the file and the runner's \
+         renumbering of the input along a Morton curve (as for every input of 2¹⁸ faces or more).\n"
     );
     s.push_str(
         "| pipeline | target | V | F | load s | stages s | total s | peak MiB | peak ÷ load |\n",
