@@ -12,7 +12,7 @@
 //! | --- | --- |
 //! | 0 | shipped pipeline, index modulo their count |
 //! | 1, 2–3 | target: none / vertices / faces / ratio (byte 1 mod 4), value from a `u16` |
-//! | 4 | bit 0: weld on load; bit 1: scale every coordinate by `2^(8·(byte 5 as i8))` |
+//! | 4 | bit 0: weld on load; bit 1: scale every coordinate by `2^(8·(byte 5 as i8))`; bit 2: the runner renumbers the mesh along its Morton curve (as it does large inputs) |
 //! | 6 | number of `--set` overrides (mod 4), each 6 bytes: stage, key, 4 value bytes |
 //! | next | vertex count `n` = 3 + byte mod 62 |
 //! | 2 per vertex | perturbation: height `(b0 as i8) / 32`, shear `(b1 as i8) / 256` |
@@ -255,6 +255,11 @@ fuzz_target!(|data: &[u8]| {
     };
     let opts = RunOptions {
         sanity: true,
+        reorder_min_faces: if flags & 4 == 4 {
+            0
+        } else {
+            RunOptions::default().reorder_min_faces
+        },
         ..Default::default()
     };
     match pipeline.run(mesh, opts) {

@@ -14,9 +14,9 @@
 //! faces close in memory when they are close in space. Every stage then reads memory more
 //! in order — on the bunny subdivided three times (4.4M faces), uniform-cvt takes about a
 //! tenth less time and qem about a sixth less; subdivided once (278K faces), qem about a
-//! tenth less. Stages see the renumbered mesh as the run's input and
-//! original. A run that records a progressive record keeps the input's numbering, so that
-//! rebuilding its finest level gives the input back vertex for vertex.
+//! tenth less. Stages see the renumbered mesh as the run's input and original. A run that
+//! records a progressive record keeps the input's numbering, so that rebuilding its finest
+//! level gives the input back vertex for vertex.
 
 use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, sanity};

@@ -143,11 +143,11 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     rank: Vec<u32>,
     /// Per layout face: the layout face across each edge (corner i → i+1), or `NONE`.
     nbr: Vec<[u32; 3]>,
-    /// Per layout face: its corners as layout vertices (without the curve layout, the
-    /// mesh's faces themselves).
+    /// Per layout face: its corners as layout vertices (when the layout is the mesh's own
+    /// order, the mesh's faces themselves).
     pub(crate) corners: Cow<'a, [[u32; 3]]>,
     /// Per layout vertex: its faces (layout numbering, in the adjacency's fan order) are
-    /// `fan[fan_off[v]..fan_off[v + 1]]` (without the curve layout, the adjacency's table).
+    /// `fan[fan_off[v]..fan_off[v + 1]]` (in the mesh's own order, the adjacency's table).
     fan_off: Cow<'a, [u32]>,
     fan: Cow<'a, [u32]>,
     /// Per layout vertex: its faces form one closed fan.
@@ -244,14 +244,14 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         for (i, &f) in order.iter().enumerate() {
             rank[f as usize] = i as u32;
         }
-        let corners: Cow<'a, [[u32; 3]]> = match !own_tables {
-            true => Cow::Owned(
+        let corners: Cow<'a, [[u32; 3]]> = match own_tables {
+            true => Cow::Borrowed(&mesh.faces),
+            false => Cow::Owned(
                 order
                     .par_iter()
                     .map(|&f| mesh.faces[f as usize].map(|v| vmap[v as usize]))
                     .collect(),
             ),
-            false => Cow::Borrowed(&mesh.faces),
         };
         drop(vmap);
         // Face sums from the vertices in layout order (reads close in memory).
@@ -276,14 +276,14 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             })
             .collect();
         drop(pos);
-        let (fan_off, fan) = match !own_tables {
+        let (fan_off, fan) = match own_tables {
             true => {
-                let (off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
-                (Cow::Owned(off), Cow::Owned(fan))
-            }
-            false => {
                 let (off, fan) = topo.vertex_face_table();
                 (Cow::Borrowed(off), Cow::Borrowed(fan))
+            }
+            false => {
+                let (off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
+                (Cow::Owned(off), Cow::Owned(fan))
             }
         };
         let closed = vorder
