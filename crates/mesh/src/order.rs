@@ -27,14 +27,7 @@ impl CurveOrder {
     /// The curve order of `mesh`; `None` when a face names a vertex out of range.
     pub fn of(mesh: &Mesh) -> Option<CurveOrder> {
         mesh.validate_indices().ok()?;
-        // Centred and scaled to a unit diagonal, so the codes spread over the mesh's box.
-        let bbox = mesh.bbox();
-        let center = bbox.center();
-        let scale = if bbox.diagonal() > 0.0 {
-            1.0 / bbox.diagonal()
-        } else {
-            1.0
-        };
+        let (center, scale) = unit_box(mesh);
         let nv = mesh.n_vertices();
         let mut keyed: Vec<(u64, Index)> = mesh
             .positions
@@ -89,6 +82,15 @@ impl CurveOrder {
         let same = |order: &[Index]| order.iter().enumerate().all(|(i, &x)| i as Index == x);
         same(&self.vertices) && same(&self.faces)
     }
+}
+
+/// The centre of `mesh`'s box and the scale that gives the box a unit diagonal (1 for a
+/// box of one point): the coordinates `(p − centre) · scale` the curve is drawn in.
+pub fn unit_box(mesh: &Mesh) -> (DVec3, f64) {
+    let bbox = mesh.bbox();
+    let diagonal = bbox.diagonal();
+    let scale = if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 };
+    (bbox.center(), scale)
 }
 
 /// The smallest of a face's corners.

@@ -7,7 +7,7 @@
 use crate::energy::{Energy, FacePoint, Sums};
 use crate::sweep;
 use coarsen_geom::{DVec3, triangle};
-use coarsen_mesh::order::{CurveOrder, morton};
+use coarsen_mesh::order::{CurveOrder, morton, unit_box};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
@@ -215,19 +215,13 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         {
             return Err(ClusterError::BadDensity { vertex, value });
         }
-        // Normalised coordinates: centred, unit diagonal, so the sums keep their digits.
-        let bbox = mesh.bbox();
-        let center = bbox.center();
-        let scale = if bbox.diagonal() > 0.0 {
-            1.0 / bbox.diagonal()
-        } else {
-            1.0
-        };
+        // Normalised coordinates: centred, unit diagonal, so the sums keep their digits
+        // (and the curve order below is drawn in the same ones).
+        let (center, scale) = unit_box(mesh);
         let nv = mesh.n_vertices();
         let pos_of = |v: u32| (mesh.positions[v as usize] - center) * scale;
         // The layout: vertices along a Morton curve of their positions, faces by their
-        // first corner on that curve (`coarsen_mesh::order`, whose normalisation is the
-        // one above). A mesh already in that order (the runner renumbers large inputs so)
+        // first corner on that curve (`coarsen_mesh::order`). A mesh already in that order (the runner renumbers large inputs so)
         // is laid out as it is, its own tables borrowed.
         let layout = if curve { CurveOrder::of(mesh) } else { None };
         let curve = layout.is_some();
