@@ -221,12 +221,6 @@ fn corner_of(face: [Index; 3], v: Index) -> usize {
     }
 }
 
-/// The smallest cross product of a face that is not degenerate, in a mesh of box
-/// diagonal `diagonal`.
-fn min_cross_of(diagonal: f64) -> f64 {
-    2.0 * DEGENERATE_AREA * diagonal * diagonal
-}
-
 impl LiveMesh {
     /// Takes `mesh` apart for collapsing and classifies its vertices (see the crate docs).
     ///
@@ -357,7 +351,7 @@ impl LiveMesh {
         };
         // The vertex kinds and face normals in parallel, beside the per-vertex sums of the
         // live faces' cross products and their lengths (added in face order).
-        let ((kind, diagonal, input_normal), (region_normal, region_area)) = rayon::join(
+        let ((kind, diagonal, min_cross, input_normal), (region_normal, region_area)) = rayon::join(
             || {
                 let mut kind: Vec<VertexKind> = (0..n)
                     .into_par_iter()
@@ -399,7 +393,7 @@ impl LiveMesh {
                         .map(|(p, _)| p),
                 );
                 let diagonal = bbox.diagonal();
-                let min_cross = min_cross_of(diagonal);
+                let min_cross = 2.0 * DEGENERATE_AREA * diagonal * diagonal;
                 let input_normal: Vec<DVec3> = (0..mesh.n_faces())
                     .into_par_iter()
                     .map(|f| {
@@ -411,7 +405,7 @@ impl LiveMesh {
                         }
                     })
                     .collect();
-                (kind, diagonal, input_normal)
+                (kind, diagonal, min_cross, input_normal)
             },
             || {
                 let mut region_normal = vec![DVec3::ZERO; n];
@@ -428,7 +422,6 @@ impl LiveMesh {
                 (region_normal, region_area)
             },
         );
-        let min_cross = min_cross_of(diagonal);
         let n_faces = mesh.n_faces();
         let Mesh {
             positions, faces, ..

@@ -60,6 +60,24 @@ pub struct RunOptions<'a> {
 /// The default of [`RunOptions::reorder_min_faces`].
 pub const REORDER_MIN_FACES: usize = 1 << 18;
 
+impl RunOptions<'_> {
+    /// `input` as the stages of a run with these options see it: renumbered along a
+    /// Morton curve when large and no progressive record is asked for (see the module
+    /// docs), else as it is.
+    pub fn prepare(&self, input: Mesh) -> Mesh {
+        if input.n_faces() < self.reorder_min_faces || self.progressive.is_some() {
+            return input;
+        }
+        let t = Instant::now();
+        let ordered = coarsen_mesh::order::along_curve(input);
+        tracing::info!(
+            seconds = t.elapsed().as_secs_f64(),
+            "input renumbered along a Morton curve"
+        );
+        ordered
+    }
+}
+
 impl Default for RunOptions<'_> {
     fn default() -> Self {
         RunOptions {
@@ -134,17 +152,7 @@ impl Pipeline {
     /// `input_notes` are left for the caller.
     pub fn run(&self, input: Mesh, opts: RunOptions<'_>) -> Result<(Mesh, RunReport), RunError> {
         let start = Instant::now();
-        let input = if input.n_faces() >= opts.reorder_min_faces && opts.progressive.is_none() {
-            let t = Instant::now();
-            let ordered = coarsen_mesh::order::along_curve(input);
-            tracing::info!(
-                seconds = t.elapsed().as_secs_f64(),
-                "input renumbered along a Morton curve"
-            );
-            ordered
-        } else {
-            input
-        };
+        let input = opts.prepare(input);
         let original = input.clone();
         let mut mesh = input;
         let mut report = RunReport {

@@ -21,7 +21,7 @@
 //! not a like-for-like comparison.
 
 use coarsen_mesh::Mesh;
-use coarsen_pipeline::REORDER_MIN_FACES;
+use coarsen_pipeline::RunOptions;
 use coarsen_stage::{Context, Stage, StageReport, Target};
 use coarsen_stage_qem::{QemParams, SimplifyQem};
 use coarsen_stage_svec::{SimplifySvec, SvecParams};
@@ -92,13 +92,10 @@ fn coarsen(mesh: &Mesh, target: Target) -> Mesh {
     run_stage(SimplifyQem::new(QemParams::default()), mesh, target)
 }
 
-/// Runs `stage` on a copy of `mesh` to `target`, the copy renumbered first when the
-/// runner would renumber it.
+/// Runs `stage` on a copy of `mesh` to `target`, the copy prepared as a run prepares its
+/// input (renumbered when large).
 fn run_stage<S: Stage>(stage: S, mesh: &Mesh, target: Target) -> Mesh {
-    let input = match mesh.n_faces() >= REORDER_MIN_FACES {
-        true => coarsen_mesh::order::along_curve(mesh.clone()),
-        false => mesh.clone(),
-    };
+    let input = RunOptions::default().prepare(mesh.clone());
     let mut report = StageReport::default();
     let mut cx = Context::new(&input, &mut report);
     cx.target = Some(target);
