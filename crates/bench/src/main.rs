@@ -84,6 +84,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    coarsen_malloc::reuse_freed_memory();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Tables {
