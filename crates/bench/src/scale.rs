@@ -58,7 +58,9 @@ pub fn section(big: &Mesh) -> Result<String> {
         "Each row is a child process that reads the binary PLY and runs the pipeline; *peak* is its \
          memory high-water mark (`VmHWM`), *load* the same for a child that only reads the file. \
          Stage times in pipeline order; total includes reading the file and the runner's \
-         renumbering of the input along a Morton curve (as for every input of 2¹⁸ faces or more).\n"
+         renumbering of the input along a Morton curve (as for every input of 2¹⁸ faces or more). \
+         The children allocate as the `coarsen` binary does (`coarsen-malloc`: freed memory is \
+         kept for reuse).\n"
     );
     s.push_str(
         "| pipeline | target | V | F | load s | stages s | total s | peak MiB | peak ÷ load |\n",

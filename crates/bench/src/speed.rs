@@ -82,7 +82,8 @@ pub fn section(bunny: &Path) -> Result<String> {
         s,
         "## Speed — the whole `coarsen` process on the bunny\n\n\
          Wall time of a child process that reads `stanford-bunny.obj`, runs the pipeline and \
-         writes a binary PLY, {RUNS} runs per case taken in turns (release build, this machine). \
+         writes a binary PLY, {RUNS} runs per case taken in turns (release build, this machine; \
+         the children allocate as the `coarsen` binary does). \
          *÷ read* is the median over the median of a process that only reads the file.\n"
     );
     s.push_str("| case | median s | fastest s | ÷ read |\n| --- | ---: | ---: | ---: |\n");
