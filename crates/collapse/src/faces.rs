@@ -103,6 +103,27 @@ impl FaceLists {
         self.len[vi] = 0;
     }
 
+    /// The lists of vertices `old_of` (the new vertex `i` is the old `old_of[i]`), each in
+    /// its order with its faces renamed by `new_face` (old → new), in a fresh arena.
+    pub(crate) fn renumbered(&self, old_of: &[Index], new_face: &[Index]) -> Self {
+        let mut start = Vec::with_capacity(old_of.len());
+        let mut len = Vec::with_capacity(old_of.len());
+        let total: usize = old_of.iter().map(|&v| self.len[v as usize] as usize).sum();
+        let mut data = Vec::with_capacity(total + total / 2);
+        for &v in old_of {
+            start.push(data.len() as u32);
+            len.push(self.len[v as usize]);
+            data.extend(self.get(v).iter().map(|&f| new_face[f as usize]));
+        }
+        FaceLists {
+            start,
+            cap: len.clone(),
+            len,
+            data,
+            used: total,
+        }
+    }
+
     /// Moves every list to a fresh arena, blocks in vertex order, without slack.
     fn compact(&mut self) {
         let mut data = Vec::with_capacity(self.used + self.used / 2);
@@ -130,6 +151,19 @@ mod tests {
         assert_eq!(l.get(1), &[0]);
         assert_eq!(l.get(2), &[0, 1]);
         assert_eq!(l.get(3), &[1]);
+    }
+
+    #[test]
+    fn renumbered_lists_keep_their_order_under_new_names() {
+        let faces = [[0, 1, 2], [0, 2, 3], [2, 3, 4]];
+        let mut l = FaceLists::build(5, &faces, &[true, true, true]);
+        l.set(2, &[2, 0, 1]);
+        // Vertex 1 and face 0 go; the others close up.
+        let r = l.renumbered(&[0, 2, 3, 4], &[Index::MAX, 0, 1]);
+        assert_eq!(r.get(0), &[Index::MAX, 0]);
+        assert_eq!(r.get(1), &[1, Index::MAX, 0]);
+        assert_eq!(r.get(2), &[0, 1]);
+        assert_eq!(r.get(3), &[1]);
     }
 
     #[test]

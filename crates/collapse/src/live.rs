@@ -125,10 +125,18 @@ pub struct LiveMesh {
     kind: Vec<VertexKind>,
     alive: Vec<bool>,
     stamp: Vec<u32>,
-    /// The input vertices merged into each vertex, as linked lists (`cluster_next`), with
-    /// the last one of each list in `cluster_tail`.
+    /// The input vertices merged into each vertex, as linked lists (`cluster_next`, over
+    /// the vertices' first numbering, see `base_vertex`), with the last one of each list
+    /// in `cluster_tail` (per vertex).
     cluster_next: Vec<Index>,
     cluster_tail: Vec<Index>,
+    /// Once the arrays were closed up: each vertex's index before the first time (what
+    /// `cluster_next` and `original_of` speak), and each face's index in the input.
+    base_vertex: Option<Vec<Index>>,
+    base_face: Option<Vec<Index>>,
+    /// Vertex and face counts of the input (the arrays' lengths until closed up).
+    input_vertices: usize,
+    input_faces: usize,
     n_vertices: usize,
     n_faces: usize,
     diagonal: f64,
@@ -291,8 +299,23 @@ impl LiveMesh {
     /// The input's index of internal vertex `v` (see [`LiveMesh::new_renumbered`]).
     #[inline]
     fn original(&self, v: Index) -> Index {
+        self.original_of_base(self.base(v))
+    }
+
+    /// The input's index of the vertex first numbered `b` (see `base_vertex`).
+    #[inline]
+    fn original_of_base(&self, b: Index) -> Index {
         match &self.original_of {
-            Some(o) if v != NONE => o[v as usize],
+            Some(o) if b != NONE => o[b as usize],
+            _ => b,
+        }
+    }
+
+    /// The first index of vertex `v` (before the arrays were closed up).
+    #[inline]
+    fn base(&self, v: Index) -> Index {
+        match &self.base_vertex {
+            Some(b) if v != NONE => b[v as usize],
             _ => v,
         }
     }
@@ -423,6 +446,7 @@ impl LiveMesh {
             },
         );
         let n_faces = mesh.n_faces();
+        let n_faces_all = mesh.faces.len();
         let Mesh {
             positions, faces, ..
         } = mesh;
@@ -446,6 +470,10 @@ impl LiveMesh {
             history: None,
             last_deleted: Vec::new(),
             original_of,
+            base_vertex: None,
+            base_face: None,
+            input_vertices: n,
+            input_faces: n_faces_all,
         }
     }
 
@@ -704,12 +732,12 @@ impl LiveMesh {
     /// `original` must be the mesh this live mesh was built from. Surviving vertices and
     /// faces keep their input order; vertices used by no face are dropped.
     pub fn to_mesh(&self, original: &Mesh) -> Result<(Mesh, CarryReport), CollapseError> {
-        if original.n_vertices() != self.pos.len() || original.n_faces() != self.faces.len() {
+        if original.n_vertices() != self.input_vertices || original.n_faces() != self.input_faces {
             return Err(CollapseError::MeshMismatch {
                 vertices: original.n_vertices(),
                 faces: original.n_faces(),
-                expected_vertices: self.pos.len(),
-                expected_faces: self.faces.len(),
+                expected_vertices: self.input_vertices,
+                expected_faces: self.input_faces,
             });
         }
         original.validate_indices()?;
@@ -727,16 +755,16 @@ impl LiveMesh {
         // The first column whose length does not fit, if any.
         let bad_vertices = (attributes.vertex_attrs.iter())
             .map(|(_, a)| a.len())
-            .find(|&n| n != self.pos.len());
+            .find(|&n| n != self.input_vertices);
         let bad_faces = (attributes.face_attrs.iter())
             .map(|(_, a)| a.len())
-            .find(|&n| n != self.faces.len());
+            .find(|&n| n != self.input_faces);
         if bad_vertices.is_some() || bad_faces.is_some() {
             return Err(CollapseError::MeshMismatch {
-                vertices: bad_vertices.unwrap_or(self.pos.len()),
-                faces: bad_faces.unwrap_or(self.faces.len()),
-                expected_vertices: self.pos.len(),
-                expected_faces: self.faces.len(),
+                vertices: bad_vertices.unwrap_or(self.input_vertices),
+                faces: bad_faces.unwrap_or(self.input_faces),
+                expected_vertices: self.input_vertices,
+                expected_faces: self.input_faces,
             });
         }
         Ok(self.compact(attributes))
@@ -759,9 +787,9 @@ impl LiveMesh {
             new_index[v as usize] = positions.len() as Index;
             positions.push(self.pos[v as usize]);
             members.clear();
-            let mut m = v;
+            let mut m = self.base(v);
             while m != NONE {
-                members.push(self.original(m));
+                members.push(self.original_of_base(m));
                 m = self.cluster_next[m as usize];
             }
             if members.len() == 1 {
@@ -775,7 +803,7 @@ impl LiveMesh {
         for (f, face) in self.faces.iter().enumerate() {
             if self.face_state[f] != DEAD {
                 faces.push(face.map(|v| new_index[v as usize]));
-                fo.push_parent(f as Index);
+                fo.push_parent(self.base_face.as_ref().map_or(f as Index, |b| b[f]));
             }
         }
         attributes.rebuilt(positions, faces, &vo, &fo)
@@ -831,6 +859,8 @@ impl LiveMesh {
         let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + 16);
         self.rank_all(model, unit, &mut q, &mut out.refused);
         q.sort_initial();
+        // A progressive record speaks the numbering of each collapse's time.
+        let mut may_close_up = self.history.is_none();
         if opts.keep_log {
             out.log.reserve(self.remaining(opts.goal));
         }
@@ -918,11 +948,68 @@ impl LiveMesh {
             self.requeue(model, unit, reach, kept, &mut q, &mut s, &mut out.refused);
             let live_estimate = self.n_faces * per_face / 2;
             q.sweep_if_stale(live_estimate, |e| self.is_current(e));
+            if may_close_up
+                && self.faces.len() >= opts.compact_min_faces
+                && 2 * self.n_faces < self.faces.len()
+                && !self.reached(opts.goal)
+            {
+                may_close_up = self.close_up(model, &mut q);
+            }
             if out.collapses.is_multiple_of(PROGRESS_EVERY) {
                 progress(out.collapses);
             }
         };
         out
+    }
+
+    /// Renumbers the live vertices and faces densely, in their order, with the queue and
+    /// `model` (crate docs, *Memory order*); false, changing nothing, when the model
+    /// cannot follow.
+    fn close_up<M: CostModel>(&mut self, model: &mut M, q: &mut Queue) -> bool {
+        let mut new_vertex = vec![NONE; self.pos.len()];
+        let mut old_vertex: Vec<Index> = Vec::with_capacity(self.n_vertices + 1);
+        for (v, &alive) in self.alive.iter().enumerate() {
+            if alive {
+                new_vertex[v] = old_vertex.len() as Index;
+                old_vertex.push(v as Index);
+            }
+        }
+        let mut new_face = vec![NONE; self.faces.len()];
+        let mut old_face: Vec<Index> = Vec::with_capacity(self.n_faces + 1);
+        for (f, &state) in self.face_state.iter().enumerate() {
+            if state != DEAD {
+                new_face[f] = old_face.len() as Index;
+                old_face.push(f as Index);
+            }
+        }
+        if !model.renumber(&old_vertex, &old_face) {
+            return false;
+        }
+        fn gather<T: Copy>(values: &[T], old: &[Index]) -> Vec<T> {
+            old.iter().map(|&i| values[i as usize]).collect()
+        }
+        self.base_vertex = Some(old_vertex.iter().map(|&v| self.base(v)).collect());
+        self.base_face = Some(match &self.base_face {
+            Some(b) => gather(b, &old_face),
+            None => old_face.clone(),
+        });
+        self.pos = gather(&self.pos, &old_vertex);
+        self.kind = gather(&self.kind, &old_vertex);
+        self.alive = vec![true; old_vertex.len()];
+        self.stamp = gather(&self.stamp, &old_vertex);
+        self.cluster_tail = gather(&self.cluster_tail, &old_vertex);
+        self.region_normal = gather(&self.region_normal, &old_vertex);
+        self.region_area = gather(&self.region_area, &old_vertex);
+        self.faces = old_face
+            .iter()
+            .map(|&f| self.faces[f as usize].map(|v| new_vertex[v as usize]))
+            .collect();
+        self.face_state = gather(&self.face_state, &old_face);
+        self.input_normal = gather(&self.input_normal, &old_face);
+        self.lists = self.lists.renumbered(&old_vertex, &new_face);
+        self.last_deleted.clear();
+        q.renumber(&new_vertex, |e| self.is_current(e));
+        true
     }
 
     fn reached(&self, goal: Goal) -> bool {
@@ -1307,7 +1394,7 @@ impl LiveMesh {
             self.stamp[v as usize] = self.stamp[v as usize].wrapping_add(1);
             self.n_vertices -= 1;
             let tail = self.cluster_tail[kept as usize] as usize;
-            self.cluster_next[tail] = v;
+            self.cluster_next[tail] = self.base(v);
             self.cluster_tail[kept as usize] = self.cluster_tail[v as usize];
         }
         debug_assert!(
@@ -2022,7 +2109,7 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             ((state >> 33) % n as u64) as u32
         };
-        let (mut collapses, mut locked) = (0, 0);
+        let (mut collapses, mut locked, mut closed_up) = (0, 0, 0);
         for round in 0..200 {
             let mut mesh = if round % 2 == 0 {
                 grid(5, 4, bump)
@@ -2048,12 +2135,29 @@ mod tests {
                 }
             }
             for goal in [Goal::Vertices(next(nv) as usize), Goal::Faces(0)] {
-                let mut live = LiveMesh::new(&mesh).unwrap();
-                let mut model = QuadricModel::new(&live, &QemOptions::default());
-                let outcome = live.collapse(&mut model, &Options::new(goal), &mut |_| {});
-                live.check_invariants()
-                    .unwrap_or_else(|e| panic!("round {round}: {e}\n{mesh:?}"));
-                let (out, _) = live.to_mesh(&mesh).unwrap();
+                // Closing up the arrays after every collapse that halves the live faces
+                // changes nothing.
+                let run = |compact_min_faces| {
+                    let mut live = LiveMesh::new(&mesh).unwrap();
+                    let mut model = QuadricModel::new(&live, &QemOptions::default());
+                    let opts = Options {
+                        compact_min_faces,
+                        ..Options::new(goal)
+                    };
+                    let outcome = live.collapse(&mut model, &opts, &mut |_| {});
+                    live.check_invariants()
+                        .unwrap_or_else(|e| panic!("round {round}: {e}\n{mesh:?}"));
+                    let out = live.to_mesh(&mesh).unwrap();
+                    (live, outcome, out)
+                };
+                let (live, outcome, (out, carry)) = run(usize::MAX);
+                let (closed, closed_outcome, closed_out) = run(0);
+                assert_eq!(
+                    (&closed_outcome, &closed_out),
+                    (&outcome, &(out.clone(), carry)),
+                    "round {round}: closing up changed the run"
+                );
+                closed_up += usize::from(closed.vertex_slots() < live.vertex_slots());
                 assert!(out.validate_indices().is_ok());
                 assert_eq!(
                     (out.n_faces(), out.n_vertices()),
@@ -2070,9 +2174,54 @@ mod tests {
             }
         }
         assert!(
-            collapses > 1000 && locked > 100,
-            "{collapses} collapses, {locked} locked"
+            collapses > 1000 && locked > 100 && closed_up > 100,
+            "{collapses} collapses, {locked} locked, {closed_up} runs closed up"
         );
+    }
+
+    #[test]
+    fn closing_up_changes_no_collapse_of_renumbered_inputs_nor_their_attributes() {
+        // A grid with attributes, its vertices shuffled: renumbered inside, boundary kept.
+        let base = grid_with_attributes();
+        let n = base.n_vertices();
+        let mut perm: Vec<Index> = (0..n as Index).collect();
+        let mut state = 3u64;
+        for i in (1..n).rev() {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            perm.swap(i, (state >> 33) as usize % (i + 1));
+        }
+        let mut mesh = relabelled(&base, &perm);
+        mesh.face_attrs = base.face_attrs.clone();
+        let run = |compact_min_faces, goal| {
+            let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
+            let mut model = QuadricModel::new(&live, &QemOptions::default());
+            let opts = Options {
+                compact_min_faces,
+                ..Options::new(goal)
+            };
+            let outcome = live.collapse(&mut model, &opts, &mut |_| {});
+            live.check_invariants().unwrap();
+            // A second run on the same live mesh (as the stages finish on an exact count).
+            let more = live.collapse(
+                &mut model,
+                &Options {
+                    compact_min_faces,
+                    ..Options::new(Goal::Vertices(6))
+                },
+                &mut |_| {},
+            );
+            live.check_invariants().unwrap();
+            let slots = live.vertex_slots();
+            (outcome, more, live.to_mesh(&mesh).unwrap(), slots)
+        };
+        for goal in [Goal::Vertices(20), Goal::Faces(30)] {
+            let (outcome, more, out, slots) = run(usize::MAX, goal);
+            let (c_outcome, c_more, c_out, c_slots) = run(0, goal);
+            assert!(c_slots < slots / 4, "{c_slots} of {slots} slots");
+            assert_eq!((c_outcome, c_more, c_out), (outcome, more, out));
+        }
     }
 
     #[test]

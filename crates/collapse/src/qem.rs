@@ -196,4 +196,12 @@ impl CostModel for QuadricModel {
     fn merged(&mut self, _mesh: &LiveMesh, kept: Index, merged: &[Index]) {
         self.quadrics[kept as usize] = self.sum(merged);
     }
+
+    fn renumber(&mut self, vertices: &[Index], _faces: &[Index]) -> bool {
+        self.quadrics = vertices
+            .iter()
+            .map(|&v| self.quadrics[v as usize])
+            .collect();
+        true
+    }
 }

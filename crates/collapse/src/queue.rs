@@ -146,9 +146,10 @@ impl Heap {
         self.items[i] = e;
     }
 
-    /// Keeps the entries `keep` accepts and restores the heap order bottom-up.
-    fn retain(&mut self, keep: impl Fn(&Entry) -> bool) {
-        self.items.retain(keep);
+    /// Keeps the entries `keep` accepts (after it may have changed them) and restores the
+    /// heap order bottom-up.
+    fn retain(&mut self, keep: impl FnMut(&mut Entry) -> bool) {
+        self.items.retain_mut(keep);
         let n = self.items.len();
         if n > 1 {
             for i in (0..=(n - 2) / Self::ARITY).rev() {
@@ -244,6 +245,34 @@ impl Queue {
         }
     }
 
+    /// Renames the vertices of every entry by `new_vertex` (old → new, [`crate::NONE`] for
+    /// a vertex that is gone) and drops the entries that name a vertex gone or that
+    /// `current` rejects once renamed: stale entries, skipped anyway when they come up. The
+    /// order entries pop in, and the order parked ones come back in, stay the same.
+    pub(crate) fn renumber(&mut self, new_vertex: &[Index], current: impl Fn(&Entry) -> bool) {
+        let rename = |e: &mut Entry| {
+            for v in e.vertices.iter_mut().filter(|v| **v != crate::NONE) {
+                *v = new_vertex[*v as usize];
+                if *v == crate::NONE {
+                    return false;
+                }
+            }
+            current(e)
+        };
+        self.heap.retain(rename);
+        self.run.retain_mut(rename);
+        let parked = std::mem::take(&mut self.parked);
+        self.nodes.clear();
+        self.n_released = 0;
+        self.park_head = vec![NIL; new_vertex.iter().filter(|&&v| v != crate::NONE).count()];
+        // Parked again in their order: each vertex's list keeps its order.
+        for (mut e, released) in parked {
+            if !released && rename(&mut e) {
+                self.park(e);
+            }
+        }
+    }
+
     /// Re-queues the entries parked on `v` that `current` still accepts.
     pub(crate) fn release(&mut self, v: Index, current: impl Fn(&Entry) -> bool) {
         let mut node = std::mem::replace(&mut self.park_head[v as usize], NIL);
@@ -281,7 +310,7 @@ impl Queue {
 
     /// Keeps the entries `keep` accepts, in the heap and in the run.
     fn retain(&mut self, keep: impl Fn(&Entry) -> bool) {
-        self.heap.retain(&keep);
+        self.heap.retain(|e| keep(e));
         self.run.retain(keep);
         if self.run.len() < self.run.capacity() / 2 {
             self.run.shrink_to_fit();

@@ -153,6 +153,7 @@ impl Stage for SimplifyQem {
             max_error: (p.max_error > 0.0).then_some(p.max_error),
             min_quality: p.min_quality,
             keep_log: false,
+            ..Options::new(goal)
         };
         let progress = cx.progress;
         let to_remove = match goal {

@@ -286,6 +286,7 @@ fn simplify<G: FaceGuard>(
         max_error: (p.max_error > 0.0).then_some(p.max_error),
         min_quality: p.min_quality,
         keep_log: false,
+        ..Options::new(goal)
     };
     let mut outcome = live.collapse_guarded(&mut model, guard, &opts, progress);
     let triangle_collapses = outcome.collapses;
