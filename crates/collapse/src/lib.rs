@@ -282,6 +282,23 @@ pub struct Options {
     pub compact_min_faces: usize,
 }
 
+/// Keeps the entries `kept` (ascending indices) of `values`, in their order, in place (no
+/// new allocation): what a model does with its per-vertex and per-face arrays in
+/// [`CostModel::renumber`].
+///
+/// ```
+/// let mut v = vec![10, 11, 12, 13, 14];
+/// coarsen_collapse::keep_in_order(&mut v, &[1, 2, 4]);
+/// assert_eq!(v, [11, 12, 14]);
+/// ```
+pub fn keep_in_order<T: Copy>(values: &mut Vec<T>, kept: &[Index]) {
+    for (new, &old) in kept.iter().enumerate() {
+        // `old ≥ new`: nothing still to be read is overwritten.
+        values[new] = values[old as usize];
+    }
+    values.truncate(kept.len());
+}
+
 /// The default of [`Options::compact_min_faces`]: below it the arrays fit the caches.
 pub const COMPACT_MIN_FACES: usize = 1 << 16;
 

@@ -5,7 +5,7 @@ use crate::progressive::{ChangedFace, DeletedFace, Progressive, Step, fingerprin
 use crate::queue::{Entry, Queue};
 use crate::{
     CollapseError, CollapseRecord, CostModel, FaceGuard, Goal, Index, Merge, NONE, NoGuard,
-    Options, Outcome, Plan, Reach, Refusals, Reshape, StopReason, Unit, VertexKind,
+    Options, Outcome, Plan, Reach, Refusals, Reshape, StopReason, Unit, VertexKind, keep_in_order,
 };
 use coarsen_geom::{Aabb, DVec3, is_finite, triangle};
 use coarsen_mesh::ring::{RingShape, ring_shape};
@@ -985,27 +985,28 @@ impl LiveMesh {
         if !model.renumber(&old_vertex, &old_face) {
             return false;
         }
-        fn gather<T: Copy>(values: &[T], old: &[Index]) -> Vec<T> {
-            old.iter().map(|&i| values[i as usize]).collect()
+        match &mut self.base_vertex {
+            Some(b) => keep_in_order(b, &old_vertex),
+            None => self.base_vertex = Some(old_vertex.clone()),
         }
-        self.base_vertex = Some(old_vertex.iter().map(|&v| self.base(v)).collect());
-        self.base_face = Some(match &self.base_face {
-            Some(b) => gather(b, &old_face),
-            None => old_face.clone(),
-        });
-        self.pos = gather(&self.pos, &old_vertex);
-        self.kind = gather(&self.kind, &old_vertex);
-        self.alive = vec![true; old_vertex.len()];
-        self.stamp = gather(&self.stamp, &old_vertex);
-        self.cluster_tail = gather(&self.cluster_tail, &old_vertex);
-        self.region_normal = gather(&self.region_normal, &old_vertex);
-        self.region_area = gather(&self.region_area, &old_vertex);
-        self.faces = old_face
-            .iter()
-            .map(|&f| self.faces[f as usize].map(|v| new_vertex[v as usize]))
-            .collect();
-        self.face_state = gather(&self.face_state, &old_face);
-        self.input_normal = gather(&self.input_normal, &old_face);
+        match &mut self.base_face {
+            Some(b) => keep_in_order(b, &old_face),
+            None => self.base_face = Some(old_face.clone()),
+        }
+        // In place: the arrays are already resident, and nothing new is allocated.
+        keep_in_order(&mut self.pos, &old_vertex);
+        keep_in_order(&mut self.kind, &old_vertex);
+        keep_in_order(&mut self.alive, &old_vertex);
+        keep_in_order(&mut self.stamp, &old_vertex);
+        keep_in_order(&mut self.cluster_tail, &old_vertex);
+        keep_in_order(&mut self.region_normal, &old_vertex);
+        keep_in_order(&mut self.region_area, &old_vertex);
+        keep_in_order(&mut self.faces, &old_face);
+        for face in &mut self.faces {
+            *face = face.map(|v| new_vertex[v as usize]);
+        }
+        keep_in_order(&mut self.face_state, &old_face);
+        keep_in_order(&mut self.input_normal, &old_face);
         self.lists = self.lists.renumbered(&old_vertex, &new_face);
         self.last_deleted.clear();
         q.renumber(&new_vertex, |e| self.is_current(e));

@@ -198,10 +198,7 @@ impl CostModel for QuadricModel {
     }
 
     fn renumber(&mut self, vertices: &[Index], _faces: &[Index]) -> bool {
-        self.quadrics = vertices
-            .iter()
-            .map(|&v| self.quadrics[v as usize])
-            .collect();
+        crate::keep_in_order(&mut self.quadrics, vertices);
         true
     }
 }

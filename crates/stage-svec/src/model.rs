@@ -1,6 +1,8 @@
 //! Paper 2's constriction error as a [`CostModel`] of the collapse engine.
 
-use coarsen_collapse::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind};
+use coarsen_collapse::{
+    CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind, keep_in_order,
+};
 use coarsen_geom::{DVec3, Quadric, triangle};
 use std::f64::consts::PI;
 
@@ -587,18 +589,15 @@ impl CostModel for SvecModel {
     }
 
     fn renumber(&mut self, vertices: &[Index], faces: &[Index]) -> bool {
-        fn gather<T: Copy>(values: &[T], old: &[Index]) -> Vec<T> {
-            old.iter().map(|&i| values[i as usize]).collect()
-        }
-        self.face = gather(&self.face, faces);
-        self.normal_sum = gather(&self.normal_sum, faces);
-        self.normal_count = gather(&self.normal_count, faces);
-        self.shape_plain = gather(&self.shape_plain, faces);
-        self.angles = gather(&self.angles, faces);
-        self.face_mark = gather(&self.face_mark, faces);
-        self.vertex_area = gather(&self.vertex_area, vertices);
-        self.deficit = gather(&self.deficit, vertices);
-        self.vertex_mark = gather(&self.vertex_mark, vertices);
+        keep_in_order(&mut self.face, faces);
+        keep_in_order(&mut self.normal_sum, faces);
+        keep_in_order(&mut self.normal_count, faces);
+        keep_in_order(&mut self.shape_plain, faces);
+        keep_in_order(&mut self.angles, faces);
+        keep_in_order(&mut self.face_mark, faces);
+        keep_in_order(&mut self.vertex_area, vertices);
+        keep_in_order(&mut self.deficit, vertices);
+        keep_in_order(&mut self.vertex_mark, vertices);
         true
     }
 }
