@@ -2141,10 +2141,7 @@ mod tests {
                 let run = |compact_min_faces| {
                     let mut live = LiveMesh::new(&mesh).unwrap();
                     let mut model = QuadricModel::new(&live, &QemOptions::default());
-                    let opts = Options {
-                        compact_min_faces,
-                        ..Options::new(goal)
-                    };
+                    let opts = closing_up_from(compact_min_faces, goal);
                     let outcome = live.collapse(&mut model, &opts, &mut |_| {});
                     live.check_invariants()
                         .unwrap_or_else(|e| panic!("round {round}: {e}\n{mesh:?}"));
@@ -2184,35 +2181,17 @@ mod tests {
     fn closing_up_changes_no_collapse_of_renumbered_inputs_nor_their_attributes() {
         // A grid with attributes, its vertices shuffled: renumbered inside, boundary kept.
         let base = grid_with_attributes();
-        let n = base.n_vertices();
-        let mut perm: Vec<Index> = (0..n as Index).collect();
-        let mut state = 3u64;
-        for i in (1..n).rev() {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            perm.swap(i, (state >> 33) as usize % (i + 1));
-        }
-        let mut mesh = relabelled(&base, &perm);
+        let mut mesh = relabelled(&base, &shuffled_order(base.n_vertices(), 3));
         mesh.face_attrs = base.face_attrs.clone();
         let run = |compact_min_faces, goal| {
             let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
             let mut model = QuadricModel::new(&live, &QemOptions::default());
-            let opts = Options {
-                compact_min_faces,
-                ..Options::new(goal)
-            };
+            let opts = closing_up_from(compact_min_faces, goal);
             let outcome = live.collapse(&mut model, &opts, &mut |_| {});
             live.check_invariants().unwrap();
             // A second run on the same live mesh (as the stages finish on an exact count).
-            let more = live.collapse(
-                &mut model,
-                &Options {
-                    compact_min_faces,
-                    ..Options::new(Goal::Vertices(6))
-                },
-                &mut |_| {},
-            );
+            let opts = closing_up_from(compact_min_faces, Goal::Vertices(6));
+            let more = live.collapse(&mut model, &opts, &mut |_| {});
             live.check_invariants().unwrap();
             let slots = live.vertex_slots();
             (outcome, more, live.to_mesh(&mesh).unwrap(), slots)
@@ -2455,6 +2434,27 @@ mod tests {
     }
 
     /// `mesh` with vertex `v` renamed `perm[v]` (positions and attributes moved along).
+    /// `0..n` shuffled by a generator seeded with `seed`.
+    fn shuffled_order(n: usize, seed: u64) -> Vec<Index> {
+        let mut perm: Vec<Index> = (0..n as Index).collect();
+        let mut state = seed;
+        for i in (1..n).rev() {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            perm.swap(i, (state >> 33) as usize % (i + 1));
+        }
+        perm
+    }
+
+    /// Options for `goal` that close up the arrays from `compact_min_faces` faces on.
+    fn closing_up_from(compact_min_faces: usize, goal: Goal) -> Options {
+        Options {
+            compact_min_faces,
+            ..Options::new(goal)
+        }
+    }
+
     fn relabelled(mesh: &Mesh, perm: &[Index]) -> Mesh {
         let mut positions = vec![DVec3::ZERO; mesh.n_vertices()];
         let mut xs = vec![0.0; mesh.n_vertices()];
@@ -2494,14 +2494,7 @@ mod tests {
             to_local[v as usize] = i as Index;
         }
         let local = relabelled(&base, &to_local);
-        let mut perm: Vec<Index> = (0..n as Index).collect();
-        let mut state = 7u64;
-        for i in (1..n).rev() {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            perm.swap(i, (state >> 33) as usize % (i + 1));
-        }
+        let perm = shuffled_order(n, 7);
         let shuffled = relabelled(&local, &perm);
         let goal = Options::new(Goal::Vertices(40));
         let map = |v: Index| if v == NONE { NONE } else { perm[v as usize] };
