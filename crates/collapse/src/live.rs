@@ -154,7 +154,8 @@ pub struct LiveMesh {
     region_area: Vec<f64>,
     /// The progressive record, when asked for ([`LiveMesh::record_progressive`]).
     history: Option<Progressive>,
-    /// The input's index of each vertex, when [`LiveMesh::new_renumbered`] renumbered them.
+    /// The input's index of each vertex (in its first numbering), when
+    /// [`LiveMesh::new_renumbered`] renumbered them.
     original_of: Option<Vec<Index>>,
     /// The faces the last collapse deleted (their corners as they were).
     last_deleted: Vec<Index>,
@@ -515,8 +516,8 @@ impl LiveMesh {
         Some(h)
     }
 
-    /// Number of vertex indices (the input's vertex count, merged vertices included):
-    /// the length for per-vertex arrays of a cost model.
+    /// Number of vertex indices (the input's vertex count, merged vertices included, until
+    /// a run closes up the arrays): the length for per-vertex arrays of a cost model.
     pub fn vertex_slots(&self) -> usize {
         self.pos.len()
     }
@@ -811,7 +812,9 @@ impl LiveMesh {
 
     /// Collapses until `opts.goal` is met, the next collapse would cost more than
     /// `opts.max_error`, or no candidate is left; `progress` hears the number of collapses
-    /// done every few thousand.
+    /// done every few thousand. Vertex and face indices taken before may name other
+    /// elements after it (see [`Options::compact_min_faces`]); the log and
+    /// [`LiveMesh::to_mesh`] speak the input's.
     pub fn collapse<M: CostModel>(
         &mut self,
         model: &mut M,

@@ -11,16 +11,16 @@
 //! for a peak of 1.6 GB. With these settings (no mappings; up to [`KEEP_TOP`] of free
 //! space kept at the top of the heap) it touches 1.7 GB, and runs 7 % faster (`qem` 7 %,
 //! `adaptive-cvt` 9 %), for a peak 2 % higher (`adaptive-cvt`: 15 %, the free space
-//! between live blocks of the heap). (A thread's own malloc arena
-//! still hands a heap that falls empty back to the system; one arena for all threads
-//! would keep those too, but its lock cost more than that saved.)
+//! between live blocks of the heap). A thread's own malloc arena still hands a heap that
+//! falls empty back to the system; one arena for all threads would keep those too, but
+//! its lock cost more than that saved.
 //!
 //! Only programs call this: how the process allocates is not a library's choice. The
 //! criterion-style benches that time calls in a loop in one process (`qem` against
 //! meshoptimizer, `cvt`) keep glibc's defaults: there, each call would reuse the previous
 //! call's memory, which a single run does not get (meshoptimizer gained more from that
-//! than our simplifiers: QEM's ratio to it went from 1.8 to 2.0). Elsewhere than on Linux with
-//! glibc it does nothing.
+//! than our simplifiers: QEM's ratio to it went from 1.8 to 2.0). Elsewhere than on Linux
+//! with glibc it does nothing.
 
 /// Free space at the top of the heap that `free` keeps instead of handing back to the
 /// system.
