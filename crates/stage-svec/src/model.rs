@@ -4,6 +4,7 @@ use coarsen_collapse::{
     CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind, keep_in_order,
 };
 use coarsen_geom::{DVec3, Quadric, triangle};
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Relative determinant below which the summed quadric's minimiser is not trusted (Eq. 8
@@ -24,6 +25,47 @@ const MAX_INCREMENTAL: u32 = 1000;
 #[inline]
 fn normal_term(n: DVec3, m: DVec3) -> i64 {
     ((1.0 - n.dot(m).abs()) * NORMAL_UNIT) as i64
+}
+
+/// Faces or vertices whose data [`SvecModel::new`] computes in parallel at a time (bounds
+/// the memory of the answers).
+const SETUP_BLOCK: usize = 1 << 16;
+
+/// What [`SvecModel`] derives from the shape of one face.
+struct Shape {
+    angles: [f64; 3],
+    /// Unit normal (zero when degenerate).
+    normal: DVec3,
+    /// Area, unit-diagonal units.
+    area: f64,
+    /// Wᵢ · (1/9)Sᵢ², unit-diagonal units.
+    shape_plain: f64,
+}
+
+impl Shape {
+    /// The shape of face `f` from the current positions (`scale`: 1 / diagonal).
+    fn of(mesh: &LiveMesh, scale: f64, f: Index) -> Shape {
+        let [a, b, c] = mesh.face(f).map(|v| mesh.position(v));
+        let cross = triangle::cross(a, b, c);
+        let len = cross.length();
+        let angles = triangle::angles(a, b, c);
+        let normal = if len > 0.0 && len.is_finite() {
+            cross / len
+        } else {
+            DVec3::ZERO
+        };
+        let s = 0.5 * len * scale * scale;
+        let [x, y, z] = angles;
+        let shape = 2.0 * (1.0 - x.min(y).min(z).cos()) * s;
+        // Distances squared are in world units: scale them to a unit diagonal too.
+        let plain = s * s / 9.0 * scale * scale;
+        Shape {
+            angles,
+            normal,
+            area: s,
+            shape_plain: shape * plain,
+        }
+    }
 }
 
 /// How far from the merged vertices' centroid the minimiser may lie, in units of their
@@ -171,16 +213,36 @@ impl SvecModel {
             vertex_mark: vec![0; n_vertices],
             generation: 0,
         };
-        for f in mesh.live_faces() {
-            m.update_shape(mesh, f);
-        }
-        for v in 0..n_vertices as Index {
-            if mesh.is_alive(v) && !mesh.faces_around(v).is_empty() {
-                m.update_vertex(mesh, v);
+        // Each face's and vertex's data from the mesh and the data before it, on rayon's
+        // threads a block at a time (the same values as one by one).
+        let faces: Vec<Index> = mesh.live_faces().collect();
+        let verts: Vec<Index> = (0..n_vertices as Index)
+            .filter(|&v| mesh.is_alive(v) && !mesh.faces_around(v).is_empty())
+            .collect();
+        for block in faces.chunks(SETUP_BLOCK) {
+            let shapes: Vec<Shape> = block
+                .par_iter()
+                .map(|&f| Shape::of(mesh, scale, f))
+                .collect();
+            for (&f, s) in block.iter().zip(shapes) {
+                m.set_shape(f, s);
             }
         }
-        for f in mesh.live_faces() {
-            m.update_quadric(mesh, f);
+        for block in verts.chunks(SETUP_BLOCK) {
+            let da: Vec<(f64, f64)> = block
+                .par_iter()
+                .map(|&v| deficit_and_area(mesh, &m.angles, &m.face, v))
+                .collect();
+            for (&v, (d, a)) in block.iter().zip(da) {
+                m.deficit[v as usize] = d;
+                m.vertex_area[v as usize] = a;
+            }
+        }
+        for block in faces.chunks(SETUP_BLOCK) {
+            let qs: Vec<_> = block.par_iter().map(|&f| m.quadric_of(mesh, f)).collect();
+            for (&f, q) in block.iter().zip(qs) {
+                m.set_quadric(f, q);
+            }
         }
         m.threshold = match opts.feature_threshold {
             Some(t) => t,
@@ -253,23 +315,15 @@ impl SvecModel {
 
     /// Normal, area and corner angles of face `f` from the current positions.
     fn update_shape(&mut self, mesh: &LiveMesh, f: Index) {
-        let [a, b, c] = mesh.face(f).map(|v| mesh.position(v));
-        let cross = triangle::cross(a, b, c);
-        let len = cross.length();
+        self.set_shape(f, Shape::of(mesh, self.scale, f));
+    }
+
+    fn set_shape(&mut self, f: Index, s: Shape) {
         let fi = f as usize;
-        self.angles[fi] = triangle::angles(a, b, c);
-        self.face[fi].normal = if len > 0.0 && len.is_finite() {
-            cross / len
-        } else {
-            DVec3::ZERO
-        };
-        let s = 0.5 * len * self.scale * self.scale;
-        self.face[fi].area = s;
-        let [x, y, z] = self.angles[fi];
-        let shape = 2.0 * (1.0 - x.min(y).min(z).cos()) * s;
-        // Distances squared are in world units: scale them to a unit diagonal too.
-        let plain = s * s / 9.0 * self.scale * self.scale;
-        self.shape_plain[fi] = shape * plain;
+        self.angles[fi] = s.angles;
+        self.face[fi].normal = s.normal;
+        self.face[fi].area = s.area;
+        self.shape_plain[fi] = s.shape_plain;
     }
 
     /// A_v and the angle deficit of vertex `v`.
@@ -281,12 +335,17 @@ impl SvecModel {
 
     /// Nᵢ summed afresh from the normals around face `f`, then Qᵢ.
     fn update_quadric(&mut self, mesh: &LiveMesh, f: Index) {
+        self.set_quadric(f, self.quadric_of(mesh, f));
+    }
+
+    /// What [`SvecModel::update_quadric`] sets for face `f`: its normal-factor sum and
+    /// count, plane offset and weight; `None` for a degenerate face (offset and weight 0,
+    /// sum and count left as they are).
+    fn quadric_of(&self, mesh: &LiveMesh, f: Index) -> Option<(i64, u32, f64, f64)> {
         let fi = f as usize;
         let n = self.face[fi].normal;
         if n == DVec3::ZERO {
-            self.face[fi].offset = 0.0;
-            self.face[fi].weight = 0.0;
-            return;
+            return None;
         }
         let face = mesh.face(f);
         let (mut sum, mut count) = (0i128, 0u32);
@@ -297,10 +356,29 @@ impl SvecModel {
                 count += 1;
             }
         });
-        self.normal_sum[fi] = sum as i64;
-        self.normal_count[fi] = count;
-        self.face[fi].offset = -n.dot(mesh.position(face[0]));
-        self.face[fi].weight = self.shape_plain[fi] * normal_factor(sum, count);
+        let offset = -n.dot(mesh.position(face[0]));
+        Some((
+            sum as i64,
+            count,
+            offset,
+            self.shape_plain[fi] * normal_factor(sum, count),
+        ))
+    }
+
+    fn set_quadric(&mut self, f: Index, q: Option<(i64, u32, f64, f64)>) {
+        let fi = f as usize;
+        match q {
+            None => {
+                self.face[fi].offset = 0.0;
+                self.face[fi].weight = 0.0;
+            }
+            Some((sum, count, offset, weight)) => {
+                self.normal_sum[fi] = sum;
+                self.normal_count[fi] = count;
+                self.face[fi].offset = offset;
+                self.face[fi].weight = weight;
+            }
+        }
     }
 
     /// Qᵢ's weight of face `f` from its kept sum (a face with too many neighbours for the

@@ -297,6 +297,26 @@ fn same_input_gives_the_same_bytes() {
 }
 
 #[test]
+fn the_output_does_not_depend_on_the_thread_count() {
+    // The model's setup and the engine's first ranking run on rayon's threads.
+    let mesh = coarsen_shapes::bumpy_sphere(1.0, 4, 0.15, 3.0).unwrap();
+    let run_on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let (out, report) = run(&mesh, Some(Target::Ratio(0.9)), SvecParams::default());
+            (out.unwrap(), report.figures)
+        })
+    };
+    let one = run_on(1);
+    for threads in [2, 3] {
+        assert_eq!(run_on(threads), one, "{threads} threads");
+    }
+}
+
+#[test]
 fn flat_regions_cost_nothing_and_keep_their_outline() {
     let grid = plane_grid(12, 12, 1.0).unwrap();
     let (out, report) = run(&grid, Some(Target::Vertices(40)), SvecParams::default());
