@@ -68,6 +68,15 @@ impl Shape {
     }
 }
 
+/// What [`SvecModel`] derives for one face from the normals around it: Nᵢ's exact sum and
+/// count, and Qᵢ's plane offset and weight.
+struct FaceQuadric {
+    normal_sum: i64,
+    normal_count: u32,
+    offset: f64,
+    weight: f64,
+}
+
 /// How far from the merged vertices' centroid the minimiser may lie, in units of their
 /// largest distance to it; farther, Eq. 8 takes over.
 const MAX_REACH: f64 = 4.0;
@@ -233,9 +242,8 @@ impl SvecModel {
                 .par_iter()
                 .map(|&v| deficit_and_area(mesh, &m.angles, &m.face, v))
                 .collect();
-            for (&v, (d, a)) in block.iter().zip(da) {
-                m.deficit[v as usize] = d;
-                m.vertex_area[v as usize] = a;
+            for (&v, da) in block.iter().zip(da) {
+                m.set_vertex(v, da);
             }
         }
         for block in faces.chunks(SETUP_BLOCK) {
@@ -328,9 +336,12 @@ impl SvecModel {
 
     /// A_v and the angle deficit of vertex `v`.
     fn update_vertex(&mut self, mesh: &LiveMesh, v: Index) {
-        let (d, a) = deficit_and_area(mesh, &self.angles, &self.face, v);
-        self.deficit[v as usize] = d;
-        self.vertex_area[v as usize] = a;
+        self.set_vertex(v, deficit_and_area(mesh, &self.angles, &self.face, v));
+    }
+
+    fn set_vertex(&mut self, v: Index, (deficit, area): (f64, f64)) {
+        self.deficit[v as usize] = deficit;
+        self.vertex_area[v as usize] = area;
     }
 
     /// Nᵢ summed afresh from the normals around face `f`, then Qᵢ.
@@ -338,10 +349,9 @@ impl SvecModel {
         self.set_quadric(f, self.quadric_of(mesh, f));
     }
 
-    /// What [`SvecModel::update_quadric`] sets for face `f`: its normal-factor sum and
-    /// count, plane offset and weight; `None` for a degenerate face (offset and weight 0,
-    /// sum and count left as they are).
-    fn quadric_of(&self, mesh: &LiveMesh, f: Index) -> Option<(i64, u32, f64, f64)> {
+    /// What [`SvecModel::update_quadric`] sets for face `f`; `None` for a degenerate face
+    /// (offset and weight 0, sum and count left as they are).
+    fn quadric_of(&self, mesh: &LiveMesh, f: Index) -> Option<FaceQuadric> {
         let fi = f as usize;
         let n = self.face[fi].normal;
         if n == DVec3::ZERO {
@@ -356,27 +366,26 @@ impl SvecModel {
                 count += 1;
             }
         });
-        let offset = -n.dot(mesh.position(face[0]));
-        Some((
-            sum as i64,
-            count,
-            offset,
-            self.shape_plain[fi] * normal_factor(sum, count),
-        ))
+        Some(FaceQuadric {
+            normal_sum: sum as i64,
+            normal_count: count,
+            offset: -n.dot(mesh.position(face[0])),
+            weight: self.shape_plain[fi] * normal_factor(sum, count),
+        })
     }
 
-    fn set_quadric(&mut self, f: Index, q: Option<(i64, u32, f64, f64)>) {
+    fn set_quadric(&mut self, f: Index, q: Option<FaceQuadric>) {
         let fi = f as usize;
         match q {
             None => {
                 self.face[fi].offset = 0.0;
                 self.face[fi].weight = 0.0;
             }
-            Some((sum, count, offset, weight)) => {
-                self.normal_sum[fi] = sum;
-                self.normal_count[fi] = count;
-                self.face[fi].offset = offset;
-                self.face[fi].weight = weight;
+            Some(q) => {
+                self.normal_sum[fi] = q.normal_sum;
+                self.normal_count[fi] = q.normal_count;
+                self.face[fi].offset = q.offset;
+                self.face[fi].weight = q.weight;
             }
         }
     }
