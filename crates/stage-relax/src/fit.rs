@@ -391,6 +391,10 @@ pub(crate) fn fit(
         let len = |e: u32| edge_length(mesh, &topo, e);
         let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
         let ends = boundary_neighbours(&topo, mesh.n_vertices());
+        let built = Built {
+            topo: &topo,
+            ends: &ends,
+        };
         let boundary_edges: Vec<u32> = (0..n_edges as u32)
             .filter(|&e| topo.is_boundary_edge(e))
             .collect();
@@ -467,7 +471,7 @@ pub(crate) fn fit(
                         plan_boundary_split(mesh, &topo, surface, s, M, at, cos_turn)
                             .map(|(o, n)| (o.to_vec(), n.to_vec()))
                     } else {
-                        plan_split(mesh, &topo, Some(surface), s, M, at, cos_turn)
+                        plan_split(mesh, &built, Some(surface), s, M, at, cos_turn)
                             .map(|(o, n)| (o.to_vec(), n.to_vec()))
                     };
                     let Some((old, new)) = split else {
@@ -538,8 +542,7 @@ pub(crate) fn fit(
                 {
                     continue;
                 }
-                let Some(col) =
-                    plan_collapse(mesh, &topo, &ends, Some(surface), k, cos_turn, floor)
+                let Some(col) = plan_collapse(mesh, &built, Some(surface), k, cos_turn, floor)
                 else {
                     continue;
                 };

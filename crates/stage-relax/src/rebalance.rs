@@ -2,11 +2,13 @@
 //! count kept.
 //!
 //! Each pair is chosen on the mesh as the pair before left it. Rather than rebuilding the
-//! adjacency for every pair, one is kept until a candidate touches a vertex whose faces
-//! changed since it was built (then it is rebuilt); the edges and their face counts follow
-//! every pair. The pairs are the same as with a fresh adjacency each time (tested).
+//! adjacency for every pair, a table of each vertex's faces and the edges with their face
+//! counts follow every pair ([`Kept`]), and answer what planning asks (an edge's faces, a
+//! vertex's neighbours and fans, boundary or not) from there. The pairs are the same as
+//! with a [`Topology`] built afresh for each pair (tested).
 
 use super::*;
+use std::borrow::Cow;
 
 /// An edge longer than this many mean edge lengths, joining two boundary vertices through
 /// the interior, is split by [`rebalance`].
@@ -93,6 +95,205 @@ pub(crate) struct Collapse {
     pub(crate) freed: Vec<u32>,
 }
 
+/// The adjacency questions planning a pair asks, about the mesh as it is: answered by a
+/// [`Topology`] built for it ([`Built`]) or by the table [`Kept`] that follows each pair.
+pub(crate) trait Adjacency {
+    /// The ends of edge `e`.
+    fn edge(&self, e: u32) -> [u32; 2];
+    /// The faces of edge `e`, ascending.
+    fn edge_faces(&self, e: u32) -> Cow<'_, [u32]>;
+    /// True when edge `e` has exactly one face.
+    fn is_boundary_edge(&self, e: u32) -> bool {
+        self.edge_faces(e).len() == 1
+    }
+    /// The faces around vertex `v`.
+    fn vertex_faces(&self, v: u32) -> Cow<'_, [u32]>;
+    /// The vertices joined to `v` by an edge, each once.
+    fn vertex_neighbors(&self, v: u32) -> Cow<'_, [u32]>;
+    /// The fans the faces around `v` form (one for a manifold vertex).
+    fn n_vertex_fans(&self, v: u32) -> usize;
+    /// True when `v` is the end of an edge with one face.
+    fn is_boundary_vertex(&self, v: u32) -> bool;
+    /// The vertices joined to `v` by an edge with one face.
+    fn boundary_neighbors(&self, v: u32) -> Cow<'_, [u32]>;
+}
+
+/// A [`Topology`] built for the mesh, with its [`boundary_neighbours`].
+pub(crate) struct Built<'a> {
+    pub(crate) topo: &'a Topology,
+    pub(crate) ends: &'a [Vec<u32>],
+}
+
+impl Adjacency for Built<'_> {
+    fn edge(&self, e: u32) -> [u32; 2] {
+        self.topo.edge(e)
+    }
+    fn edge_faces(&self, e: u32) -> Cow<'_, [u32]> {
+        Cow::Borrowed(self.topo.edge_faces(e))
+    }
+    fn is_boundary_edge(&self, e: u32) -> bool {
+        self.topo.is_boundary_edge(e)
+    }
+    fn vertex_faces(&self, v: u32) -> Cow<'_, [u32]> {
+        Cow::Borrowed(self.topo.vertex_faces(v))
+    }
+    fn vertex_neighbors(&self, v: u32) -> Cow<'_, [u32]> {
+        Cow::Borrowed(self.topo.vertex_neighbors(v))
+    }
+    fn n_vertex_fans(&self, v: u32) -> usize {
+        self.topo.n_vertex_fans(v)
+    }
+    fn is_boundary_vertex(&self, v: u32) -> bool {
+        self.topo.is_boundary_vertex(v)
+    }
+    fn boundary_neighbors(&self, v: u32) -> Cow<'_, [u32]> {
+        Cow::Borrowed(&self.ends[v as usize])
+    }
+}
+
+/// The adjacency of a mesh kept up to date pair by pair: each vertex's faces (ascending)
+/// and the edges (sorted) with their face counts. Planning reads it through [`OnMesh`].
+pub(crate) struct Kept {
+    faces_of: Vec<Vec<u32>>,
+    edges: Vec<([u32; 2], u32)>,
+}
+
+impl Kept {
+    /// The table of `mesh`, whose adjacency is `topo`.
+    fn new(mesh: &Mesh, topo: &Topology) -> Kept {
+        let mut faces_of = vec![Vec::new(); mesh.n_vertices()];
+        for (f, face) in mesh.faces.iter().enumerate() {
+            for &v in face {
+                faces_of[v as usize].push(f as u32);
+            }
+        }
+        Kept {
+            faces_of,
+            edges: edge_counts(topo),
+        }
+    }
+
+    /// Face `f` was `was` (none for a new face) and is `now`: the table follows.
+    fn replace(&mut self, f: u32, was: Option<[u32; 3]>, now: [u32; 3]) {
+        if let Some(was) = was {
+            count_edges(&mut self.edges, was, false);
+            for v in was {
+                let list = &mut self.faces_of[v as usize];
+                if let Ok(i) = list.binary_search(&f) {
+                    list.remove(i);
+                }
+            }
+        }
+        count_edges(&mut self.edges, now, true);
+        for v in now {
+            let list = &mut self.faces_of[v as usize];
+            if let Err(i) = list.binary_search(&f) {
+                list.insert(i, f);
+            }
+        }
+    }
+}
+
+/// A [`Kept`] table read with the faces of its mesh; an edge's id is its place in the
+/// table's sorted edges.
+pub(crate) struct OnMesh<'a> {
+    kept: &'a Kept,
+    faces: &'a [[u32; 3]],
+}
+
+impl OnMesh<'_> {
+    /// The faces of `v` that also have `w`, ascending.
+    fn shared(&self, v: u32, w: u32) -> impl Iterator<Item = u32> + '_ {
+        self.kept.faces_of[v as usize]
+            .iter()
+            .copied()
+            .filter(move |&f| self.faces[f as usize].contains(&w))
+    }
+}
+
+impl Adjacency for OnMesh<'_> {
+    fn edge(&self, e: u32) -> [u32; 2] {
+        self.kept.edges[e as usize].0
+    }
+    fn edge_faces(&self, e: u32) -> Cow<'_, [u32]> {
+        let [a, b] = self.edge(e);
+        Cow::Owned(self.shared(a, b).collect())
+    }
+    fn vertex_faces(&self, v: u32) -> Cow<'_, [u32]> {
+        Cow::Borrowed(&self.kept.faces_of[v as usize])
+    }
+    fn vertex_neighbors(&self, v: u32) -> Cow<'_, [u32]> {
+        let mut out: Vec<u32> = Vec::new();
+        for &f in &self.kept.faces_of[v as usize] {
+            for w in self.faces[f as usize] {
+                if w != v && !out.contains(&w) {
+                    out.push(w);
+                }
+            }
+        }
+        Cow::Owned(out)
+    }
+    fn n_vertex_fans(&self, v: u32) -> usize {
+        // Faces around `v` joined across their edges at `v` (a union-find over a handful).
+        let faces = &self.kept.faces_of[v as usize];
+        let mut root: Vec<usize> = (0..faces.len()).collect();
+        fn find(root: &mut [usize], mut i: usize) -> usize {
+            while root[i] != i {
+                i = root[i];
+            }
+            i
+        }
+        for i in 0..faces.len() {
+            for j in i + 1..faces.len() {
+                let (fi, fj) = (self.faces[faces[i] as usize], self.faces[faces[j] as usize]);
+                if fi.iter().any(|&w| w != v && fj.contains(&w)) {
+                    let (ri, rj) = (find(&mut root, i), find(&mut root, j));
+                    root[ri.max(rj)] = ri.min(rj);
+                }
+            }
+        }
+        (0..faces.len())
+            .filter(|&i| find(&mut root, i) == i)
+            .count()
+    }
+    fn is_boundary_vertex(&self, v: u32) -> bool {
+        !self.boundary_neighbors(v).is_empty()
+    }
+    fn boundary_neighbors(&self, v: u32) -> Cow<'_, [u32]> {
+        Cow::Owned(
+            self.vertex_neighbors(v)
+                .iter()
+                .copied()
+                .filter(|&w| self.shared(v, w).count() == 1)
+                .collect(),
+        )
+    }
+}
+
+/// The edges of `topo` (sorted) with their face counts.
+fn edge_counts(topo: &Topology) -> Vec<([u32; 2], u32)> {
+    (0..topo.n_edges() as u32)
+        .map(|e| (topo.edge(e), topo.edge_faces(e).len() as u32))
+        .collect()
+}
+
+/// Counts the edges of `face` once more (`add`) or once less in the sorted `edges`.
+fn count_edges(edges: &mut Vec<([u32; 2], u32)>, face: [u32; 3], add: bool) {
+    for i in 0..3 {
+        let (a, b) = (face[i], face[(i + 1) % 3]);
+        let key = [a.min(b), a.max(b)];
+        match (edges.binary_search_by(|(k, _)| k.cmp(&key)), add) {
+            (Ok(i), true) => edges[i].1 += 1,
+            (Err(i), true) => edges.insert(i, (key, 1)),
+            (Ok(i), false) if edges[i].1 > 1 => edges[i].1 -= 1,
+            (Ok(i), false) => {
+                edges.remove(i);
+            }
+            (Err(_), false) => {}
+        }
+    }
+}
+
 /// Plans the collapse of edge `e` when it keeps the mesh manifold with its boundary loops
 /// (link condition, no interior edge between two boundary vertices, no loop below four
 /// vertices) and no remaining face around it turns by more than `cos_turn`, faces away
@@ -100,8 +301,7 @@ pub(crate) struct Collapse {
 /// had around the edge, whichever is lower.
 pub(crate) fn plan_collapse(
     mesh: &Mesh,
-    topo: &Topology,
-    ends: &[Vec<u32>],
+    topo: &impl Adjacency,
     surface: Option<&Surface<'_>>,
     e: u32,
     cos_turn: f64,
@@ -120,20 +320,15 @@ pub(crate) fn plan_collapse(
                 .find(|&w| w != a && w != b)
         })
         .collect();
-    let common = topo
-        .vertex_neighbors(a)
-        .iter()
-        .filter(|w| topo.vertex_neighbors(b).contains(w))
-        .count();
+    let (na, nb) = (topo.vertex_neighbors(a), topo.vertex_neighbors(b));
+    let common = na.iter().filter(|w| nb.contains(w)).count();
     if common != opposite.len() {
         return None;
     }
     let (ba, bb) = (topo.is_boundary_vertex(a), topo.is_boundary_vertex(b));
     let (keep, gone, at) = if topo.is_boundary_edge(e) {
-        if ends[a as usize]
-            .iter()
-            .any(|w| ends[b as usize].contains(w))
-        {
+        let (ea, eb) = (topo.boundary_neighbors(a), topo.boundary_neighbors(b));
+        if ea.iter().any(|w| eb.contains(w)) {
             return None;
         }
         let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
@@ -158,7 +353,7 @@ pub(crate) fn plan_collapse(
     let mut after = f64::INFINITY;
     let mut tris: Vec<[DVec3; 3]> = Vec::new();
     for &v in &[a, b] {
-        for &f in topo.vertex_faces(v) {
+        for &f in topo.vertex_faces(v).iter() {
             let t = mesh.faces[f as usize];
             let old = t.map(|w| mesh.positions[w as usize]);
             before = before.min(triangle::min_angle(old[0], old[1], old[2]));
@@ -197,7 +392,7 @@ pub(crate) fn plan_collapse(
 /// `cos_turn` from the face it comes from or faces away from `surface`.
 pub(crate) fn plan_split(
     mesh: &Mesh,
-    topo: &Topology,
+    topo: &impl Adjacency,
     surface: Option<&Surface<'_>>,
     e: u32,
     m: u32,
@@ -205,7 +400,7 @@ pub(crate) fn plan_split(
     cos_turn: f64,
 ) -> Option<([u32; 2], [[u32; 3]; 4])> {
     let ef = topo.edge_faces(e);
-    let &[f1, f2] = ef else {
+    let &[f1, f2] = &ef[..] else {
         return None;
     };
     let [c, d] = topo.edge(e);
@@ -255,102 +450,42 @@ pub(crate) fn rebalance(
     rebalance_with(mesh, surface, max_pairs, cos_turn, floor, false).0
 }
 
-/// The adjacency a pair is planned with: built for the mesh as it was some pairs ago, with
-/// the vertices whose faces changed since (`dirty`) and the current edges, sorted, with
-/// their face counts. A pair that involves only clean vertices plans exactly as on a fresh
-/// adjacency; one that would need a dirty vertex asks for a rebuild.
-struct Snapshot {
-    topo: Topology,
-    ends: Vec<Vec<u32>>,
-    dirty: Vec<bool>,
-    edges: Vec<([u32; 2], u32)>,
+/// What one round of [`rebalance`] found: the split edge's ends and faces, its new faces
+/// and midpoint, and the collapse.
+struct Pair {
+    ends: [u32; 2],
+    old: [u32; 2],
+    new: [[u32; 3]; 4],
+    at: DVec3,
+    col: Collapse,
 }
 
-impl Snapshot {
-    fn new(mesh: &Mesh) -> Option<Snapshot> {
-        let topo = Topology::try_build(mesh).ok()?;
-        let edges = (0..topo.n_edges() as u32)
-            .map(|e| (topo.edge(e), topo.edge_faces(e).len() as u32))
-            .collect();
-        Some(Snapshot {
-            ends: boundary_neighbours(&topo, mesh.n_vertices()),
-            dirty: vec![false; mesh.n_vertices()],
-            edges,
-            topo,
-        })
-    }
-
-    fn clean(&self, [a, b]: [u32; 2]) -> bool {
-        !self.dirty[a as usize] && !self.dirty[b as usize]
-    }
-
-    /// The snapshot's id of clean edge `ab`.
-    fn id(&self, [a, b]: [u32; 2]) -> Option<u32> {
-        self.topo.find_edge(a, b)
-    }
-
-    /// Counts the edges of `face` once more (`add`) or once less.
-    fn count(&mut self, face: [u32; 3], add: bool) {
-        for i in 0..3 {
-            let (a, b) = (face[i], face[(i + 1) % 3]);
-            let key = [a.min(b), a.max(b)];
-            match (self.edges.binary_search_by(|(k, _)| k.cmp(&key)), add) {
-                (Ok(i), true) => self.edges[i].1 += 1,
-                (Err(i), true) => self.edges.insert(i, (key, 1)),
-                (Ok(i), false) if self.edges[i].1 > 1 => self.edges[i].1 -= 1,
-                (Ok(i), false) => {
-                    self.edges.remove(i);
-                }
-                (Err(_), false) => {}
-            }
-        }
-    }
-}
-
-/// What one round of [`rebalance`] found.
-enum Found {
-    /// This pair: the split edge's ends and faces, its new faces and midpoint, and the
-    /// collapse.
-    Pair {
-        ends: [u32; 2],
-        old: [u32; 2],
-        new: [[u32; 3]; 4],
-        at: DVec3,
-        col: Collapse,
-    },
-    /// Nothing more to do.
-    Nothing,
-    /// A candidate touches a vertex whose faces changed since the snapshot.
-    Stale,
-}
-
-/// The next pair (see [`rebalance`]), planned on `snap`.
-fn find_pair(
+/// The next pair (see [`rebalance`]) of `mesh`, whose adjacency is `topo` and whose edges
+/// (sorted, with their face counts) are `edges`; `id` names an edge of `topo` by its ends
+/// and its place in `edges`.
+fn find_pair<A: Adjacency>(
     mesh: &Mesh,
-    snap: &Snapshot,
+    topo: &A,
+    edges: &[([u32; 2], u32)],
+    id: impl Fn([u32; 2], usize) -> Option<u32>,
     surface: Option<&Surface<'_>>,
     cos_turn: f64,
     floor: f64,
-) -> Found {
-    let edges = &snap.edges;
+) -> Option<Pair> {
     if edges.is_empty() {
-        return Found::Nothing;
+        return None;
     }
     let len = |[a, b]: [u32; 2]| mesh.positions[a as usize].distance(mesh.positions[b as usize]);
     let mean = edges.iter().map(|&(ab, _)| len(ab)).sum::<f64>() / edges.len() as f64;
-    let topo = &snap.topo;
-    // Interior edges long enough; on a dirty edge the boundary test is unknown, so it is
-    // listed at the lower bar and planning it asks for a fresh snapshot.
+    // Interior edges long enough (those joining two boundary vertices at a lower bar, asked
+    // only of edges between the two bars).
+    let bridge = |[a, b]: [u32; 2]| topo.is_boundary_vertex(a) && topo.is_boundary_vertex(b);
     let mut splits: Vec<(f64, usize)> = edges
         .iter()
         .enumerate()
         .filter(|(_, (_, faces))| *faces == 2)
-        .map(|(i, &(ab, _))| {
-            let bridge = !snap.clean(ab)
-                || (topo.is_boundary_vertex(ab[0]) && topo.is_boundary_vertex(ab[1]));
-            (len(ab), i, bridge)
-        })
-        .filter(|&(l, _, bridge)| l > if bridge { SPLIT_RATIO } else { LONG_RATIO } * mean)
+        .map(|(i, &(ab, _))| (len(ab), i, ab))
+        .filter(|&(l, _, ab)| l > LONG_RATIO * mean || (l > SPLIT_RATIO * mean && bridge(ab)))
         .map(|(l, i, _)| (l, i))
         .collect();
     splits.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
@@ -363,9 +498,7 @@ fn find_pair(
     collapses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
     'pair: for &(_, si) in &splits {
         let sab = edges[si].0;
-        let Some(s) = snap.id(sab).filter(|_| snap.clean(sab)) else {
-            return Found::Stale;
-        };
+        let s = id(sab, si)?;
         let [c, d] = sab;
         let mid = mesh.positions[c as usize].lerp(mesh.positions[d as usize], 0.5);
         let at = surface.and_then(|sf| sf.project(mid)).unwrap_or(mid);
@@ -380,32 +513,29 @@ fn find_pair(
             if around.contains(&a) || around.contains(&b) {
                 continue;
             }
-            let Some(k) = snap.id(kab).filter(|_| snap.clean(kab)) else {
-                return Found::Stale;
-            };
-            let Some(col) = plan_collapse(mesh, topo, &snap.ends, surface, k, cos_turn, floor)
-            else {
+            let k = id(kab, ki)?;
+            let Some(col) = plan_collapse(mesh, topo, surface, k, cos_turn, floor) else {
                 continue;
             };
             let Some((old, new)) = plan_split(mesh, topo, surface, s, col.gone, at, cos_turn)
             else {
                 continue 'pair;
             };
-            return Found::Pair {
+            return Some(Pair {
                 ends: sab,
                 old,
                 new,
                 at,
                 col,
-            };
+            });
         }
     }
-    Found::Nothing
+    None
 }
 
-/// [`rebalance`]; with `fresh`, the adjacency is rebuilt before every pair (the plain
-/// algorithm the snapshots must reproduce). Returns the pairs made and the adjacencies
-/// built.
+/// [`rebalance`]; with `fresh`, on a [`Topology`] built afresh for every pair (the plain
+/// algorithm the kept table must reproduce) instead of the [`Kept`] table. Returns the
+/// pairs made and the adjacencies built.
 pub(crate) fn rebalance_with(
     mesh: &mut Mesh,
     surface: Option<&Surface<'_>>,
@@ -421,29 +551,55 @@ pub(crate) fn rebalance_with(
     } = Origins::start(mesh);
     let carry = before.is_some();
     let mut done = 0;
-    let mut snapshot: Option<Snapshot> = None;
     let mut built = 0;
+    let mut kept: Option<Kept> = None;
     while done < max_pairs as usize {
-        if snapshot.is_none() {
-            snapshot = Snapshot::new(mesh);
+        // The pair, and the faces around its collapsed vertex before it.
+        let found = if fresh || kept.is_none() {
+            let Ok(topo) = Topology::try_build(mesh) else {
+                break;
+            };
             built += 1;
-        }
-        let Some(snap) = snapshot.as_mut() else {
-            break;
-        };
-        let (ends, old, new, at, col) = match find_pair(mesh, snap, surface, cos_turn, floor) {
-            Found::Nothing => break,
-            Found::Stale => {
-                snapshot = None;
-                continue;
+            let edges = edge_counts(&topo);
+            let ends = boundary_neighbours(&topo, mesh.n_vertices());
+            let adjacency = Built {
+                topo: &topo,
+                ends: &ends,
+            };
+            let id = |[a, b]: [u32; 2], _| topo.find_edge(a, b);
+            let found = find_pair(mesh, &adjacency, &edges, id, surface, cos_turn, floor);
+            if !fresh {
+                kept = Some(Kept::new(mesh, &topo));
             }
-            Found::Pair {
+            found.map(|p| {
+                let around = topo.vertex_faces(p.col.gone).to_vec();
+                (p, around)
+            })
+        } else if let Some(k) = kept.as_ref() {
+            let adjacency = OnMesh {
+                kept: k,
+                faces: &mesh.faces,
+            };
+            let id = |_, i: usize| Some(i as u32);
+            find_pair(mesh, &adjacency, &k.edges, id, surface, cos_turn, floor).map(|p| {
+                let around = k.faces_of[p.col.gone as usize].clone();
+                (p, around)
+            })
+        } else {
+            None
+        };
+        let Some((
+            Pair {
                 ends,
                 old,
                 new,
                 at,
                 col,
-            } => (ends, old, new, at, col),
+            },
+            around_gone,
+        )) = found
+        else {
+            break;
         };
         let [c, d] = ends;
         if carry {
@@ -465,19 +621,13 @@ pub(crate) fn rebalance_with(
         }
         // The faces the pair changes, as they were.
         let mut changed: Vec<(u32, [u32; 3])> = Vec::new();
-        let touched = snap
-            .topo
-            .vertex_faces(col.gone)
-            .iter()
-            .chain(&old)
-            .chain(&col.freed);
-        for &f in touched {
+        for &f in around_gone.iter().chain(&old).chain(&col.freed) {
             if !changed.iter().any(|&(g, _)| g == f) {
                 changed.push((f, mesh.faces[f as usize]));
             }
         }
         // Collapse: `gone` becomes `keep`; its edge's faces are freed.
-        for &f in snap.topo.vertex_faces(col.gone) {
+        for &f in &around_gone {
             for w in &mut mesh.faces[f as usize] {
                 if *w == col.gone {
                     *w = col.keep;
@@ -501,24 +651,13 @@ pub(crate) fn rebalance_with(
             }
         }
         done += 1;
-        if fresh {
-            snapshot = None;
-            continue;
-        }
-        // The snapshot's edges and dirty vertices follow the change.
-        for &(f, was) in &changed {
-            let now = mesh.faces[f as usize];
-            snap.count(was, false);
-            snap.count(now, true);
-            for v in was.into_iter().chain(now) {
-                snap.dirty[v as usize] = true;
+        // The kept table follows the change.
+        if let Some(k) = kept.as_mut() {
+            for &(f, was) in &changed {
+                k.replace(f, Some(was), mesh.faces[f as usize]);
             }
-        }
-        if let Some(f) = appended {
-            let now = mesh.faces[f as usize];
-            snap.count(now, true);
-            for v in now {
-                snap.dirty[v as usize] = true;
+            if let Some(f) = appended {
+                k.replace(f, None, mesh.faces[f as usize]);
             }
         }
     }
