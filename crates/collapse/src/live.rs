@@ -51,6 +51,18 @@ enum Refusal {
 }
 
 impl Refusals {
+    /// Adds `other`'s counts to these.
+    fn add(&mut self, other: &Refusals) {
+        self.link += other.link;
+        self.flip += other.flip;
+        self.degenerate += other.degenerate;
+        self.quality += other.quality;
+        self.facing += other.facing;
+        self.boundary += other.boundary;
+        self.locked += other.locked;
+        self.model += other.model;
+    }
+
     fn count(&mut self, r: Refusal) {
         *match r {
             Refusal::Link => &mut self.link,
@@ -1112,47 +1124,65 @@ impl LiveMesh {
     /// Queues every candidate: each edge once (from the face using it as `a → b` with
     /// `a < b`, or from its only face), or each face.
     ///
-    /// The candidates are costed on rayon's threads, a block of faces at a time, and queued
-    /// in the order a single thread would queue them: the queue (sequence numbers
-    /// included) does not depend on the thread count.
+    /// The candidates are costed on rayon's threads, a piece of faces at a time, each
+    /// piece's entries gathered on its thread and appended in piece order. A candidate's
+    /// sequence number is its slot (face, then edge of the face) in a range taken for the
+    /// whole ranking, so the numbers keep the order a single thread would queue them in:
+    /// the queue does not depend on the thread count.
     fn rank_all<M: CostModel>(&self, model: &M, unit: Unit, q: &mut Queue, refused: &mut Refusals) {
-        /// Faces per block: bounds the memory the block's answers take.
-        const BLOCK: usize = 1 << 16;
+        /// Faces per piece.
+        const PIECE: usize = 1 << 12;
+        /// Pieces per round: bounds the memory the gathered entries take.
+        const ROUND: usize = 16;
         let n = self.faces.len();
-        let mut answers: Vec<[Option<Ranked>; 3]> = Vec::new();
-        for start in (0..n).step_by(BLOCK) {
-            let end = (start + BLOCK).min(n);
-            (start..end)
+        let slots = match unit {
+            Unit::Edge => 3,
+            Unit::Triangle => 1,
+        };
+        let base = q.take_seqs((n * slots) as u64);
+        let pieces = n.div_ceil(PIECE);
+        for first in (0..pieces).step_by(ROUND) {
+            let gathered: Vec<(Vec<Entry>, Refusals)> = (first..(first + ROUND).min(pieces))
                 .into_par_iter()
-                .map(|f| {
-                    let face = self.faces[f];
-                    let live = self.face_state[f] == LIVE;
-                    let mut out = [None; 3];
-                    if live {
+                .map(|k| {
+                    let (mut entries, mut counts) = (Vec::new(), Refusals::default());
+                    for f in k * PIECE..((k + 1) * PIECE).min(n) {
+                        if self.face_state[f] != LIVE {
+                            continue;
+                        }
+                        let face = self.faces[f];
+                        let mut rank = |slot: usize, verts: &[Index]| match self.rank(model, verts)
+                        {
+                            Ranked::Queue {
+                                cost,
+                                vertices,
+                                stamp,
+                            } => entries.push(Entry {
+                                cost,
+                                seq: base + (f * slots + slot) as u64,
+                                vertices,
+                                stamp,
+                            }),
+                            Ranked::Refused(r) => counts.count(r),
+                        };
                         match unit {
                             Unit::Edge => {
-                                for (c, slot) in out.iter_mut().enumerate() {
+                                for c in 0..3 {
                                     let (a, b) = (face[c], face[(c + 1) % 3]);
                                     if a < b || self.is_boundary_edge(a, b) {
-                                        *slot = Some(self.rank(model, &[a.min(b), a.max(b)]));
+                                        rank(c, &[a.min(b), a.max(b)]);
                                     }
                                 }
                             }
-                            Unit::Triangle => out[0] = Some(self.rank(model, &face)),
+                            Unit::Triangle => rank(0, &face),
                         }
                     }
-                    out
+                    (entries, counts)
                 })
-                .collect_into_vec(&mut answers);
-            for a in answers.iter().flatten().flatten() {
-                match *a {
-                    Ranked::Queue {
-                        cost,
-                        vertices,
-                        stamp,
-                    } => q.push(cost, vertices, stamp, false),
-                    Ranked::Refused(r) => refused.count(r),
-                }
+                .collect();
+            for (entries, counts) in &gathered {
+                q.extend_initial(entries);
+                refused.add(counts);
             }
         }
     }

@@ -212,6 +212,20 @@ impl Queue {
         }
     }
 
+    /// Takes `n` sequence numbers for the initial ranking, `base..base + n`, and returns
+    /// `base`: entries queued later come after all of them.
+    pub(crate) fn take_seqs(&mut self, n: u64) -> u64 {
+        let base = self.next_seq;
+        self.next_seq += n;
+        base
+    }
+
+    /// Adds `entries`, numbered from [`Queue::take_seqs`], to the initial ranking, which
+    /// [`Queue::sort_initial`] must sort before the first pop.
+    pub(crate) fn extend_initial(&mut self, entries: &[Entry]) {
+        self.run.extend_from_slice(entries);
+    }
+
     /// Puts the unordered pushes in pop order (before the first pop).
     pub(crate) fn sort_initial(&mut self) {
         // Dearest first: the run pops from its end. Keys are distinct (the sequence
