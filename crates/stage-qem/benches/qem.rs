@@ -121,6 +121,26 @@ fn median(mut xs: Vec<f64>) -> f64 {
     xs[xs.len() / 2]
 }
 
+/// `f`'s result with the CPU time of the whole process while it ran (the initial ranking
+/// runs on rayon's threads) and the wall time, in seconds: `(cpu, wall, result)`.
+fn timed(f: impl FnOnce() -> usize) -> (f64, f64, usize) {
+    let start = (Instant::now(), process_cpu_time());
+    let out = f();
+    let wall = start.0.elapsed();
+    let cpu = match (start.1, process_cpu_time()) {
+        (Some(a), Some(b)) => b - a,
+        _ => wall,
+    };
+    (cpu.as_secs_f64(), wall.as_secs_f64(), out)
+}
+
+/// [`timed`] of `stage` on `big` to `target` (its output face count), on a copy made
+/// before the clock starts, as meshoptimizer's input is (a run reads its input from a file).
+fn timed_stage<S: Stage>(stage: S, big: &Mesh, target: Target) -> (f64, f64, usize) {
+    let input = big.clone();
+    timed(move || run_stage(stage, input, target).n_faces())
+}
+
 /// Issue #6's bar: `big` to 60 000 faces by meshoptimizer, QEM, SVEC and meshoptimizer
 /// again, in rounds (see the module docs).
 fn scale_case(big: &Mesh) {
@@ -132,39 +152,15 @@ fn scale_case(big: &Mesh) {
         .iter()
         .map(|p| p.as_vec3().to_array())
         .collect();
-    // CPU time of the whole process (the initial ranking runs on rayon's threads), and
-    // wall time beside it.
-    let time = |f: &mut dyn FnMut() -> usize| {
-        let start = (Instant::now(), process_cpu_time());
-        let faces = f();
-        let wall = start.0.elapsed();
-        let t = match (start.1, process_cpu_time()) {
-            (Some(a), Some(b)) => b - a,
-            _ => wall,
-        };
-        (t.as_secs_f64(), wall.as_secs_f64(), faces)
-    };
     let (mut qem_ratios, mut svec_ratios) = (Vec::new(), Vec::new());
     let mut faces = (0, 0, 0);
     for round in 1..=SCALE_ROUNDS {
-        let (before, _, their_faces) = time(&mut || meshopt_simplify(&indices, &positions, goal));
-        // Each simplifier's input is copied before its clock starts, as meshoptimizer's
-        // is (a run reads its input from a file instead).
-        let mut input = Some(big.clone());
-        let (qem, qem_wall, qem_faces) = time(&mut || {
-            let stage = SimplifyQem::new(QemParams::default());
-            input
-                .take()
-                .map_or(0, |m| run_stage(stage, m, target).n_faces())
-        });
-        let mut input = Some(big.clone());
-        let (svec, svec_wall, svec_faces) = time(&mut || {
-            let stage = SimplifySvec::new(SvecParams::default());
-            input
-                .take()
-                .map_or(0, |m| run_stage(stage, m, target).n_faces())
-        });
-        let (after, _, _) = time(&mut || meshopt_simplify(&indices, &positions, goal));
+        let (before, _, their_faces) = timed(|| meshopt_simplify(&indices, &positions, goal));
+        let qem_stage = SimplifyQem::new(QemParams::default());
+        let (qem, qem_wall, qem_faces) = timed_stage(qem_stage, big, target);
+        let svec_stage = SimplifySvec::new(SvecParams::default());
+        let (svec, svec_wall, svec_faces) = timed_stage(svec_stage, big, target);
+        let (after, _, _) = timed(|| meshopt_simplify(&indices, &positions, goal));
         let theirs = 0.5 * (before + after);
         qem_ratios.push(qem / theirs);
         svec_ratios.push(svec / theirs);
