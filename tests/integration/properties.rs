@@ -187,11 +187,7 @@ fn deterministic(name: &str, input: &Mesh, target: u64) {
             return;
         };
         let (b, _) = run(name, input, target).unwrap();
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let (c, _) = one.install(|| run(name, input, target)).unwrap();
+        let (c, _) = coarsen_testdata::on_threads(1, || run(name, input, target)).unwrap();
         assert_eq!(bytes(&a), bytes(&b), "{name}: two runs differ");
         assert_eq!(
             bytes(&a),

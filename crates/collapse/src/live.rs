@@ -2612,11 +2612,7 @@ mod tests {
         // The initial ranking runs on rayon's threads; its queue must not.
         let mesh = icosphere(5);
         let run_on = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            coarsen_testdata::on_threads(threads, || {
                 let mut live = LiveMesh::new(&mesh).unwrap();
                 let mut model = QuadricModel::new(&live, &QemOptions::default());
                 let outcome =

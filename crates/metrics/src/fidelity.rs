@@ -475,11 +475,10 @@ mod tests {
         let (small, large) = (icosphere(2), bumpy(&icosphere(4), 0.02));
         let opts = FidelityOptions::default();
         let f = fidelity(&small, &large, &opts).unwrap();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        assert_eq!(pool.install(|| fidelity(&small, &large, &opts).unwrap()), f);
+        assert_eq!(
+            coarsen_testdata::on_threads(1, || fidelity(&small, &large, &opts).unwrap()),
+            f
+        );
         assert!(f.backward_max_pct > 0.0 && f.forward_max_pct > 0.0);
         // The same pair the other way round swaps the directions' maxima.
         let g = fidelity(&large, &small, &opts).unwrap();
@@ -520,11 +519,7 @@ mod tests {
         let opts = FidelityOptions::default();
         let first = fidelity(&a, &b, &opts).unwrap();
         assert_eq!(first, fidelity(&a, &b, &opts).unwrap());
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let single = pool.install(|| fidelity(&a, &b, &opts).unwrap());
+        let single = coarsen_testdata::on_threads(1, || fidelity(&a, &b, &opts).unwrap());
         assert_eq!(first, single);
         assert_eq!(
             first.hausdorff_pct.to_bits(),

@@ -219,11 +219,10 @@ mod tests {
         let (a, b) = (icosphere(4), icosphere(2));
         let opts = MetricsOptions::default();
         let r = measure(Some(&a), &b, &opts).unwrap();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        assert_eq!(pool.install(|| measure(Some(&a), &b, &opts).unwrap()), r);
+        assert_eq!(
+            coarsen_testdata::on_threads(1, || measure(Some(&a), &b, &opts).unwrap()),
+            r
+        );
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains("\"hausdorff_pct\"") && json.contains("\"alpha_min_deg\""));
         let back: MetricsReport = serde_json::from_str(&json).unwrap();

@@ -1091,16 +1091,12 @@ mod tests {
         // Over 4·PARALLEL_MIN faces, so that two levels are built in parallel pieces.
         let (pos, faces) = random_mesh(&mut rng, 190, 300);
         assert!(faces.len() > 4 * PARALLEL_MIN);
-        let pool = |n| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .unwrap()
-        };
         // The heuristic's build (its one-piece tree is the reference), then the Morton one.
         for morton_min in [usize::MAX, 0] {
-            let single = pool(1).install(|| Bvh::build_with(&pos, &faces, morton_min));
-            let triple = pool(3).install(|| Bvh::build_with(&pos, &faces, morton_min));
+            let single =
+                coarsen_testdata::on_threads(1, || Bvh::build_with(&pos, &faces, morton_min));
+            let triple =
+                coarsen_testdata::on_threads(3, || Bvh::build_with(&pos, &faces, morton_min));
             assert_eq!(single, triple, "Morton from {morton_min} faces");
             let reference = one_piece(&pos, &faces);
             if morton_min > faces.len() {

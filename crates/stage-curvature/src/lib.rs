@@ -495,14 +495,8 @@ mod tests {
         mesh.faces
             .retain(|f| f.iter().all(|&v| mesh.positions[v as usize].z < 0.8));
         let params = CurvatureParams::default();
-        let pool = |n| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .unwrap()
-        };
-        let one = pool(1).install(|| estimate(&mesh, &params).unwrap());
-        let two = pool(2).install(|| estimate(&mesh, &params).unwrap());
+        let one = coarsen_testdata::on_threads(1, || estimate(&mesh, &params).unwrap());
+        let two = coarsen_testdata::on_threads(2, || estimate(&mesh, &params).unwrap());
         let default = estimate(&mesh, &params).unwrap();
         assert!(one.counts.from_neighbors > 0);
         let bits = |e: &Estimate| -> Vec<u64> {

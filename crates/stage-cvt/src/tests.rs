@@ -271,11 +271,9 @@ fn parts_swept_in_parallel_give_the_same_clusters_with_any_thread_count() {
             ..CvtParams::default()
         };
         let on = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| cluster(&mesh, &topo, 1500, &p, None, |_, _, _| {}).unwrap())
+            coarsen_testdata::on_threads(threads, || {
+                cluster(&mesh, &topo, 1500, &p, None, |_, _, _| {}).unwrap()
+            })
         };
         let one = on(1);
         let three = on(3);
@@ -469,11 +467,7 @@ fn the_curve_layout_gives_the_same_clusters_with_any_thread_count() {
     let topo = Topology::build(&mesh);
     let e = Valette2004;
     let on = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        coarsen_testdata::on_threads(threads, || {
             let mut c = Clusterer::with_layout(&mesh, &topo, &e, None, true).unwrap();
             c.seed(1500, 1).unwrap();
             let log = c.minimize(200, None, |_, _, _| {});
@@ -521,11 +515,7 @@ fn sleeping_faces_change_nothing() {
     let topo = Topology::build(&mesh);
     let energy = Shu2009 { r: 2.0 };
     let run = |share: f64, threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        coarsen_testdata::on_threads(threads, || {
             let mut c = Clusterer::new(&mesh, &topo, &energy, None).unwrap();
             c.seed(1500, 7).unwrap();
             c.set_sleep_share(share);

@@ -402,15 +402,6 @@ mod tests {
             / m.n_faces() as f64
     }
 
-    /// `f` run on a rayon pool of `threads` threads.
-    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(f)
-    }
-
     /// The bits of every coordinate of `m`, for exact comparisons.
     fn position_bits(m: &Mesh) -> Vec<u64> {
         m.positions
@@ -834,7 +825,7 @@ mod tests {
             ..RelaxParams::default()
         };
         let run = |threads: usize| {
-            in_pool(threads, || {
+            coarsen_testdata::on_threads(threads, || {
                 let surface = Surface::new(&original);
                 let mut m = jittered.clone();
                 let r = relax(&mut m, Some(&surface), &params);
@@ -860,7 +851,7 @@ mod tests {
             ..RelaxParams::default()
         };
         let run = |threads: usize| {
-            in_pool(threads, || {
+            coarsen_testdata::on_threads(threads, || {
                 let surface = Surface::new(&original);
                 let mut m = bumped_grid(8, 0.0625);
                 relax(&mut m, Some(&surface), &params);

@@ -301,11 +301,7 @@ fn the_output_does_not_depend_on_the_thread_count() {
     // The model's setup and the engine's first ranking run on rayon's threads.
     let mesh = coarsen_shapes::bumpy_sphere(1.0, 4, 0.15, 3.0).unwrap();
     let run_on = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        coarsen_testdata::on_threads(threads, || {
             let (out, report) = run(&mesh, Some(Target::Ratio(0.9)), SvecParams::default());
             (out.unwrap(), report.figures)
         })

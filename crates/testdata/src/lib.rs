@@ -1,7 +1,8 @@
 //! Test support shared by every crate's tests and benchmarks: the folder of real meshes
 //! (`../shared/data` beside the checkout, or `$COARSEN_DATA`), and loading them raw or
 //! cleaned as the CLI cleans them. When the folder is absent the functions say so on
-//! standard error and return `None`, so a test can skip with a clear message.
+//! standard error and return `None`, so a test can skip with a clear message. Also
+//! [`on_threads`], for the tests that a result does not depend on the thread count.
 
 use coarsen_mesh::Mesh;
 use coarsen_mesh::hygiene::{HygieneOptions, clean};
@@ -38,4 +39,13 @@ pub fn cleaned(name: &str) -> Option<Mesh> {
             .unwrap_or_else(|e| panic!("{name}: {e}"))
             .0,
     )
+}
+
+/// `f`'s result, run on a rayon pool of its own with `threads` threads.
+pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap_or_else(|e| panic!("a pool of {threads} threads: {e}"))
+        .install(f)
 }
