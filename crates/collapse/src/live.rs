@@ -912,7 +912,7 @@ impl LiveMesh {
             // neighbourhood changes; if it has grown dearer since, it goes back in line
             // at its current cost.
             if plan.cost > e.cost {
-                q.push(plan.cost, e.vertices, e.stamp, true);
+                q.push(plan.cost, e.vertices, e.stamp);
                 continue;
             }
             // The queue is ordered by cost: nothing cheaper is left.
@@ -1116,7 +1116,7 @@ impl LiveMesh {
                 cost,
                 vertices,
                 stamp,
-            } => q.push(cost, vertices, stamp, true),
+            } => q.push(cost, vertices, stamp),
             Ranked::Refused(r) => refused.count(r),
         }
     }

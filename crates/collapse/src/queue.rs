@@ -192,24 +192,16 @@ impl Queue {
         self.heap.len() + self.run.len()
     }
 
-    /// Queues a candidate behind every candidate of the same cost queued before. With
-    /// `ordered` false it joins the initial ranking, which [`Queue::sort_initial`] must
-    /// sort before the first pop; the order entries pop in is the same either way, since
-    /// `(cost, sequence)` orders them totally.
-    pub(crate) fn push(&mut self, cost: f64, vertices: [Index; 3], stamp: u32, ordered: bool) {
+    /// Queues a candidate behind every candidate of the same cost queued before.
+    pub(crate) fn push(&mut self, cost: f64, vertices: [Index; 3], stamp: u32) {
         let seq = self.next_seq;
         self.next_seq += 1;
-        let e = Entry {
+        self.heap.push(Entry {
             cost,
             seq,
             vertices,
             stamp,
-        };
-        if ordered {
-            self.heap.push(e);
-        } else {
-            self.run.push(e);
-        }
+        });
     }
 
     /// Takes `n` sequence numbers for the initial ranking, `base..base + n`, and returns
@@ -298,7 +290,7 @@ impl Queue {
                 self.n_released += 1;
                 let e = *e;
                 if current(&e) {
-                    self.push(e.cost, e.vertices, e.stamp, true);
+                    self.push(e.cost, e.vertices, e.stamp);
                 }
             }
             node = next;
@@ -359,10 +351,10 @@ mod tests {
     fn equal_costs_pop_in_queue_order() {
         let mut q = Queue::new(10, 8);
         for v in [5, 1, 7, 3] {
-            q.push(0.0, [v, v + 1, NONE], 0, true);
+            q.push(0.0, [v, v + 1, NONE], 0);
         }
-        q.push(-0.0, [9, 0, NONE], 0, true);
-        q.push(0.5, [0, 1, NONE], 0, true);
+        q.push(-0.0, [9, 0, NONE], 0);
+        q.push(0.5, [0, 1, NONE], 0);
         let order: Vec<_> = std::iter::from_fn(|| q.pop())
             .map(|e| e.vertices[0])
             .collect();
@@ -384,12 +376,24 @@ mod tests {
         };
         let mut popped = Vec::new();
         let mut expected = Vec::new();
-        // The first 300 entries are pushed unordered, then sorted (as the initial ranking
-        // is); the rest in order.
+        // The first 300 entries make the initial ranking (numbered from `take_seqs`, then
+        // sorted); the rest are pushed in order.
+        let base = q.take_seqs(300);
+        let mut initial = Vec::new();
         for round in 0..2000u32 {
             let cost = (next() % 7) as f64 * 0.5;
-            q.push(cost, [round, 0, NONE], 0, round >= 300);
+            if round < 300 {
+                initial.push(Entry {
+                    cost,
+                    seq: base + u64::from(round),
+                    vertices: [round, 0, NONE],
+                    stamp: 0,
+                });
+            } else {
+                q.push(cost, [round, 0, NONE], 0);
+            }
             if round == 299 {
+                q.extend_initial(&initial);
                 q.sort_initial();
             }
             oracle.push((cost, round as u64, round));
@@ -413,7 +417,7 @@ mod tests {
     #[test]
     fn parked_entries_return_once_when_a_vertex_is_touched() {
         let mut q = Queue::new(10, 8);
-        q.push(1.0, [2, 3, NONE], 0, true);
+        q.push(1.0, [2, 3, NONE], 0);
         let e = q.pop().unwrap();
         q.park(e);
         assert_eq!(q.len(), 0);
