@@ -159,18 +159,15 @@ pub(crate) struct Kept {
 }
 
 impl Kept {
-    /// The table of `mesh`, whose adjacency is `topo`.
-    fn new(mesh: &Mesh, topo: &Topology) -> Kept {
+    /// The table of `mesh`, whose edges (sorted, with their face counts) are `edges`.
+    fn new(mesh: &Mesh, edges: Vec<([u32; 2], u32)>) -> Kept {
         let mut faces_of = vec![Vec::new(); mesh.n_vertices()];
         for (f, face) in mesh.faces.iter().enumerate() {
             for &v in face {
                 faces_of[v as usize].push(f as u32);
             }
         }
-        Kept {
-            faces_of,
-            edges: edge_counts(topo),
-        }
+        Kept { faces_of, edges }
     }
 
     /// Face `f` was `was` (none for a new face) and is `now`: the table follows.
@@ -555,38 +552,39 @@ pub(crate) fn rebalance_with(
     let mut kept: Option<Kept> = None;
     while done < max_pairs as usize {
         // The pair, and the faces around its collapsed vertex before it.
-        let found = if fresh || kept.is_none() {
-            let Ok(topo) = Topology::try_build(mesh) else {
-                break;
-            };
-            built += 1;
-            let edges = edge_counts(&topo);
-            let ends = boundary_neighbours(&topo, mesh.n_vertices());
-            let adjacency = Built {
-                topo: &topo,
-                ends: &ends,
-            };
-            let id = |[a, b]: [u32; 2], _| topo.find_edge(a, b);
-            let found = find_pair(mesh, &adjacency, &edges, id, surface, cos_turn, floor);
-            if !fresh {
-                kept = Some(Kept::new(mesh, &topo));
+        let found = match kept.as_ref() {
+            Some(k) => {
+                let adjacency = OnMesh {
+                    kept: k,
+                    faces: &mesh.faces,
+                };
+                let id = |_, i: usize| Some(i as u32);
+                find_pair(mesh, &adjacency, &k.edges, id, surface, cos_turn, floor).map(|p| {
+                    let around = k.faces_of[p.col.gone as usize].clone();
+                    (p, around)
+                })
             }
-            found.map(|p| {
-                let around = topo.vertex_faces(p.col.gone).to_vec();
-                (p, around)
-            })
-        } else if let Some(k) = kept.as_ref() {
-            let adjacency = OnMesh {
-                kept: k,
-                faces: &mesh.faces,
-            };
-            let id = |_, i: usize| Some(i as u32);
-            find_pair(mesh, &adjacency, &k.edges, id, surface, cos_turn, floor).map(|p| {
-                let around = k.faces_of[p.col.gone as usize].clone();
-                (p, around)
-            })
-        } else {
-            None
+            None => {
+                let Ok(topo) = Topology::try_build(mesh) else {
+                    break;
+                };
+                built += 1;
+                let edges = edge_counts(&topo);
+                let ends = boundary_neighbours(&topo, mesh.n_vertices());
+                let adjacency = Built {
+                    topo: &topo,
+                    ends: &ends,
+                };
+                let id = |[a, b]: [u32; 2], _| topo.find_edge(a, b);
+                let found = find_pair(mesh, &adjacency, &edges, id, surface, cos_turn, floor);
+                if !fresh {
+                    kept = Some(Kept::new(mesh, edges));
+                }
+                found.map(|p| {
+                    let around = topo.vertex_faces(p.col.gone).to_vec();
+                    (p, around)
+                })
+            }
         };
         let Some((
             Pair {
