@@ -222,7 +222,8 @@ impl Queue {
         self.run.extend_from_slice(entries);
     }
 
-    /// Puts the unordered pushes in pop order (before the first pop).
+    /// Puts the initial ranking ([`Queue::extend_initial`]) in pop order (before the first
+    /// pop).
     pub(crate) fn sort_initial(&mut self) {
         // Dearest first: the run pops from its end. Keys are distinct (the sequence
         // numbers are), so the parallel sort is deterministic.
