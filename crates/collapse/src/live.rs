@@ -1125,7 +1125,8 @@ impl LiveMesh {
     /// `a < b`, or from its only face), or each face.
     ///
     /// The candidates are costed on rayon's threads, a piece of faces at a time, each
-    /// piece's entries gathered on its thread and appended in piece order. A candidate's
+    /// piece's entries gathered on its thread and appended in piece order (a round of
+    /// pieces while the next round is costed). A candidate's
     /// sequence number is its slot (face, then edge of the face) in a range taken for the
     /// whole ranking, so the numbers keep the order a single thread would queue them in:
     /// the queue does not depend on the thread count.
@@ -1141,50 +1142,58 @@ impl LiveMesh {
         };
         let base = q.take_seqs((n * slots) as u64);
         let pieces = n.div_ceil(PIECE);
-        for first in (0..pieces).step_by(ROUND) {
-            let gathered: Vec<(Vec<Entry>, Refusals)> = (first..(first + ROUND).min(pieces))
-                .into_par_iter()
-                .map(|k| {
-                    let (mut entries, mut counts) = (Vec::new(), Refusals::default());
-                    for f in k * PIECE..((k + 1) * PIECE).min(n) {
-                        if self.face_state[f] != LIVE {
-                            continue;
-                        }
-                        let face = self.faces[f];
-                        let mut rank = |slot: usize, verts: &[Index]| match self.rank(model, verts)
-                        {
-                            Ranked::Queue {
-                                cost,
-                                vertices,
-                                stamp,
-                            } => entries.push(Entry {
-                                cost,
-                                seq: base + (f * slots + slot) as u64,
-                                vertices,
-                                stamp,
-                            }),
-                            Ranked::Refused(r) => counts.count(r),
-                        };
-                        match unit {
-                            Unit::Edge => {
-                                for c in 0..3 {
-                                    let (a, b) = (face[c], face[(c + 1) % 3]);
-                                    if a < b || self.is_boundary_edge(a, b) {
-                                        rank(c, &[a.min(b), a.max(b)]);
-                                    }
-                                }
-                            }
-                            Unit::Triangle => rank(0, &face),
-                        }
-                    }
-                    (entries, counts)
-                })
-                .collect();
-            for (entries, counts) in &gathered {
+        // A round's entries go into the queue, in piece order, while the next round ranks.
+        let mut ranked: Vec<(Vec<Entry>, Refusals)> = Vec::new();
+        let mut queue_them = |ranked: &[(Vec<Entry>, Refusals)]| {
+            for (entries, counts) in ranked {
                 q.extend_initial(entries);
                 refused.add(counts);
             }
+        };
+        for first in (0..pieces).step_by(ROUND) {
+            let rank_round = || -> Vec<(Vec<Entry>, Refusals)> {
+                (first..(first + ROUND).min(pieces))
+                    .into_par_iter()
+                    .map(|k| {
+                        let (mut entries, mut counts) = (Vec::new(), Refusals::default());
+                        for f in k * PIECE..((k + 1) * PIECE).min(n) {
+                            if self.face_state[f] != LIVE {
+                                continue;
+                            }
+                            let face = self.faces[f];
+                            let mut rank =
+                                |slot: usize, verts: &[Index]| match self.rank(model, verts) {
+                                    Ranked::Queue {
+                                        cost,
+                                        vertices,
+                                        stamp,
+                                    } => entries.push(Entry {
+                                        cost,
+                                        seq: base + (f * slots + slot) as u64,
+                                        vertices,
+                                        stamp,
+                                    }),
+                                    Ranked::Refused(r) => counts.count(r),
+                                };
+                            match unit {
+                                Unit::Edge => {
+                                    for c in 0..3 {
+                                        let (a, b) = (face[c], face[(c + 1) % 3]);
+                                        if a < b || self.is_boundary_edge(a, b) {
+                                            rank(c, &[a.min(b), a.max(b)]);
+                                        }
+                                    }
+                                }
+                                Unit::Triangle => rank(0, &face),
+                            }
+                        }
+                        (entries, counts)
+                    })
+                    .collect()
+            };
+            ranked = rayon::join(|| queue_them(&ranked), rank_round).1;
         }
+        queue_them(&ranked);
     }
 
     /// What to do with a candidate: queue it at its cost, or count why not.

@@ -26,6 +26,7 @@
 
 use crate::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind};
 use coarsen_geom::{DVec3, Quadric, triangle};
+use rayon::prelude::*;
 
 /// Relative determinant below which the quadric's minimiser is not trusted.
 const SOLVE_TOLERANCE: f64 = 1e-10;
@@ -60,53 +61,85 @@ pub struct QuadricModel {
     cost_unit: f64,
 }
 
-impl QuadricModel {
-    /// The initial quadrics of `mesh`'s vertices.
-    pub fn new(mesh: &LiveMesh, opts: &QemOptions) -> Self {
-        let mut quadrics = vec![Quadric::ZERO; mesh.vertex_slots()];
-        for f in mesh.live_faces() {
-            let face = mesh.face(f);
-            let [a, b, c] = face.map(|v| mesh.position(v));
-            let cross = triangle::cross(a, b, c);
-            let twice_area = cross.length();
-            if twice_area == 0.0 || !twice_area.is_finite() {
-                continue;
-            }
-            let n = cross / twice_area;
-            let w = if opts.area_weighted {
-                0.5 * twice_area
+/// Calls `add` with each term `face` gives a vertex's quadric, in order: its plane (to
+/// each corner), then each boundary edge's constraint plane (to both its ends).
+fn add_face_terms(
+    mesh: &LiveMesh,
+    opts: &QemOptions,
+    face: [Index; 3],
+    mut add: impl FnMut(Index, Quadric),
+) {
+    let [a, b, c] = face.map(|v| mesh.position(v));
+    let cross = triangle::cross(a, b, c);
+    let twice_area = cross.length();
+    if twice_area == 0.0 || !twice_area.is_finite() {
+        return;
+    }
+    let n = cross / twice_area;
+    let w = if opts.area_weighted {
+        0.5 * twice_area
+    } else {
+        1.0
+    };
+    let q = Quadric::from_plane(n, a, w);
+    for &v in &face {
+        add(v, q);
+    }
+    if opts.boundary_weight <= 0.0 {
+        return;
+    }
+    for i in 0..3 {
+        let (u, v) = (face[i], face[(i + 1) % 3]);
+        if !mesh.is_boundary_edge(u, v) {
+            continue;
+        }
+        let (pu, pv) = (mesh.position(u), mesh.position(v));
+        let e = pv - pu;
+        let m = e.cross(n).normalize_or_zero();
+        if m == DVec3::ZERO {
+            continue;
+        }
+        let w = opts.boundary_weight
+            * if opts.area_weighted {
+                e.length_squared()
             } else {
                 1.0
             };
-            let q = Quadric::from_plane(n, a, w);
-            for &v in &face {
-                quadrics[v as usize] += q;
-            }
-            if opts.boundary_weight <= 0.0 {
-                continue;
-            }
-            for i in 0..3 {
-                let (u, v) = (face[i], face[(i + 1) % 3]);
-                if !mesh.is_boundary_edge(u, v) {
-                    continue;
+        let q = Quadric::from_plane(m, pu, w);
+        add(u, q);
+        add(v, q);
+    }
+}
+
+impl QuadricModel {
+    /// The initial quadrics of `mesh`'s vertices.
+    pub fn new(mesh: &LiveMesh, opts: &QemOptions) -> Self {
+        // Each vertex sums its terms in face order, as one pass over the faces would: the
+        // vertices are cut into ranges, one per thread, and each range walks every face
+        // and keeps the terms of its own vertices (the faces' terms recomputed where they
+        // touch two ranges), so the sums are the same bits on any number of threads.
+        let mut quadrics = vec![Quadric::ZERO; mesh.vertex_slots()];
+        let range = quadrics
+            .len()
+            .div_ceil(rayon::current_num_threads().max(1))
+            .max(1 << 12);
+        quadrics
+            .par_chunks_mut(range)
+            .enumerate()
+            .for_each(|(i, own)| {
+                let (lo, len) = ((i * range) as Index, own.len());
+                let mine = |v: Index| v >= lo && ((v - lo) as usize) < len;
+                for f in mesh.live_faces() {
+                    let face = mesh.face(f);
+                    if face.iter().any(|&v| mine(v)) {
+                        add_face_terms(mesh, opts, face, |v, q| {
+                            if mine(v) {
+                                own[(v - lo) as usize] += q;
+                            }
+                        });
+                    }
                 }
-                let (pu, pv) = (mesh.position(u), mesh.position(v));
-                let e = pv - pu;
-                let m = e.cross(n).normalize_or_zero();
-                if m == DVec3::ZERO {
-                    continue;
-                }
-                let w = opts.boundary_weight
-                    * if opts.area_weighted {
-                        e.length_squared()
-                    } else {
-                        1.0
-                    };
-                let q = Quadric::from_plane(m, pu, w);
-                quadrics[u as usize] += q;
-                quadrics[v as usize] += q;
-            }
-        }
+            });
         let d = mesh.diagonal();
         let cost_unit = match (d > 0.0, opts.area_weighted) {
             (false, _) => 1.0,
@@ -200,5 +233,29 @@ impl CostModel for QuadricModel {
     fn renumber(&mut self, vertices: &[Index], _faces: &[Index]) -> bool {
         crate::keep_in_order(&mut self.quadrics, vertices);
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::grid;
+
+    #[test]
+    fn initial_quadrics_are_one_pass_sums_on_any_thread_count() {
+        // An open, bumpy grid of 14,641 vertices: several vertex ranges, boundary terms.
+        let mesh = grid(120, 120, |x, y| (7.0 * x).sin() * (5.0 * y).cos() * 0.1);
+        let live = LiveMesh::new(&mesh).unwrap();
+        let opts = QemOptions::default();
+        // The reference: one pass over the faces, each term added where it goes.
+        let mut one_pass = vec![Quadric::ZERO; live.vertex_slots()];
+        for f in live.live_faces() {
+            add_face_terms(&live, &opts, live.face(f), |v, q| one_pass[v as usize] += q);
+        }
+        assert!(one_pass.iter().all(|q| *q != Quadric::ZERO));
+        for threads in [1, 2, 3, 8] {
+            let model = coarsen_testdata::on_threads(threads, || QuadricModel::new(&live, &opts));
+            assert!(model.quadrics == one_pass, "{threads} threads");
+        }
     }
 }
