@@ -11,7 +11,6 @@
 
 use crate::bvh::{
     Bvh, MAX_LEAF, Node, PARALLEL_MIN, Subtree, corners, f32_at_least, f32_at_most, max3, min3,
-    pairs_of,
 };
 use coarsen_geom::Aabb;
 use glam::DVec3;
@@ -154,7 +153,7 @@ pub(crate) fn build(positions: &[DVec3], faces: &[[u32; 3]]) -> Bvh {
         .collect();
     let tree = subtree(&codes, &tris, 0);
     drop(codes);
-    let pairs = pairs_of(tree.into_nodes());
+    let pairs = tree.into_pairs();
     // Minima and maxima are exact, so the chunks may be merged in any order.
     let root_box = tris.par_chunks(PARALLEL_MIN).map(box_of).reduce(
         || Aabb::EMPTY,
