@@ -135,6 +135,9 @@ impl Stage for Postprocess {
                 (Some(AttrValues::Label(l)), false) => Start::Labels(l),
                 _ => Start::Labels(dual_cells(&coarse, &fine, done)),
             };
+            // The coarse faces are only needed for the dual cells of the first level: the
+            // finer levels need not carry them.
+            fine.face_attrs.remove(COARSE_FACE);
             let topo = match derived.take() {
                 Some(t) => t,
                 None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,
