@@ -548,3 +548,38 @@ fn an_annulus_one_face_wide_refuses_other_counts_than_one_per_face() {
     assert!(t.manifold);
     assert_eq!(t.n_boundary_loops, 2);
 }
+
+#[test]
+fn a_fin_on_an_edge_is_cut_off_before_the_cvt_pipelines() {
+    // An icosphere with a fin (a fan of triangles standing out) on one of its edges: that
+    // edge has three faces. A collapse stage keeps them joined; the dual cannot, so the
+    // fin is cut off the sphere first, and both come out valid.
+    let mut finned = coarsen_shapes::icosphere(1.0, 3).unwrap();
+    let [a, b, _] = finned.faces[0];
+    let (pa, pb) = (finned.positions[a as usize], finned.positions[b as usize]);
+    let tip = (pa + pb) * 0.75;
+    let n = finned.positions.len() as u32;
+    finned
+        .positions
+        .extend([tip, (pa + tip) * 0.5, (pb + tip) * 0.5]);
+    finned
+        .faces
+        .extend([[a, b, n + 2], [a, n + 2, n + 1], [n + 1, n + 2, n]]);
+    let t = info_topology(&finned, "fin.obj");
+    assert_eq!(t["n_non_manifold_edges"], 1);
+    for pipeline in ["uniform-cvt", "adaptive-cvt"] {
+        let ran = run_ok(&finned, "fin.obj", pipeline, &["--vertices", "120"]);
+        let s = Topology::build(&ran.output).summary(&ran.output);
+        assert!(s.manifold && s.consistently_oriented, "{pipeline}: {s:?}");
+        assert_eq!(ran.output.n_vertices(), 120, "{pipeline}");
+        // The sphere and the fin, a disc.
+        assert_eq!((s.n_components, s.n_boundary_loops), (2, 1), "{pipeline}");
+        let w = ran.warnings();
+        assert!(
+            // The uniform pipeline subdivides first: two edges then.
+            w.iter()
+                .any(|w| w.contains("edges of three or more faces cut apart")),
+            "{pipeline}: {w:?}"
+        );
+    }
+}

@@ -182,8 +182,9 @@ impl HygieneReport {
 /// Splits every non-manifold vertex (several face fans meeting at one point, as at a
 /// bow-tie) into one vertex per fan: the first fan keeps the vertex, each other fan gets a
 /// copy at the same position with the same attributes. Returns the mesh and the number of
-/// copies made (0: the mesh comes back unchanged). Edges of three or more faces are left
-/// as they are.
+/// copies made (0: the mesh comes back unchanged). Fans do not cross an edge of three or
+/// more faces, so the split also opens such edges (and a surface along a line of them:
+/// [`cut_non_manifold_edges`] keeps the surface whole).
 pub fn split_non_manifold_vertices(mesh: Mesh) -> (Mesh, usize) {
     let topo = crate::Topology::build(&mesh);
     let bad = topo.non_manifold_vertices();
@@ -212,6 +213,153 @@ pub fn split_non_manifold_vertices(mesh: Mesh) -> (Mesh, usize) {
     let face_origins = FaceOrigins::from_parents((0..mesh.n_faces() as Index).collect());
     let (out, _) = mesh.rebuilt(positions, faces, &origins, &face_origins);
     (out, copies)
+}
+
+/// What [`cut_non_manifold_edges`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EdgeCut {
+    /// Edges of three or more faces cut apart.
+    pub edges: usize,
+    /// Vertex copies added (at those edges' ends, and at non-manifold vertices elsewhere).
+    pub copies: usize,
+}
+
+/// Cuts every edge of three or more faces apart, and splits every non-manifold vertex
+/// into one vertex per face fan: a manifold mesh with the same faces, in the same order.
+///
+/// At each such edge the faces that use it in opposite directions are paired, the pair
+/// whose normals agree best first (the two sides of a surface, ahead of a fin standing on
+/// it); each pair stays joined there and every other face's side becomes boundary. A
+/// fin on a surface thus comes off it and the surface stays whole, also along a line of
+/// such edges. Around each vertex, faces joined across an edge (of two faces, or a
+/// pair) make one fan; the fan of the vertex's first face keeps it and every other fan
+/// gets a copy at the same position with the same attributes. Two faces using an edge in
+/// the same direction stay joined (as in [`crate::Topology`]'s fans), and faces that
+/// repeat a vertex keep theirs.
+pub fn cut_non_manifold_edges(mesh: Mesh) -> (Mesh, EdgeCut) {
+    let topo = crate::Topology::build(&mesh);
+    let nf = mesh.n_faces();
+    let corner = |f: u32, v: Index| {
+        let c = mesh.faces[f as usize].iter().position(|&u| u == v);
+        3 * f + c.unwrap_or(0) as u32
+    };
+    // Corners around one vertex that share a fan, by union-find over all corners.
+    let mut parent: Vec<u32> = (0..3 * nf as u32).collect();
+    let join = |parent: &mut Vec<u32>, f: u32, g: u32, [a, b]: [u32; 2]| {
+        for v in [a, b] {
+            let (x, y) = (
+                crate::topology::find_root(parent, corner(f, v)),
+                crate::topology::find_root(parent, corner(g, v)),
+            );
+            parent[x.max(y) as usize] = x.min(y);
+        }
+    };
+    let normal = |f: u32| {
+        let [a, b, c] = mesh.faces[f as usize].map(|v| mesh.positions[v as usize]);
+        coarsen_geom::triangle::cross(a, b, c).normalize_or_zero()
+    };
+    // Faces joined across edges of two faces first; the candidate pairs of the others.
+    let mut multi: Vec<(Index, u32)> = Vec::new();
+    let mut pairs: Vec<(f64, u32, u32, u32)> = Vec::new();
+    for e in 0..topo.n_edges() as u32 {
+        let [a, b] = topo.edge(e);
+        match topo.edge_faces(e) {
+            &[f, g] => join(&mut parent, f, g, [a, b]),
+            faces if faces.len() >= 3 => {
+                multi.extend([(a, e), (b, e)]);
+                // Which way each face runs along the edge: a → b or not.
+                let forward = |f: u32| {
+                    let face = mesh.faces[f as usize];
+                    (0..3).any(|c| face[c] == a && face[(c + 1) % 3] == b)
+                };
+                for (i, &f) in faces.iter().enumerate() {
+                    for &g in &faces[i + 1..] {
+                        if forward(f) != forward(g) {
+                            pairs.push((normal(f).dot(normal(g)), e, f, g));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    let cut_edges = multi.len() / 2;
+    multi.sort_unstable();
+    // Best agreeing pairs first. A pair is joined only if, around each of its ends, no
+    // fan then holds more than two faces of any edge of three or more (else that edge
+    // would stay one edge of them all, as when a surface's two sides would each join a
+    // side of a two-sided flap).
+    pairs.sort_by(|x, y| {
+        y.0.total_cmp(&x.0)
+            .then((x.1, x.2, x.3).cmp(&(y.1, y.2, y.3)))
+    });
+    let mut taken = vec![false; nf];
+    for &(_, e, f, g) in &pairs {
+        if taken[f as usize] || taken[g as usize] {
+            continue;
+        }
+        let ends = topo.edge(e);
+        let fits = ends.iter().all(|&v| {
+            let roots = [f, g].map(|h| crate::topology::find_root(&mut parent, corner(h, v)));
+            let from = multi.partition_point(|&(u, _)| u < v);
+            multi[from..]
+                .iter()
+                .take_while(|&&(u, _)| u == v)
+                .all(|&(_, m)| {
+                    let inside = topo
+                        .edge_faces(m)
+                        .iter()
+                        .filter(|&&h| {
+                            roots.contains(&crate::topology::find_root(&mut parent, corner(h, v)))
+                        })
+                        .count();
+                    inside <= 2
+                })
+        });
+        if fits {
+            taken[f as usize] = true;
+            taken[g as usize] = true;
+            join(&mut parent, f, g, ends);
+        }
+    }
+    let mut cut = EdgeCut {
+        edges: cut_edges,
+        copies: 0,
+    };
+    let mut positions = mesh.positions.clone();
+    let mut faces = mesh.faces.clone();
+    let mut origins = VertexOrigins::identity(mesh.n_vertices());
+    // Per vertex: the fans met so far (their root) and the vertex each was given.
+    let mut fans: Vec<(u32, Index)> = Vec::new();
+    for v in 0..mesh.n_vertices() as Index {
+        fans.clear();
+        for &f in topo.vertex_faces(v) {
+            let k = corner(f, v);
+            let root = crate::topology::find_root(&mut parent, k);
+            let w = match fans.iter().find(|&&(r, _)| r == root) {
+                Some(&(_, w)) => w,
+                None => {
+                    let w = if fans.is_empty() {
+                        v
+                    } else {
+                        positions.push(mesh.positions[v as usize]);
+                        origins.push_copy(v);
+                        cut.copies += 1;
+                        (positions.len() - 1) as Index
+                    };
+                    fans.push((root, w));
+                    w
+                }
+            };
+            faces[(k / 3) as usize][(k % 3) as usize] = w;
+        }
+    }
+    if cut.copies == 0 {
+        return (mesh, cut);
+    }
+    let face_origins = FaceOrigins::from_parents((0..nf as Index).collect());
+    let (out, _) = mesh.rebuilt(positions, faces, &origins, &face_origins);
+    (out, cut)
 }
 
 /// Runs the clean-up steps `opts` selects on `mesh` (see the module docs).
@@ -431,6 +579,81 @@ mod tests {
     use crate::topology::Topology;
     use crate::topology::tests::{read_obj, shared_data};
 
+    /// A flat grid of 4 × 2 quads (vertices `y * 5 + x`) with a fin of three triangles
+    /// standing on the two edges 6-7 and 7-8 between its interior vertices.
+    fn finned_grid() -> Mesh {
+        let mut positions: Vec<DVec3> = (0..15)
+            .map(|i| DVec3::new(f64::from(i % 5), f64::from(i / 5), 0.0))
+            .collect();
+        positions.extend([DVec3::new(1.5, 1.0, 1.0), DVec3::new(2.5, 1.0, 1.0)]);
+        let mut faces = Vec::new();
+        for y in 0..2 {
+            for x in 0..4 {
+                let a = y * 5 + x;
+                faces.push([a, a + 1, a + 6]);
+                faces.push([a, a + 6, a + 5]);
+            }
+        }
+        faces.extend([[6, 7, 15], [7, 16, 15], [7, 8, 16]]);
+        Mesh::new(positions, faces)
+    }
+
+    #[test]
+    fn a_fin_is_cut_off_a_surface_that_stays_whole() {
+        let m = finned_grid();
+        let before = Topology::build(&m).summary(&m);
+        assert_eq!((before.n_non_manifold_edges, before.n_components), (2, 1));
+        let (out, cut) = cut_non_manifold_edges(m.clone());
+        assert_eq!(
+            cut,
+            EdgeCut {
+                edges: 2,
+                copies: 3
+            }
+        );
+        // The grid keeps its vertices; the fin's feet are copies at the same places.
+        assert_eq!(out.faces[..16], m.faces[..16]);
+        assert_eq!(out.faces[16..], [[17, 18, 15], [18, 16, 15], [18, 19, 16]]);
+        assert_eq!(
+            out.positions[17..],
+            [m.positions[6], m.positions[7], m.positions[8]]
+        );
+        let s = Topology::build(&out).summary(&out);
+        assert!(s.manifold && s.consistently_oriented);
+        assert_eq!((s.n_components, s.n_boundary_loops), (2, 2));
+        // Splitting fans alone would open the grid along the fin's foot as well.
+        let (slit, _) = split_non_manifold_vertices(m);
+        let s = Topology::build(&slit).summary(&slit);
+        assert_eq!((s.n_components, s.n_boundary_loops), (2, 3));
+        // A manifold mesh comes back as it was.
+        let (same, none) = cut_non_manifold_edges(out.clone());
+        assert_eq!((same.faces, none), (out.faces, EdgeCut::default()));
+    }
+
+    #[test]
+    fn the_sides_of_a_surface_are_paired_before_a_fold_back() {
+        // Four faces on edge 0-1: the two halves of a flat square (normals +z), and a
+        // double-sided flap raised a little over one half (one face up, one down).
+        let m = Mesh::new(
+            vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.5, 1.0, 0.0),
+                DVec3::new(0.5, -1.0, 0.0),
+                DVec3::new(0.5, 0.5, 0.2),
+            ],
+            // Taken in face order, the square's halves would each pair with a flap side.
+            vec![[0, 1, 2], [0, 4, 1], [0, 1, 4], [1, 0, 3]],
+        );
+        let (out, cut) = cut_non_manifold_edges(m);
+        assert_eq!(cut.edges, 1);
+        // The square's halves stay joined on 0-1; the flap is a closed pair of its own.
+        assert_eq!([out.faces[0], out.faces[3]], [[0, 1, 2], [1, 0, 3]]);
+        let s = Topology::build(&out).summary(&out);
+        assert!(s.manifold);
+        assert_eq!((s.n_components, s.n_boundary_loops), (2, 1));
+    }
+
     /// A unit cube as a soup: each of its 12 triangles with three corners of its own.
     fn cube_soup() -> Mesh {
         let corner = |i: u32| {
@@ -621,6 +844,27 @@ mod tests {
         assert_eq!(r.opposite_duplicate_pairs, 1);
         assert_eq!(r.duplicate_faces, 0);
         assert_eq!(out.n_faces(), 968);
+    }
+
+    #[test]
+    fn the_shared_meshes_with_edges_of_three_faces_come_out_manifold() {
+        let Some(dir) = shared_data() else {
+            return;
+        };
+        // Suzanne's two-sided face stands on an edge of its surface: the surface's two
+        // sides pair up there, and the face's two sides close on each other.
+        for (name, edges, components) in [("suzanne", 1, 4), ("beetle", 47, 15)] {
+            let (m, _) = clean(
+                read_obj(&dir.join(format!("{name}.obj"))),
+                &Default::default(),
+            )
+            .unwrap();
+            let (out, cut) = cut_non_manifold_edges(m);
+            assert_eq!(cut.edges, edges, "{name}");
+            let s = Topology::build(&out).summary(&out);
+            assert!(s.manifold, "{name}: {s:?}");
+            assert_eq!(s.n_components, components, "{name}");
+        }
     }
 
     #[test]

@@ -319,7 +319,7 @@ pub(crate) fn vertex_corners(
 
 /// Root of `x` in a union-find forest, halving the path on the way.
 #[inline]
-fn find_root(parent: &mut [u32], mut x: u32) -> u32 {
+pub(crate) fn find_root(parent: &mut [u32], mut x: u32) -> u32 {
     while parent[x as usize] != x {
         let up = parent[parent[x as usize] as usize];
         parent[x as usize] = up;

@@ -2,10 +2,14 @@
 //!
 //! Before a stage that needs a manifold mesh or asks for it (`Needs::split_fans`, the
 //! collapse stages), non-manifold vertices (several face fans at one point) are split into
-//! one vertex per fan, with a warning in that stage's report. Edges of three or more faces
-//! stop a stage that needs a manifold mesh with [`RunError::NotManifold`]; a stage that only
-//! asks for the split gets a mesh with such edges as it is. Such a stage skips the
-//! adjacency altogether when every vertex is one oriented fan
+//! one vertex per fan, with a warning in that stage's report. Before a stage that needs a
+//! manifold mesh, edges of three or more faces are also cut apart
+//! ([`coarsen_mesh::hygiene::cut_non_manifold_edges`]: the faces on each are paired, the
+//! two sides of a surface first, and the rest come off; a fin on a surface comes off it
+//! and the surface stays whole). The warning counts the cut edges. A collapse stage gets a mesh with such edges as it is (their vertices stay in
+//! place). Two faces using an edge in the same direction are no matter of manifoldness
+//! (the stage itself may refuse them); [`RunError::NotManifold`] guards what is left. A
+//! stage that only asks for the split skips the adjacency altogether when every vertex is one oriented fan
 //! ([`coarsen_mesh::ring::one_fan_everywhere`]), a far cheaper test (0.16 against 0.8 s
 //! on the bunny subdivided three times, 4.4M faces).
 //!
@@ -183,14 +187,29 @@ impl Pipeline {
                 || (contract.needs.split_fans && !coarsen_mesh::ring::one_fan_everywhere(&mesh));
             if check {
                 let mut summary = summary_of(&mesh)?;
-                if summary.n_non_manifold_vertices > 0 && summary.n_non_manifold_edges == 0 {
+                // Edges of three or more faces are cut only for a stage that cannot work
+                // with them: a collapse stage keeps them joined (its vertices there stay).
+                let multi_edges = summary.n_non_manifold_edges - summary.n_flipped_edges;
+                let cut = contract.needs.manifold && multi_edges > 0;
+                if summary.n_non_manifold_vertices > 0 && (multi_edges == 0 || cut) {
                     // One vertex per face fan makes non-manifold vertices workable.
-                    let (split, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
+                    let (split, cut_edges, copies) = if cut {
+                        let (m, c) = coarsen_mesh::hygiene::cut_non_manifold_edges(mesh);
+                        (m, c.edges, c.copies)
+                    } else {
+                        let (m, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
+                        (m, 0, copies)
+                    };
                     mesh = split;
                     let after = summary_of(&mesh)?;
                     if copies > 0 {
+                        let cut_note = if cut_edges > 0 {
+                            format!("{cut_edges} edges of three or more faces cut apart, ")
+                        } else {
+                            String::new()
+                        };
                         split_note = Some(format!(
-                            "{} non-manifold vertices {SPLIT_FANS_NOTE} ({copies} copies added)",
+                            "{cut_note}{} non-manifold vertices {SPLIT_FANS_NOTE} ({copies} copies added)",
                             summary.n_non_manifold_vertices - after.n_non_manifold_vertices
                         ));
                     }

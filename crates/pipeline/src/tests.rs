@@ -97,15 +97,51 @@ impl Stage for DropHigh {
     }
 }
 
+params! {
+    /// Parameters of `test.manifold`.
+    pub struct ManifoldParams {}
+}
+impl Params for ManifoldParams {}
+/// Needs a manifold mesh; passes it through.
+struct NeedsManifold;
+impl Stage for NeedsManifold {
+    type Params = ManifoldParams;
+    const KIND: &'static str = "test.manifold";
+    const SUMMARY: &'static str = "Needs a manifold mesh.";
+    fn new(_: ManifoldParams) -> Self {
+        NeedsManifold
+    }
+    fn contract(&self) -> Contract {
+        Contract {
+            needs: Needs {
+                manifold: true,
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+    fn run(&self, mesh: Mesh, _: &mut Context<'_>) -> Result<Mesh, StageError> {
+        Ok(mesh)
+    }
+}
+
 mod mark {
     coarsen_stage::export_stage!(super::Mark);
+}
+mod needs_manifold {
+    coarsen_stage::export_stage!(super::NeedsManifold);
 }
 mod drop_high {
     coarsen_stage::export_stage!(super::DropHigh);
 }
 
 fn registry() -> Registry {
-    Registry::from_descriptors([mark::descriptor(), drop_high::descriptor()]).unwrap()
+    Registry::from_descriptors([
+        mark::descriptor(),
+        drop_high::descriptor(),
+        needs_manifold::descriptor(),
+    ])
+    .unwrap()
 }
 
 fn parse(text: &str, overrides: &Overrides) -> Result<Pipeline, Vec<String>> {
@@ -393,6 +429,54 @@ fn a_collapse_stage_takes_edges_of_three_faces_as_they_are() {
     let pl = parse(GOOD, &Overrides::default()).unwrap();
     let (out, report) = pl.run(mesh.clone(), RunOptions::default()).unwrap();
     assert_eq!(out.n_vertices(), mesh.n_vertices());
+    assert!(report.stages[1].warnings.is_empty());
+}
+
+/// A flat grid of 3 × 2 quads with a fin (a triangle standing up) on the edge between
+/// its two interior vertices, 5 and 6: that edge has three faces.
+fn finned_grid() -> Mesh {
+    let mut positions: Vec<DVec3> = (0..12)
+        .map(|i| DVec3::new((i % 4) as f64, (i / 4) as f64, 0.0))
+        .collect();
+    positions.push(DVec3::new(1.5, 1.0, 1.0));
+    let mut faces = Vec::new();
+    for y in 0..2 {
+        for x in 0..3 {
+            let a = y * 4 + x;
+            faces.push([a, a + 1, a + 5]);
+            faces.push([a, a + 5, a + 4]);
+        }
+    }
+    faces.push([5, 6, 12]);
+    Mesh::new(positions, faces)
+}
+
+#[test]
+fn a_stage_that_needs_a_manifold_mesh_gets_edges_of_three_faces_cut_apart() {
+    let mesh = finned_grid();
+    let p = parse(
+        "[[stage]]\nkind = \"test.manifold\"\n",
+        &Overrides::default(),
+    )
+    .unwrap();
+    let (out, report) = p.run(mesh.clone(), RunOptions::default()).unwrap();
+    let s = coarsen_mesh::Topology::build(&out).summary(&out);
+    assert!(s.manifold && s.consistently_oriented, "{s:?}");
+    // The grid stays whole; the fin comes off it with its own copies of 5 and 6.
+    assert_eq!(out.n_vertices(), mesh.n_vertices() + 2);
+    assert_eq!(out.faces[..12], mesh.faces[..12]);
+    assert_eq!((s.n_components, s.n_boundary_loops), (2, 2));
+    assert_eq!(
+        report.stages[0].warnings,
+        [
+            "1 edges of three or more faces cut apart, 2 non-manifold vertices split into one vertex per face fan (2 copies added)"
+        ]
+    );
+    // A collapse stage gets the same mesh as it is.
+    let (_, report) = parse(GOOD, &Overrides::default())
+        .unwrap()
+        .run(mesh, RunOptions::default())
+        .unwrap();
     assert!(report.stages[1].warnings.is_empty());
 }
 

@@ -50,7 +50,8 @@ pub struct Needs {
     /// The stage needs a run target (`--vertices`, `--faces`, `--ratio` or the pipeline's).
     pub target: bool,
     /// Vertices where several face fans meet are split into one vertex per fan before the
-    /// stage; edges of three or more faces are left as they are (implied by `manifold`).
+    /// stage; edges of three or more faces are left as they are (implied by `manifold`,
+    /// which has them cut apart too).
     pub split_fans: bool,
 }
 
