@@ -316,39 +316,47 @@ fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
     }
 }
 
-/// The beetle's fins stand on edges of its body (47 edges of three faces): before the
-/// dual they are cut off, the body stays whole, and the uniform pipelines write a valid
-/// mesh of the exact count (they used to stop with an error).
+/// The beetle's fins stand on edges of its body (47 edges of three faces), and suzanne has
+/// a two-sided face standing on an edge: before the first stage they are cut off (the
+/// two-sided face made one-sided first), the body stays whole, and the uniform pipelines
+/// write a valid mesh of the exact count (they used to stop with an error).
 #[test]
-fn the_beetle_goes_through_the_uniform_cvt_pipelines_with_its_fins_cut_off() {
+fn meshes_with_edges_of_three_faces_go_through_the_uniform_cvt_pipelines() {
     let Some(dir) = shared_data() else { return };
     let tmp = tempfile::tempdir().unwrap();
-    let input = dir.join("beetle.obj");
-    for pipeline in ["uniform-cvt", "svec-then-cvt"] {
-        let out = tmp.path().join(format!("{pipeline}.ply"));
-        let o = run_cli(
-            EXE,
-            &[
-                "run",
-                pipeline,
-                input.to_str().unwrap(),
-                "-o",
-                out.to_str().unwrap(),
-                "--vertices",
-                "900",
-            ],
-        );
-        let text = stdout(&o);
-        assert!(o.status.success(), "{pipeline}: {}", stderr(&o));
-        assert!(
-            text.contains("94 edges of three or more faces cut apart"),
-            "{pipeline}: {text}"
-        );
-        let m = coarsen_io::read_path(&out, &Default::default())
-            .unwrap()
-            .mesh;
-        let s = Topology::build(&m).summary(&m);
-        assert!(s.manifold && s.consistently_oriented, "{pipeline}: {s:?}");
-        assert_eq!(m.n_vertices(), 900, "{pipeline}");
+    let cases = [
+        ("beetle.obj", "47 edges of three or more faces cut apart"),
+        (
+            "suzanne.obj",
+            "1 faces dropped that lay back to back on another face",
+        ),
+    ];
+    for (file, warning) in cases {
+        let input = dir.join(file);
+        for pipeline in ["uniform-cvt", "svec-then-cvt"] {
+            let what = format!("{pipeline} on {file}");
+            let out = tmp.path().join(format!("{pipeline}-{file}.ply"));
+            let o = run_cli(
+                EXE,
+                &[
+                    "run",
+                    pipeline,
+                    input.to_str().unwrap(),
+                    "-o",
+                    out.to_str().unwrap(),
+                    "--vertices",
+                    "300",
+                ],
+            );
+            let text = stdout(&o);
+            assert!(o.status.success(), "{what}: {}", stderr(&o));
+            assert!(text.contains(warning), "{what}: {text}");
+            let m = coarsen_io::read_path(&out, &Default::default())
+                .unwrap()
+                .mesh;
+            let s = Topology::build(&m).summary(&m);
+            assert!(s.manifold && s.consistently_oriented, "{what}: {s:?}");
+            assert_eq!(m.n_vertices(), 300, "{what}");
+        }
     }
 }

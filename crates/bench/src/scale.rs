@@ -58,9 +58,11 @@ pub fn section(big: &Mesh) -> Result<String> {
         "Each row is a child process that reads the binary PLY and runs the pipeline; *peak* is its \
          memory high-water mark (`VmHWM`), *load* the same for a child that only reads the file. \
          Stage times in pipeline order; total includes reading the file and the runner's \
-         renumbering of the input along a Morton curve (as for every input of 2¹⁸ faces or more). \
-         The children allocate as the `coarsen` binary does (`coarsen-malloc`: freed memory is \
-         kept for reuse).\n"
+         renumbering of the input along a Morton curve (as for every input of 2¹⁸ faces or more) \
+         and, in a pipeline with a stage that needs a manifold mesh, the adjacency the runner \
+         builds before the first stage to look for edges of three or more faces (the stage that \
+         would build it next takes it over). The children allocate as the `coarsen` binary \
+         does (`coarsen-malloc`: freed memory is kept for reuse; big blocks on huge pages).\n"
     );
     s.push_str(
         "| pipeline | target | V | F | load s | stages s | total s | peak MiB | peak ÷ load |\n",

@@ -215,6 +215,41 @@ pub fn split_non_manifold_vertices(mesh: Mesh) -> (Mesh, usize) {
     (out, copies)
 }
 
+/// Makes every two-sided face one-sided: of the faces on the same three vertices, only
+/// the first (in face order) is kept; its reverses (and repeats) are dropped. Returns the
+/// mesh and the number of faces dropped (0: the mesh comes back unchanged). Vertices are
+/// kept, also those no face uses any more.
+pub fn drop_two_sided_faces(mesh: Mesh) -> (Mesh, usize) {
+    let order = faces_sharing_vertex_sets(&mesh.faces, |_| true);
+    let mut keep = vec![true; mesh.n_faces()];
+    let mut dropped = 0;
+    for group in order.chunk_by(|a, b| a.0 == b.0) {
+        if group.first().map(|g| g.1) == group.last().map(|g| g.1) {
+            continue;
+        }
+        let first = group.iter().map(|g| g.2).min().unwrap_or(0);
+        for g in group.iter().filter(|g| g.2 != first) {
+            keep[g.2 as usize] = false;
+            dropped += 1;
+        }
+    }
+    if dropped == 0 {
+        return (mesh, 0);
+    }
+    let parents: Vec<Index> = (0..mesh.n_faces() as Index)
+        .filter(|&f| keep[f as usize])
+        .collect();
+    let faces = parents.iter().map(|&f| mesh.faces[f as usize]).collect();
+    let origins = VertexOrigins::identity(mesh.n_vertices());
+    let (out, _) = mesh.rebuilt(
+        mesh.positions.clone(),
+        faces,
+        &origins,
+        &FaceOrigins::from_parents(parents),
+    );
+    (out, dropped)
+}
+
 /// What [`cut_non_manifold_edges`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EdgeCut {
@@ -628,6 +663,20 @@ mod tests {
         // A manifold mesh comes back as it was.
         let (same, none) = cut_non_manifold_edges(out.clone());
         assert_eq!((same.faces, none), (out.faces, EdgeCut::default()));
+    }
+
+    #[test]
+    fn a_two_sided_face_keeps_its_first_side() {
+        let mut m = finned_grid();
+        // The fin's first face again, the other way round, and once more the first way.
+        m.faces.extend([[6, 15, 7], [7, 15, 6]]);
+        let (out, dropped) = drop_two_sided_faces(m.clone());
+        assert_eq!(dropped, 2);
+        assert_eq!(out.faces, m.faces[..19]);
+        assert_eq!(out.n_vertices(), m.n_vertices());
+        // Nothing two-sided: the mesh comes back as it was.
+        let (same, none) = drop_two_sided_faces(out.clone());
+        assert_eq!((same.faces, none), (out.faces, 0));
     }
 
     #[test]

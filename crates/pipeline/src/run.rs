@@ -2,16 +2,22 @@
 //!
 //! Before a stage that needs a manifold mesh or asks for it (`Needs::split_fans`, the
 //! collapse stages), non-manifold vertices (several face fans at one point) are split into
-//! one vertex per fan, with a warning in that stage's report. Before a stage that needs a
-//! manifold mesh, edges of three or more faces are also cut apart
-//! ([`coarsen_mesh::hygiene::cut_non_manifold_edges`]: the faces on each are paired, the
-//! two sides of a surface first, and the rest come off; a fin on a surface comes off it
-//! and the surface stays whole). The warning counts the cut edges. A collapse stage gets a mesh with such edges as it is (their vertices stay in
-//! place). Two faces using an edge in the same direction are no matter of manifoldness
-//! (the stage itself may refuse them); [`RunError::NotManifold`] guards what is left. A
-//! stage that only asks for the split skips the adjacency altogether when every vertex is one oriented fan
+//! one vertex per fan, with a warning in that stage's report. A stage that only asks for
+//! the split skips the adjacency altogether when every vertex is one oriented fan
 //! ([`coarsen_mesh::ring::one_fan_everywhere`]), a far cheaper test (0.16 against 0.8 s
 //! on the bunny subdivided three times, 4.4M faces).
+//!
+//! Edges of three or more faces are cut apart before the first stage of a pipeline that
+//! has a stage needing a manifold mesh (so that the stages between, clustering above all,
+//! see the surface that stage will get), and again before such a stage if one appeared
+//! meanwhile: two-sided faces (two faces back to back on the same vertices, which no dual
+//! can represent) are first made one-sided ([`coarsen_mesh::hygiene::drop_two_sided_faces`]),
+//! then the faces on each such edge are paired, the two sides of a surface first, and the
+//! others come off ([`coarsen_mesh::hygiene::cut_non_manifold_edges`]: a fin on a surface
+//! leaves the surface whole). Warnings of that stage count both. In a pipeline with no
+//! such stage, a collapse stage gets those edges as they are (their vertices stay in
+//! place). Two faces using an edge in the same direction are no matter of manifoldness
+//! (the stage itself may refuse them); [`RunError::NotManifold`] guards what is left.
 //!
 //! A large input (see [`RunOptions::reorder_min_faces`]) is first renumbered along a
 //! Morton curve ([`coarsen_mesh::order::along_curve`]): the same surface, its vertices and
@@ -170,31 +176,53 @@ impl Pipeline {
         for (i, s) in self.stages.iter().enumerate() {
             let index = i + 1;
             let contract = s.stage.contract();
-            let mut split_note = None;
-            let summary_of = |mesh: &Mesh| {
-                shared
-                    .topology(mesh)
-                    .map(|t| t.summary(mesh))
-                    .map_err(|e| RunError::Stage {
-                        index,
-                        kind: s.kind,
-                        error: StageError::Input(e.to_string()),
-                    })
+            let mut notes = Vec::new();
+            let topology_of = |mesh: &Mesh| {
+                shared.topology(mesh).map_err(|e| RunError::Stage {
+                    index,
+                    kind: s.kind,
+                    error: StageError::Input(e.to_string()),
+                })
             };
+            let summary_of = |mesh: &Mesh| topology_of(mesh).map(|t| t.summary(mesh));
+            // When some stage of the pipeline needs a manifold mesh, edges of three or
+            // more faces are cut before the first one: the stages between (clustering
+            // above all) then work on the surface that stage will get.
+            // (A collapse stage builds adjacency of its own: before one, the cheaper test
+            // first.)
+            let cut_first = i == 0
+                && self
+                    .stages
+                    .iter()
+                    .any(|s| s.stage.contract().needs.manifold)
+                && !(s.stage.records_collapses() && coarsen_mesh::ring::one_fan_everywhere(&mesh))
+                && !topology_of(&mesh)?.is_manifold();
             // A stage that only asks for the split needs no adjacency when every vertex is
             // one oriented fan (the usual case), which is much cheaper to tell.
             let check = contract.needs.manifold
+                || cut_first
                 || (contract.needs.split_fans && !coarsen_mesh::ring::one_fan_everywhere(&mesh));
             if check {
                 let mut summary = summary_of(&mesh)?;
                 // Edges of three or more faces are cut only for a stage that cannot work
-                // with them: a collapse stage keeps them joined (its vertices there stay).
+                // with them, or before one: a collapse stage keeps them joined (its
+                // vertices there stay).
                 let multi_edges = summary.n_non_manifold_edges - summary.n_flipped_edges;
-                let cut = contract.needs.manifold && multi_edges > 0;
-                if summary.n_non_manifold_vertices > 0 && (multi_edges == 0 || cut) {
+                let cut = (contract.needs.manifold || cut_first) && multi_edges > 0;
+                let split_only =
+                    multi_edges == 0 && (contract.needs.manifold || contract.needs.split_fans);
+                if summary.n_non_manifold_vertices > 0 && (split_only || cut) {
                     // One vertex per face fan makes non-manifold vertices workable.
                     let (split, cut_edges, copies) = if cut {
-                        let (m, c) = coarsen_mesh::hygiene::cut_non_manifold_edges(mesh);
+                        // A two-sided face (two faces back to back) has no dual: one side
+                        // stays.
+                        let (m, dropped) = coarsen_mesh::hygiene::drop_two_sided_faces(mesh);
+                        if dropped > 0 {
+                            notes.push(format!(
+                                "{dropped} faces dropped that lay back to back on another face (two-sided faces made one-sided)"
+                            ));
+                        }
+                        let (m, c) = coarsen_mesh::hygiene::cut_non_manifold_edges(m);
                         (m, c.edges, c.copies)
                     } else {
                         let (m, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
@@ -208,7 +236,7 @@ impl Pipeline {
                         } else {
                             String::new()
                         };
-                        split_note = Some(format!(
+                        notes.push(format!(
                             "{cut_note}{} non-manifold vertices {SPLIT_FANS_NOTE} ({copies} copies added)",
                             summary.n_non_manifold_vertices - after.n_non_manifold_vertices
                         ));
@@ -238,7 +266,7 @@ impl Pipeline {
                 "stage starts"
             );
             let mut stage_report = StageReport::default();
-            if let Some(note) = split_note {
+            for note in notes {
                 stage_report.warn(note);
             }
             let t = Instant::now();

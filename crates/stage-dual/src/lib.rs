@@ -413,7 +413,8 @@ fn short_boundary_loop(topo: &Topology) -> Option<String> {
         (faces.len() < 3).then(|| {
             format!(
                 "the boundary loop through vertex {} runs along only {} faces, and the dual of \
-                 a boundary loop needs three (one vertex per face along it)",
+                 a boundary loop needs three (one vertex per face along it); subdividing the \
+                 mesh first (the `subdivide` stage, as `uniform-cvt` does) gives it more",
                 lp.first().copied().unwrap_or(0),
                 faces.len()
             )
