@@ -583,3 +583,31 @@ fn a_fin_on_an_edge_is_cut_off_before_the_cvt_pipelines() {
         );
     }
 }
+
+#[test]
+fn a_lone_triangle_beside_a_surface_is_split_before_the_cvt_pipelines() {
+    // A piece whose boundary runs along fewer than three faces has no dual; split 1-to-4
+    // first, it has (three faces along its loop).
+    let mut input = coarsen_shapes::icosphere(1.0, 3).unwrap();
+    let n = input.positions.len() as u32;
+    input.positions.extend([
+        DVec3::new(2.0, 0.0, 0.0),
+        DVec3::new(2.5, 0.0, 0.0),
+        DVec3::new(2.0, 0.5, 0.0),
+    ]);
+    input.faces.push([n, n + 1, n + 2]);
+    for pipeline in ["adaptive-cvt", "uniform-cvt"] {
+        let ran = run_ok(&input, "lone.obj", pipeline, &["--vertices", "120"]);
+        let s = Topology::build(&ran.output).summary(&ran.output);
+        assert!(s.manifold && s.consistently_oriented, "{pipeline}: {s:?}");
+        assert_eq!(ran.output.n_vertices(), 120, "{pipeline}");
+        assert_eq!((s.n_components, s.n_boundary_loops), (2, 1), "{pipeline}");
+        let w = ran.warnings();
+        assert!(
+            w.iter().any(|w| w.starts_with(
+                "1 faces split 1-to-4 in pieces whose boundary runs along fewer than three faces"
+            )),
+            "{pipeline}: {w:?}"
+        );
+    }
+}

@@ -250,6 +250,81 @@ pub fn drop_two_sided_faces(mesh: Mesh) -> (Mesh, usize) {
     (out, dropped)
 }
 
+/// Splits 1-to-4 every face of each component that has a boundary loop along fewer than
+/// three faces (a lone triangle, two triangles: what cutting a fin off often leaves), so
+/// that every loop runs along three faces or more, as a dual needs. Other components are
+/// untouched. Returns the mesh and the number of faces split (0: unchanged).
+pub fn split_small_pieces(mesh: Mesh) -> (Mesh, usize) {
+    let topo = crate::Topology::build(&mesh);
+    let component = topo.face_components();
+    let small = small_pieces(&topo);
+    let split: Vec<bool> = component
+        .iter()
+        .map(|c| *c != crate::topology::NONE && small.binary_search(c).is_ok())
+        .collect();
+    let n_split = split.iter().filter(|&&s| s).count();
+    if n_split == 0 {
+        return (mesh, 0);
+    }
+    let mut positions = mesh.positions.clone();
+    let mut origins = VertexOrigins::identity(mesh.n_vertices());
+    // The midpoint of each edge of a split face, made once.
+    let mut midpoint = vec![Index::MAX; topo.n_edges()];
+    let mut faces = Vec::with_capacity(mesh.n_faces() + 3 * n_split);
+    let mut parents = Vec::with_capacity(faces.capacity());
+    for (f, &[a, b, c]) in mesh.faces.iter().enumerate() {
+        if !split[f] {
+            faces.push([a, b, c]);
+            parents.push(f as Index);
+            continue;
+        }
+        let [m0, m1, m2] = topo.face_edges(f as u32).map(|e| {
+            let [u, v] = topo.edge(e);
+            let m = &mut midpoint[e as usize];
+            if *m == Index::MAX {
+                *m = positions.len() as Index;
+                positions.push((mesh.positions[u as usize] + mesh.positions[v as usize]) * 0.5);
+                origins.push_edge(u, v, 0.5);
+            }
+            *m
+        });
+        // Edge k of the face runs from corner k to corner k + 1.
+        faces.extend([[a, m0, m2], [m0, b, m1], [m2, m1, c], [m0, m1, m2]]);
+        parents.extend([f as Index; 4]);
+    }
+    let (out, _) = mesh.rebuilt(
+        positions,
+        faces,
+        &origins,
+        &FaceOrigins::from_parents(parents),
+    );
+    (out, n_split)
+}
+
+/// The components (sorted) of `topo` with a boundary loop along fewer than three faces:
+/// those [`split_small_pieces`] splits.
+pub fn small_pieces(topo: &crate::Topology) -> Vec<u32> {
+    let component = topo.face_components();
+    let mut small: Vec<u32> = Vec::new();
+    for i in 0..topo.n_boundary_loops() {
+        let lp = topo.boundary_loop(i);
+        let mut along: Vec<u32> = (0..lp.len())
+            .filter_map(|j| topo.find_edge(lp[j], lp[(j + 1) % lp.len()]))
+            .filter_map(|e| topo.edge_faces(e).first().copied())
+            .collect();
+        along.sort_unstable();
+        along.dedup();
+        if along.len() < 3
+            && let Some(&f) = along.first()
+        {
+            small.push(component[f as usize]);
+        }
+    }
+    small.sort_unstable();
+    small.dedup();
+    small
+}
+
 /// What [`cut_non_manifold_edges`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EdgeCut {
@@ -676,6 +751,33 @@ mod tests {
         assert_eq!(out.n_vertices(), m.n_vertices());
         // Nothing two-sided: the mesh comes back as it was.
         let (same, none) = drop_two_sided_faces(out.clone());
+        assert_eq!((same.faces, none), (out.faces, 0));
+    }
+
+    #[test]
+    fn pieces_too_small_for_a_dual_are_split_one_to_four() {
+        // The grid (its loop along eight faces) beside a lone triangle and a quad of two.
+        let mut m = finned_grid();
+        m.faces.truncate(16);
+        let n = m.positions.len() as Index;
+        m.positions
+            .extend((0..7).map(|i| DVec3::new(f64::from(i), 5.0, 0.0)));
+        m.faces.extend([
+            [n, n + 1, n + 2],
+            [n + 3, n + 4, n + 5],
+            [n + 3, n + 5, n + 6],
+        ]);
+        let (out, split) = split_small_pieces(m.clone());
+        assert_eq!(split, 3);
+        assert_eq!(out.faces[..16], m.faces[..16]);
+        assert_eq!(out.n_faces(), 16 + 12);
+        let t = Topology::build(&out);
+        assert!(small_pieces(&t).is_empty());
+        let s = t.summary(&out);
+        assert!(s.manifold && s.consistently_oriented);
+        assert_eq!((s.n_components, s.n_boundary_loops), (3, 3));
+        // Nothing too small: the mesh comes back as it was.
+        let (same, none) = split_small_pieces(out.clone());
         assert_eq!((same.faces, none), (out.faces, 0));
     }
 

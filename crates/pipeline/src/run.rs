@@ -14,7 +14,9 @@
 //! can represent) are first made one-sided ([`coarsen_mesh::hygiene::drop_two_sided_faces`]),
 //! then the faces on each such edge are paired, the two sides of a surface first, and the
 //! others come off ([`coarsen_mesh::hygiene::cut_non_manifold_edges`]: a fin on a surface
-//! leaves the surface whole). Warnings of that stage count both. In a pipeline with no
+//! leaves the surface whole). Then the faces of pieces whose boundary runs along fewer
+//! than three faces (a lone triangle cut off; no dual exists for them) are split 1-to-4
+//! ([`coarsen_mesh::hygiene::split_small_pieces`]). Warnings of that stage count each. In a pipeline with no
 //! such stage, a collapse stage gets those edges as they are (their vertices stay in
 //! place). Two faces using an edge in the same direction are no matter of manifoldness
 //! (the stage itself may refuse them); [`RunError::NotManifold`] guards what is left.
@@ -188,15 +190,12 @@ impl Pipeline {
             // When some stage of the pipeline needs a manifold mesh, edges of three or
             // more faces are cut before the first one: the stages between (clustering
             // above all) then work on the surface that stage will get.
-            // (A collapse stage builds adjacency of its own: before one, the cheaper test
-            // first.)
-            let cut_first = i == 0
+            let prepare = i == 0
                 && self
                     .stages
                     .iter()
-                    .any(|s| s.stage.contract().needs.manifold)
-                && !(s.stage.records_collapses() && coarsen_mesh::ring::one_fan_everywhere(&mesh))
-                && !topology_of(&mesh)?.is_manifold();
+                    .any(|s| s.stage.contract().needs.manifold);
+            let cut_first = prepare && !topology_of(&mesh)?.is_manifold();
             // A stage that only asks for the split needs no adjacency when every vertex is
             // one oriented fan (the usual case), which is much cheaper to tell.
             let check = contract.needs.manifold
@@ -251,6 +250,15 @@ impl Pipeline {
                         vertices: summary.n_non_manifold_vertices,
                     });
                 }
+            }
+            // Pieces too small for a dual (a boundary loop along fewer than three faces, as
+            // a lone triangle cut off) are split 1-to-4 before the first stage.
+            if prepare && !coarsen_mesh::hygiene::small_pieces(&*topology_of(&mesh)?).is_empty() {
+                let (split, n) = coarsen_mesh::hygiene::split_small_pieces(mesh);
+                mesh = split;
+                notes.push(format!(
+                    "{n} faces split 1-to-4 in pieces whose boundary runs along fewer than three faces (a dual needs three)"
+                ));
             }
             if s.stage.records_collapses() {
                 // Collapse stages build adjacency of their own: the kept one would only

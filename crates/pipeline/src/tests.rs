@@ -462,14 +462,17 @@ fn a_stage_that_needs_a_manifold_mesh_gets_edges_of_three_faces_cut_apart() {
     let (out, report) = p.run(mesh.clone(), RunOptions::default()).unwrap();
     let s = coarsen_mesh::Topology::build(&out).summary(&out);
     assert!(s.manifold && s.consistently_oriented, "{s:?}");
-    // The grid stays whole; the fin comes off it with its own copies of 5 and 6.
-    assert_eq!(out.n_vertices(), mesh.n_vertices() + 2);
+    // The grid stays whole; the fin comes off it with its own copies of 5 and 6, and,
+    // a lone triangle then (too small for a dual), is split 1-to-4.
+    assert_eq!(out.n_vertices(), mesh.n_vertices() + 2 + 3);
+    assert_eq!(out.n_faces(), mesh.n_faces() + 3);
     assert_eq!(out.faces[..12], mesh.faces[..12]);
     assert_eq!((s.n_components, s.n_boundary_loops), (2, 2));
     assert_eq!(
         report.stages[0].warnings,
         [
-            "1 edges of three or more faces cut apart, 2 non-manifold vertices split into one vertex per face fan (2 copies added)"
+            "1 edges of three or more faces cut apart, 2 non-manifold vertices split into one vertex per face fan (2 copies added)",
+            "1 faces split 1-to-4 in pieces whose boundary runs along fewer than three faces (a dual needs three)"
         ]
     );
     // A collapse stage gets the same mesh as it is.
