@@ -307,13 +307,7 @@ pub fn small_pieces(topo: &crate::Topology) -> Vec<u32> {
     let component = topo.face_components();
     let mut small: Vec<u32> = Vec::new();
     for i in 0..topo.n_boundary_loops() {
-        let lp = topo.boundary_loop(i);
-        let mut along: Vec<u32> = (0..lp.len())
-            .filter_map(|j| topo.find_edge(lp[j], lp[(j + 1) % lp.len()]))
-            .filter_map(|e| topo.edge_faces(e).first().copied())
-            .collect();
-        along.sort_unstable();
-        along.dedup();
+        let along = topo.faces_along_loop(i);
         if along.len() < 3
             && let Some(&f) = along.first()
         {

@@ -1672,6 +1672,19 @@ impl Topology {
         &self.loop_vertices[self.loop_offsets[i] as usize..self.loop_offsets[i + 1] as usize]
     }
 
+    /// The faces along boundary loop `i` (the face of each of its edges), ascending, each
+    /// once.
+    pub fn faces_along_loop(&self, i: usize) -> Vec<u32> {
+        let lp = self.boundary_loop(i);
+        let mut faces: Vec<u32> = (0..lp.len())
+            .filter_map(|j| self.find_edge(lp[j], lp[(j + 1) % lp.len()]))
+            .filter_map(|e| self.edge_faces(e).first().copied())
+            .collect();
+        faces.sort_unstable();
+        faces.dedup();
+        faces
+    }
+
     /// All boundary loops as vertex sequences (see [`Topology::boundary_loop`]).
     pub fn boundary_loops(&self) -> Vec<Vec<u32>> {
         (0..self.n_boundary_loops())

@@ -404,12 +404,7 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
 fn short_boundary_loop(topo: &Topology) -> Option<String> {
     (0..topo.n_boundary_loops()).find_map(|i| {
         let lp = topo.boundary_loop(i);
-        let mut faces: Vec<u32> = (0..lp.len())
-            .filter_map(|j| topo.find_edge(lp[j], lp[(j + 1) % lp.len()]))
-            .filter_map(|e| topo.edge_faces(e).first().copied())
-            .collect();
-        faces.sort_unstable();
-        faces.dedup();
+        let faces = topo.faces_along_loop(i);
         (faces.len() < 3).then(|| {
             format!(
                 "the boundary loop through vertex {} runs along only {} faces, and the dual of \
