@@ -16,10 +16,11 @@
 //! others come off ([`coarsen_mesh::hygiene::cut_non_manifold_edges`]: a fin on a surface
 //! leaves the surface whole). Then the faces of pieces whose boundary runs along fewer
 //! than three faces (a lone triangle cut off; no dual exists for them) are split 1-to-4
-//! ([`coarsen_mesh::hygiene::split_small_pieces`]). Warnings of that stage count each. In a pipeline with no
-//! such stage, a collapse stage gets those edges as they are (their vertices stay in
-//! place). Two faces using an edge in the same direction are no matter of manifoldness
-//! (the stage itself may refuse them); [`RunError::NotManifold`] guards what is left.
+//! ([`coarsen_mesh::hygiene::split_small_pieces`]). Warnings of that stage count each.
+//! In a pipeline with no such stage, a collapse stage gets those edges as they are (their
+//! vertices stay in place). Two faces using an edge in the same direction are no matter
+//! of manifoldness (the stage itself may refuse them); [`RunError::NotManifold`] guards
+//! what is left.
 //!
 //! A large input (see [`RunOptions::reorder_min_faces`]) is first renumbered along a
 //! Morton curve ([`coarsen_mesh::order::along_curve`]): the same surface, its vertices and
