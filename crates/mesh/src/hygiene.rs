@@ -253,11 +253,11 @@ pub fn drop_two_sided_faces(mesh: Mesh) -> (Mesh, usize) {
 /// Splits 1-to-4 every face of each component that has a boundary loop along fewer than
 /// three faces (a lone triangle, two triangles: what cutting a fin off often leaves), so
 /// that every loop runs along three faces or more, as a dual needs. Other components are
-/// untouched. Returns the mesh and the number of faces split (0: unchanged).
-pub fn split_small_pieces(mesh: Mesh) -> (Mesh, usize) {
-    let topo = crate::Topology::build(&mesh);
+/// untouched. `topo` is the adjacency of `mesh`. Returns the mesh and the number of faces
+/// split (0: unchanged).
+pub fn split_small_pieces(mesh: Mesh, topo: &crate::Topology) -> (Mesh, usize) {
     let component = topo.face_components();
-    let small = small_pieces(&topo);
+    let small = small_pieces(topo);
     let split: Vec<bool> = component
         .iter()
         .map(|c| *c != crate::topology::NONE && small.binary_search(c).is_ok())
@@ -761,7 +761,7 @@ mod tests {
             [n + 3, n + 4, n + 5],
             [n + 3, n + 5, n + 6],
         ]);
-        let (out, split) = split_small_pieces(m.clone());
+        let (out, split) = split_small_pieces(m.clone(), &Topology::build(&m));
         assert_eq!(split, 3);
         assert_eq!(out.faces[..16], m.faces[..16]);
         assert_eq!(out.n_faces(), 16 + 12);
@@ -771,7 +771,7 @@ mod tests {
         assert!(s.manifold && s.consistently_oriented);
         assert_eq!((s.n_components, s.n_boundary_loops), (3, 3));
         // Nothing too small: the mesh comes back as it was.
-        let (same, none) = split_small_pieces(out.clone());
+        let (same, none) = split_small_pieces(out.clone(), &t);
         assert_eq!((same.faces, none), (out.faces, 0));
     }
 

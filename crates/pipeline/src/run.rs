@@ -254,8 +254,15 @@ impl Pipeline {
             }
             // Pieces too small for a dual (a boundary loop along fewer than three faces, as
             // a lone triangle cut off) are split 1-to-4 before the first stage.
-            if prepare && !coarsen_mesh::hygiene::small_pieces(&*topology_of(&mesh)?).is_empty() {
-                let (split, n) = coarsen_mesh::hygiene::split_small_pieces(mesh);
+            let topo = if prepare {
+                Some(topology_of(&mesh)?)
+            } else {
+                None
+            };
+            if let Some(topo) = topo
+                && !coarsen_mesh::hygiene::small_pieces(&topo).is_empty()
+            {
+                let (split, n) = coarsen_mesh::hygiene::split_small_pieces(mesh, &topo);
                 mesh = split;
                 notes.push(format!(
                     "{n} faces split 1-to-4 in pieces whose boundary runs along fewer than three faces (a dual needs three)"
