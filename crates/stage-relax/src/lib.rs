@@ -24,6 +24,17 @@
 //! mean angle and quality rise while the smallest angle never ends below the floor or where
 //! it started.
 //!
+//! With `mend` (on by default, when projecting), before the sweeps, the faces facing away
+//! from the input normal nearest their centroid (a fold the dual left, a part of the input
+//! thinner than a face) are mended: each vertex of such a face tries points of the input
+//! around it (a quarter and half of the way to each neighbour, its faces' centroids, its
+//! neighbours' mean; boundary vertices along the input boundary) and moves to the one where
+//! fewest of its faces face away, when that is fewer than now, none is degenerate and the
+//! smallest angle of its faces stays at least `floor_deg`, the mesh's smallest angle, or
+//! what it was; then the edges of faces still facing away are flipped where the two new
+//! faces face away less (same guards). A few rounds. Where the input is thinner than the
+//! faces (a horn, an ear's rim) a face can stay turned: no single move or flip turns it.
+//!
 //! With `rebalance` > 0, before the sweeps, pairs of one split and one collapse move
 //! vertices from short edges to long ones: the longest interior edges (those joining two
 //! boundary vertices first: the slivers of a narrow strip between two holes) are split at
@@ -42,7 +53,8 @@
 //! input point near the faces it changes would end farther than that bound from them (or,
 //! if already farther, farther than it was).
 //!
-//! The report gives `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep),
+//! The report gives `facing_away` (faces facing away before and after mending, when it
+//! ran), `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep),
 //! `rebalanced` (split/collapse pairs), `fitted` (fidelity edits, when `fit` is on) and
 //! `min_angle_before` / `min_angle_after` in degrees.
 
@@ -58,11 +70,13 @@ use std::sync::Arc;
 
 mod fit;
 mod flip;
+mod mend;
 mod rebalance;
 mod sweep;
 
 use fit::*;
 use flip::*;
+use mend::*;
 use rebalance::*;
 use sweep::*;
 
@@ -96,6 +110,9 @@ params! {
         /// mesh (percent of the input's bounding-box diagonal), nor one already farther,
         /// farther still; `fit` works on the points beyond it. 0 = no bound.
         pub max_dev_pct: f64 = 0.0,
+        /// Before the sweeps, move the vertices of faces facing away from the input (a
+        /// part thinner than a face, a fold) to nearby points of the input where fewer do.
+        pub mend: bool = true,
     }
 }
 
@@ -128,6 +145,8 @@ pub struct Relaxed {
     pub min_angle_before: f64,
     /// Smallest angle of the mesh after, in degrees.
     pub min_angle_after: f64,
+    /// Faces facing away from the input before and after mending (when it ran).
+    pub facing_away: Option<[usize; 2]>,
 }
 
 /// Smallest angle (radians) and summed quality of the faces `fan` (of `faces`, corners at
@@ -288,6 +307,14 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     // The two boundary neighbours of each boundary vertex.
     let ends = boundary_neighbours(&topo, mesh.n_vertices());
     let mut topo = topo;
+    if params.mend
+        && let Some(sf) = surface_on
+    {
+        // The mesh's smallest angle does not drop (nor one above it below the floor).
+        let floor = params.floor_deg.max(out.min_angle_before).to_radians();
+        let m = mend(mesh, &mut topo, sf, &ends, floor);
+        out.facing_away = Some([m.before, m.after]);
+    }
     // The parts of a big mesh's sweeps (its vertices barely move between sweeps).
     let parts = Parts::new(&mesh.positions);
     for _ in 0..params.sweeps {
@@ -336,7 +363,7 @@ pub struct Relax(RelaxParams);
 impl Stage for Relax {
     type Params = RelaxParams;
     const KIND: &'static str = "relax";
-    const SUMMARY: &'static str = "Tangential relaxation on the input surface: vertex moves and edge flips that raise the smallest angle (or, above `floor_deg`, the shape), optional split/collapse rebalancing, fidelity edits where the input is farthest and a bound on its distance; no face flipped, vertex count kept.";
+    const SUMMARY: &'static str = "Tangential relaxation on the input surface: vertex moves and edge flips that raise the smallest angle (or, above `floor_deg`, the shape), optional split/collapse rebalancing, fidelity edits where the input is farthest and a bound on its distance; faces facing away from the input mended, none turned, vertex count kept.";
 
     fn new(params: RelaxParams) -> Self {
         Relax(params)
@@ -367,6 +394,9 @@ impl Stage for Relax {
         cx.report.figure("rebalanced", r.rebalanced);
         if self.0.fit > 0 {
             cx.report.figure("fitted", r.fitted);
+        }
+        if let Some(f) = r.facing_away {
+            cx.report.figure("facing_away", f);
         }
         cx.report.figure("min_angle_before", r.min_angle_before);
         cx.report.figure("min_angle_after", r.min_angle_after);
@@ -861,5 +891,50 @@ mod tests {
         let (a, b) = (run(1), run(3));
         assert_eq!(a.faces, b.faces);
         assert_eq!(position_bits(&a), position_bits(&b));
+    }
+
+    /// The faces of `m` facing away from `surface`.
+    fn facing_away(m: &Mesh, surface: &Surface<'_>) -> usize {
+        (0..m.n_faces())
+            .filter(|&f| {
+                let [a, b, c] = m.corners(f);
+                !surface.agrees(a, b, c)
+            })
+            .count()
+    }
+
+    /// A vertex pushed past a neighbour folds faces over; mending moves it back onto the
+    /// input where none faces away, without lowering the smallest angle, and with `mend`
+    /// off the fold stays.
+    #[test]
+    fn mending_unfolds_a_vertex_pushed_past_its_neighbour() {
+        let original = coarsen_shapes::icosphere(1.0, 4).unwrap();
+        let surface = Surface::new(&original);
+        let mut folded = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        let t = Topology::build(&folded);
+        let v = 100u32;
+        let w = t.vertex_neighbors(v)[0];
+        let (pv, pw) = (folded.positions[v as usize], folded.positions[w as usize]);
+        folded.positions[v as usize] = (pw + 0.4 * (pw - pv)).normalize();
+        let before = facing_away(&folded, &surface);
+        assert!(before > 0, "the push folded nothing");
+        // Mending alone (no sweeps), so what it does is seen by itself.
+        let params = RelaxParams {
+            sweeps: 0,
+            ..RelaxParams::default()
+        };
+        let mut mended = folded.clone();
+        let r = relax(&mut mended, Some(&surface), &params);
+        assert_eq!(r.facing_away, Some([before, 0]), "{r:?}");
+        assert_eq!(facing_away(&mended, &surface), 0);
+        assert!(r.min_angle_after >= r.min_angle_before, "{r:?}");
+        let off = RelaxParams {
+            mend: false,
+            ..params
+        };
+        let mut kept = folded.clone();
+        let r = relax(&mut kept, Some(&surface), &off);
+        assert_eq!(r.facing_away, None);
+        assert_eq!(facing_away(&kept, &surface), before);
     }
 }

@@ -1,0 +1,219 @@
+//! Mending faces that face away from the input: the vertices of such a face try nearby
+//! points of the input where fewer of their faces do.
+
+use super::*;
+
+/// Rounds over the vertices of faces facing away, at most.
+const ROUNDS: usize = 4;
+
+/// What [`mend`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Mended {
+    /// Faces facing away from the input before.
+    pub before: usize,
+    /// And after.
+    pub after: usize,
+    /// Vertices moved.
+    pub moves: usize,
+    /// Edges flipped.
+    pub flips: usize,
+}
+
+/// Moves vertices of the faces of `mesh` (adjacency `topo`, boundary neighbours `ends`)
+/// that face away from `surface` to points of the input where fewer of their faces face
+/// away, none is degenerate and the smallest angle of their faces stays at least `floor`
+/// (radians) or what it was; the best such point by faces facing away, then smallest
+/// angle. Vertices in index order, a few rounds.
+pub(crate) fn mend(
+    mesh: &mut Mesh,
+    topo: &mut Topology,
+    surface: &Surface<'_>,
+    ends: &[Vec<u32>],
+    floor: f64,
+) -> Mended {
+    let mut away: Vec<bool> = (0..mesh.n_faces())
+        .into_par_iter()
+        .map(|f| {
+            let [a, b, c] = mesh.corners(f);
+            !surface.agrees(a, b, c)
+        })
+        .collect();
+    let before = away.iter().filter(|&&x| x).count();
+    let mut out = Mended {
+        before,
+        after: before,
+        moves: 0,
+        flips: 0,
+    };
+    if before == 0 {
+        return out;
+    }
+    let tiny = 1e-10 * mesh.bbox().diagonal().powi(2);
+    for _ in 0..ROUNDS {
+        let mut verts: Vec<u32> = (0..mesh.n_faces())
+            .filter(|&f| away[f])
+            .flat_map(|f| mesh.faces[f])
+            .collect();
+        verts.sort_unstable();
+        verts.dedup();
+        let mut changed = false;
+        for v in verts {
+            let fan = topo.vertex_faces(v);
+            if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
+                continue;
+            }
+            let pos = |w: u32| mesh.positions[w as usize];
+            let p = pos(v);
+            // (faces facing away, smallest angle) of the fan with `v` at `q`; None when a
+            // face would be degenerate.
+            let score = |q: DVec3| -> Option<(usize, f64)> {
+                let mut n_away = 0;
+                let mut worst = f64::INFINITY;
+                for &f in fan {
+                    let [a, b, c] = mesh.faces[f as usize].map(|w| if w == v { q } else { pos(w) });
+                    if triangle::area(a, b, c) <= tiny {
+                        return None;
+                    }
+                    n_away += !surface.agrees(a, b, c) as usize;
+                    worst = worst.min(triangle::min_angle(a, b, c));
+                }
+                Some((n_away, worst))
+            };
+            let Some(now) = score(p) else { continue };
+            if now.0 == 0 {
+                continue;
+            }
+            let ring = topo.vertex_neighbors(v);
+            let mut cands: Vec<DVec3> = Vec::new();
+            if topo.is_boundary_vertex(v) {
+                for &w in &ends[v as usize] {
+                    for t in [0.25, 0.5] {
+                        cands.extend(surface.project_boundary(p.lerp(pos(w), t)));
+                    }
+                }
+            } else {
+                for &w in ring {
+                    for t in [0.25, 0.5] {
+                        cands.extend(surface.project(p.lerp(pos(w), t)));
+                    }
+                }
+                for &f in fan {
+                    let [a, b, c] = mesh.faces[f as usize].map(pos);
+                    cands.extend(surface.project(triangle::centroid(a, b, c)));
+                }
+                let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
+                cands.extend(surface.project(mean));
+            }
+            let least = now.1.min(floor);
+            let best = cands
+                .iter()
+                .filter(|q| q.is_finite() && **q != p)
+                .filter_map(|&q| score(q).map(|s| (s, q)))
+                .filter(|&((n, a), _)| n < now.0 && a >= least)
+                .min_by(|x, y| x.0.0.cmp(&y.0.0).then(y.0.1.total_cmp(&x.0.1)));
+            if let Some((_, q)) = best {
+                mesh.positions[v as usize] = q;
+                for &f in fan {
+                    let [a, b, c] = mesh.corners(f as usize);
+                    away[f as usize] = !surface.agrees(a, b, c);
+                }
+                out.moves += 1;
+                changed = true;
+            }
+        }
+        let flips = mend_flips(mesh, topo, surface, &mut away, tiny, floor);
+        if flips > 0 {
+            out.flips += flips;
+            changed = true;
+            match Topology::try_build(mesh) {
+                Ok(t) => *topo = t,
+                Err(_) => break,
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    out.after = away.iter().filter(|&&x| x).count();
+    out
+}
+
+/// Flips the interior edges of faces facing away (flags `away`, updated) where the two new
+/// faces have fewer facing away than the old, none degenerate (area ≤ `tiny`) and a
+/// smallest angle of at least `floor` or what the old had; each face once. `topo` is
+/// `mesh`'s adjacency before. Returns the flips made.
+fn mend_flips(
+    mesh: &mut Mesh,
+    topo: &Topology,
+    surface: &Surface<'_>,
+    away: &mut [bool],
+    tiny: f64,
+    floor: f64,
+) -> usize {
+    let mut touched = vec![false; mesh.n_faces()];
+    let mut added: std::collections::HashSet<[u32; 2]> = std::collections::HashSet::new();
+    let key = |a: u32, b: u32| if a < b { [a, b] } else { [b, a] };
+    let mut flips = 0;
+    for f in 0..mesh.n_faces() {
+        if !away[f] || touched[f] {
+            continue;
+        }
+        for k in 0..3 {
+            let t = mesh.faces[f];
+            let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let Some(e) = topo.find_edge(a, b) else {
+                continue;
+            };
+            let ef = topo.edge_faces(e);
+            if ef.len() != 2 {
+                continue;
+            }
+            let g = if ef[0] as usize == f { ef[1] } else { ef[0] } as usize;
+            if touched[g] {
+                continue;
+            }
+            // g holds b → a.
+            let u = mesh.faces[g];
+            let Some(i) = (0..3).find(|&i| u[i] == b && u[(i + 1) % 3] == a) else {
+                continue;
+            };
+            let d = u[(i + 2) % 3];
+            if c == d || topo.find_edge(c, d).is_some() || added.contains(&key(c, d)) {
+                continue;
+            }
+            let p = |v: u32| mesh.positions[v as usize];
+            let old = [[a, b, c], [b, a, d]];
+            let new = [[a, d, c], [d, b, c]];
+            let judge = |fs: &[[u32; 3]; 2]| -> Option<(usize, f64)> {
+                let mut n_away = 0;
+                let mut worst = f64::INFINITY;
+                for t in fs {
+                    let [x, y, z] = t.map(p);
+                    if triangle::area(x, y, z) <= tiny {
+                        return None;
+                    }
+                    n_away += !surface.agrees(x, y, z) as usize;
+                    worst = worst.min(triangle::min_angle(x, y, z));
+                }
+                Some((n_away, worst))
+            };
+            let (Some(before), Some(after)) = (judge(&old), judge(&new)) else {
+                continue;
+            };
+            if after.0 >= before.0 || after.1 < before.1.min(floor) {
+                continue;
+            }
+            mesh.faces[f] = new[0];
+            mesh.faces[g] = new[1];
+            for (h, t) in [(f, new[0]), (g, new[1])] {
+                let [x, y, z] = t.map(p);
+                away[h] = !surface.agrees(x, y, z);
+                touched[h] = true;
+            }
+            added.insert(key(c, d));
+            flips += 1;
+            break;
+        }
+    }
+    flips
+}
