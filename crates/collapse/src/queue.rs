@@ -184,7 +184,11 @@ pub(crate) struct Queue {
 impl Queue {
     pub(crate) fn new(n_vertices: usize, capacity: usize) -> Self {
         Queue {
-            heap: Heap::default(),
+            // The heap is swept once it passes 1.5 times the live candidates (at most
+            // `capacity`): room for that from the start spares the copies of its growth.
+            heap: Heap {
+                items: Vec::with_capacity(capacity + capacity / 2 + 8192),
+            },
             run: Vec::with_capacity(capacity),
             park_head: vec![NIL; n_vertices],
             ..Default::default()
