@@ -871,7 +871,17 @@ impl LiveMesh {
             seen: Marks::new(self.pos.len().max(self.faces.len())),
         };
         let per_face = if unit == Unit::Edge { 3 } else { 2 };
-        let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + 16);
+        // Room for every candidate: each face's edges count half, a boundary edge whole
+        // (and a boundary loop has as many edges as vertices).
+        let open = match unit {
+            Unit::Edge => self
+                .kind
+                .par_iter()
+                .filter(|&&k| matches!(k, VertexKind::Boundary | VertexKind::Locked))
+                .count(),
+            Unit::Triangle => 0,
+        };
+        let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + open + 16);
         self.rank_all(model, unit, &mut q, &mut out.refused);
         q.sort_initial();
         // A progressive record speaks the numbering of each collapse's time.
