@@ -8,6 +8,11 @@
 
 use crate::Index;
 
+/// The arena is compacted once it is longer than twice the blocks in use plus this.
+const COMPACT_SLACK: usize = 1024;
+/// Room reserved beyond twice the blocks in use: the compaction's slack and a moved block.
+const SLACK: usize = COMPACT_SLACK + 1024;
+
 #[derive(Clone, Debug, Default)]
 pub(crate) struct FaceLists {
     start: Vec<u32>,
@@ -37,8 +42,9 @@ impl FaceLists {
             total += l;
         }
         let mut data = vec![0; total as usize];
-        // Room for the blocks that move while collapsing, so that the arena rarely grows.
-        data.reserve(total as usize / 2);
+        // Room for the blocks that move while collapsing, up to the size that compacts it
+        // (growing would copy the arena).
+        data.reserve(total as usize + SLACK);
         let mut cursor = start.clone();
         for (f, (face, &ok)) in faces.iter().zip(use_face).enumerate() {
             if ok {
@@ -90,7 +96,7 @@ impl FaceLists {
         let s = self.start[vi] as usize;
         self.data[s..s + items.len()].copy_from_slice(items);
         self.len[vi] = n;
-        if self.data.len() > 2 * self.used + 1024 {
+        if self.data.len() > 2 * self.used + COMPACT_SLACK {
             self.compact();
         }
     }
@@ -109,7 +115,7 @@ impl FaceLists {
         let mut start = Vec::with_capacity(old_of.len());
         let mut len = Vec::with_capacity(old_of.len());
         let total: usize = old_of.iter().map(|&v| self.len[v as usize] as usize).sum();
-        let mut data = Vec::with_capacity(total + total / 2);
+        let mut data = Vec::with_capacity(2 * total + SLACK);
         for &v in old_of {
             start.push(data.len() as u32);
             len.push(self.len[v as usize]);
@@ -126,7 +132,7 @@ impl FaceLists {
 
     /// Moves every list to a fresh arena, blocks in vertex order, without slack.
     fn compact(&mut self) {
-        let mut data = Vec::with_capacity(self.used + self.used / 2);
+        let mut data = Vec::with_capacity(2 * self.used + SLACK);
         for v in 0..self.start.len() {
             let s = self.start[v] as usize;
             let l = self.len[v] as usize;

@@ -794,7 +794,8 @@ impl LiveMesh {
         }
         let mut new_index = vec![NONE; self.pos.len()];
         let mut positions = Vec::with_capacity(survivors.len());
-        let mut vo = VertexOrigins::with_capacity(survivors.len());
+        // Every input vertex is a source of the survivor it went to.
+        let mut vo = VertexOrigins::with_capacities(survivors.len(), self.cluster_next.len());
         let mut members = Vec::new();
         for &v in &survivors {
             new_index[v as usize] = positions.len() as Index;

@@ -276,7 +276,8 @@ impl Queue {
         };
         self.heap.retain(rename);
         self.run.retain_mut(rename);
-        let parked = std::mem::take(&mut self.parked);
+        let room = Vec::with_capacity(self.parked.capacity());
+        let parked = std::mem::replace(&mut self.parked, room);
         self.nodes.clear();
         self.n_released = 0;
         self.park_head = vec![NIL; new_vertex.iter().filter(|&&v| v != crate::NONE).count()];
@@ -334,7 +335,10 @@ impl Queue {
 
     /// Rebuilds the parking area from the entries still parked.
     fn compact_parked(&mut self) {
-        let old = std::mem::take(&mut self.parked);
+        // The same room as before: growing back from nothing would copy the list at
+        // every doubling.
+        let room = Vec::with_capacity(self.parked.capacity());
+        let old = std::mem::replace(&mut self.parked, room);
         self.nodes.clear();
         // Only vertices of parked entries can have a list: reset those, not all heads.
         for (e, _) in &old {

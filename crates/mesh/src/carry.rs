@@ -48,6 +48,16 @@ impl VertexOrigins {
         }
     }
 
+    /// Empty, with room for `n` vertices and `sources` sources in all.
+    pub fn with_capacities(n: usize, sources: usize) -> Self {
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0);
+        Self {
+            offsets,
+            sources: Vec::with_capacity(sources),
+        }
+    }
+
     /// Every vertex `i` of `0..n` is old vertex `i`.
     pub fn identity(n: usize) -> Self {
         let mut o = Self::with_capacity(n);

@@ -756,15 +756,20 @@ impl Tables {
     /// Empty tables with room for a mesh of `nv` vertices and `n_corners` corners.
     fn with_capacity(nv: usize, n_corners: usize) -> Tables {
         let n_corners = if nv == 0 { 0 } else { n_corners };
-        // Euler: E ≈ F · 3/2 for closed meshes, up to 3F for soups.
+        // Euler: E ≈ F · 3/2 for closed meshes, plus half the boundary edges (up to 3F
+        // for soups), and a boundary vertex has one neighbour more than faces. Room for
+        // boundary edges up to a sixth of the corners: a table that outgrows its room is
+        // copied whole (the bunny subdivided three times has 1,784 and overflowed the
+        // room of a closed mesh); room never used is never touched.
+        let open = n_corners / 16 + 1024;
         let mut t = Tables {
-            edges: Vec::with_capacity(n_corners / 2 + 16),
-            edge_flags: Vec::with_capacity(n_corners / 2 + 16),
-            edge_face_offsets: Vec::with_capacity(n_corners / 2 + 17),
+            edges: Vec::with_capacity(n_corners / 2 + open),
+            edge_flags: Vec::with_capacity(n_corners / 2 + open),
+            edge_face_offsets: Vec::with_capacity(n_corners / 2 + open + 1),
             edge_faces: Vec::with_capacity(n_corners),
             vertex_edge_offsets: Vec::with_capacity(nv + 1),
             vertex_neighbor_offsets: Vec::with_capacity(nv + 1),
-            vertex_neighbors: Vec::with_capacity(n_corners + 16),
+            vertex_neighbors: Vec::with_capacity(n_corners + open),
             vertex_fan_offsets: Vec::with_capacity(nv + 1),
             fan_offsets: Vec::with_capacity(nv + 1),
             edge_bases: Vec::new(),

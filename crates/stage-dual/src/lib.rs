@@ -436,7 +436,9 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
         }
     }
     let mut slot = vec![u32::MAX; mesh.n_vertices()];
-    let mut o = VertexOrigins::with_capacity(n);
+    // Each vertex is a source of every cluster around it: of one inside a cluster, of
+    // two or three on a border (room never used is never touched).
+    let mut o = VertexOrigins::with_capacities(n, 2 * mesh.n_vertices() + 3 * n);
     for c in 0..n {
         let corners = &entries[start[c]..start[c + 1]];
         let mut blend: Vec<(u32, f64)> = Vec::new();
