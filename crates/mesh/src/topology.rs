@@ -758,7 +758,7 @@ impl Tables {
         let n_corners = if nv == 0 { 0 } else { n_corners };
         // Euler: E ≈ F · 3/2 for closed meshes, plus half the boundary edges (up to 3F
         // for soups), and a boundary vertex has one neighbour more than faces. Room for
-        // boundary edges up to a sixth of the corners: a table that outgrows its room is
+        // boundary edges up to an eighth of the corners: a table that outgrows its room is
         // copied whole (the bunny subdivided three times has 1,784 and overflowed the
         // room of a closed mesh); room never used is never touched.
         let open = n_corners / 16 + 1024;

@@ -87,7 +87,7 @@ impl<'a> EdgeTable<'a> {
         }
         let mut face_edges = vec![[0u32; 3]; faces.len()];
         // 3F/2 edges on a closed mesh, half as many more as boundary edges (room for
-        // those up to a sixth of the corners; outgrowing the room would copy the table).
+        // those up to an eighth of the corners; outgrowing the room would copy the table).
         let mut ends = Vec::with_capacity(3 * faces.len() / 2 + 3 * faces.len() / 16 + 1024);
         for lo in 0..n_vertices {
             let bucket = &mut keys[offsets[lo] as usize..offsets[lo + 1] as usize];
