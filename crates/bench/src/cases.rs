@@ -68,11 +68,16 @@ impl TableId {
                 "Figures of other tools as measured by an independent tool on a 2-core machine (metrics.md), beside ours.",
             ),
             TableId::OtherMeshes => (
-                "The CVT pipelines on the other meshes — fandisk, spot, cow, teapot",
+                "The CVT pipelines on the other meshes — fandisk, spot, cow, teapot, suzanne, beetle",
                 "Issue #5 asks what happens on these: the fandisk's sharp edges round off (the *Feature edges* section measures them), \
                  the cow (one non-manifold vertex, split per fan) and the teapot (19 parts, 25 boundary loops, 38 non-manifold vertices) \
                  have thin parts — ears, tail, spout rim — narrower than a cluster, where a coarse face's nearest input point can lie on the \
-                 opposite sheet: those faces count as flipped and the row as not valid. Targets: about a third of each input's vertices.",
+                 opposite sheet: those faces count as flipped and the row as not valid. Suzanne (eyes as separate parts, a face lying back \
+                 to back on another, ears that fold back) and the beetle (a CAD model with 47 edges of three faces: fins) go through the CVT \
+                 pipelines after the runner's repairs (two-sided faces made one-sided, such edges cut apart, pieces too small for a dual \
+                 split), so their outputs have the parts and loops of the repaired input (suzanne 4 and 5, the beetle 15 and 34); \
+                 `qem` keeps such edges and their rows are not manifold. The beetle's narrow strips between cuts keep slivers. \
+                 Targets: about a third of each input's vertices.",
             ),
         }
     }
@@ -333,6 +338,8 @@ pub fn all() -> Vec<Case> {
         ("spot.obj", 1000),
         ("cow.obj", 1000),
         ("teapot.obj", 1200),
+        ("suzanne.obj", 170),
+        ("beetle.obj", 380),
     ] {
         for pipeline in ["adaptive-cvt", "uniform-cvt", "goal", "qem"] {
             v.push(case(OtherMeshes, mesh, pipeline, Vertices(n), &[]));

@@ -127,12 +127,21 @@ enum Outcome {
     Done(Box<Measured>),
 }
 
+/// How a run repaired its input before a stage that needs a manifold mesh.
+#[derive(Clone, Copy, Debug)]
+enum Repair {
+    /// Non-manifold vertices split into one vertex per face fan.
+    SplitFans,
+    /// Two-sided faces made one-sided, edges of three or more faces cut apart.
+    CutEdges,
+}
+
 struct Measured {
     metrics: MetricsReport,
-    /// The input's validity the output is held to: after the fan split when the run made one.
+    /// The input's validity the output is held to: after the run's repair when it made one.
     input: Validity,
-    /// Whether the run split the input's non-manifold vertices per fan.
-    split: bool,
+    /// The run's repair of the input, if it made one.
+    split: Option<Repair>,
     run: RunReport,
     load_seconds: f64,
 }
@@ -265,21 +274,34 @@ fn run_case(
         Ok(r) => r,
         Err(e) => return Outcome::Failed(e.to_string()),
     };
-    // The run's own repair of pinched vertices (reported) is the input it kept the topology of.
-    let split = run.stages.iter().any(|s| {
-        s.warnings
+    // The run's own repair (reported) is the input it kept the topology of.
+    let warned = |note: &str| {
+        run.stages
             .iter()
-            .any(|w| w.contains(coarsen_pipeline::SPLIT_FANS_NOTE))
-    });
+            .any(|s| s.warnings.iter().any(|w| w.contains(note)))
+    };
+    let split = if warned(coarsen_pipeline::CUT_EDGES_NOTE) {
+        Some(Repair::CutEdges)
+    } else if warned(coarsen_pipeline::SPLIT_FANS_NOTE) {
+        Some(Repair::SplitFans)
+    } else {
+        None
+    };
     let reference = match split {
-        true => {
-            let (fans, _) = hygiene::split_non_manifold_vertices(input.clone());
-            match coarsen_metrics::validity(None, &fans) {
+        Some(repair) => {
+            let repaired = match repair {
+                Repair::SplitFans => hygiene::split_non_manifold_vertices(input.clone()).0,
+                Repair::CutEdges => {
+                    hygiene::cut_non_manifold_edges(hygiene::drop_two_sided_faces(input.clone()).0)
+                        .0
+                }
+            };
+            match coarsen_metrics::validity(None, &repaired) {
                 Ok(v) => v,
                 Err(e) => return Outcome::Failed(e.to_string()),
             }
         }
-        false => input_validity.clone(),
+        None => input_validity.clone(),
     };
     match coarsen_metrics::measure(Some(input), &output, &Default::default()) {
         Ok(metrics) => Outcome::Done(Box::new(Measured {
@@ -350,8 +372,12 @@ fn measured_row(case: &Case, outcome: &Outcome) -> String {
                 .filter_map(|s| s.figures.get("sve").and_then(|x| x.as_f64()))
                 .reduce(|a, b| a + b);
             let mut validity = validity_text(v, &m.input);
-            if m.split {
-                validity.push_str(" (pinched vertices split per fan)");
+            match m.split {
+                Some(Repair::SplitFans) => validity.push_str(" (pinched vertices split per fan)"),
+                Some(Repair::CutEdges) => {
+                    validity.push_str(" (edges of three or more faces cut apart)")
+                }
+                None => {}
             }
             let stages: Vec<String> = m
                 .run
@@ -437,7 +463,8 @@ fn render(rows: &[(Case, usize)], outcomes: &[Outcome]) -> String {
         "Figures as defined in `../shared/spec/metrics.md`; fidelity against the cleaned input (unreferenced \
          vertices dropped), 10 samples per face on each mesh plus every used vertex. *valid*: manifold, the \
          input's components, boundary loops and genus kept (for an input with pinched vertices, which a run splits \
-         into one vertex per face fan and says so, those of the split input), no flipped or degenerate faces. Times: each stage's \
+         into one vertex per face fan and says so, those of the split input; for one with edges of three or more faces, \
+         which a run before a dual cuts apart and says so, those of the cut input), no flipped or degenerate faces. Times: each stage's \
          wall time, and the total including loading the OBJ (release build). Rows marked *published* are copied \
          from the papers or from metrics.md, not measured here.\n"
     );

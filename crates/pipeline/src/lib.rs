@@ -16,7 +16,9 @@ mod run;
 
 pub use file::{Overrides, Pipeline, PipelineStage, parse_set};
 pub use report::{RunReport, StageRecord};
-pub use run::{AfterStage, REORDER_MIN_FACES, RunError, RunOptions, SPLIT_FANS_NOTE};
+pub use run::{
+    AfterStage, CUT_EDGES_NOTE, REORDER_MIN_FACES, RunError, RunOptions, SPLIT_FANS_NOTE,
+};
 
 use std::fmt;
 

@@ -41,6 +41,10 @@ use std::time::Instant;
 /// non-manifold vertices before it (one vertex per face fan).
 pub const SPLIT_FANS_NOTE: &str = "split into one vertex per face fan";
 
+/// The words of the warning a stage's report carries when the runner cut edges of three or
+/// more faces apart before it (after making two-sided faces one-sided).
+pub const CUT_EDGES_NOTE: &str = "edges of three or more faces cut apart";
+
 /// What every stage's output must satisfy: valid indices, finite values, no face repeating
 /// a vertex, no duplicate face, no face of exactly zero area — the same bar as load-time
 /// hygiene, so an input that hygiene kept never fails it by itself.
@@ -232,7 +236,7 @@ impl Pipeline {
                     let after = summary_of(&mesh)?;
                     if copies > 0 {
                         let cut_note = if cut_edges > 0 {
-                            format!("{cut_edges} edges of three or more faces cut apart, ")
+                            format!("{cut_edges} {CUT_EDGES_NOTE}, ")
                         } else {
                             String::new()
                         };
