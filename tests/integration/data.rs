@@ -361,3 +361,51 @@ fn meshes_with_edges_of_three_faces_go_through_the_cvt_pipelines() {
         }
     }
 }
+
+/// An input with fewer faces per target vertex than a cluster needs (suzanne: 968
+/// triangles; 1,200 vertices asked for) is subdivided before the adaptive clustering: the
+/// run gets the exact count, a manifold oriented mesh and no face turned away from the
+/// input (without the subdivision it stopped: more clusters than faces).
+#[test]
+fn a_low_poly_input_is_subdivided_before_the_adaptive_clustering() {
+    let Some(dir) = shared_data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let input = dir.join("suzanne.obj");
+    let out = tmp.path().join("suzanne.ply");
+    let report = tmp.path().join("report.json");
+    let o = run_cli(
+        EXE,
+        &[
+            "run",
+            "adaptive-cvt",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--vertices",
+            "1200",
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let sub = r["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["kind"] == "subdivide")
+        .expect("a subdivide stage");
+    assert_eq!(sub["figures"]["subdivisions"], 2, "{sub}");
+    let m = coarsen_io::read_path(&out, &Default::default())
+        .unwrap()
+        .mesh;
+    assert_eq!(m.n_vertices(), 1200);
+    let s = Topology::build(&m).summary(&m);
+    assert!(s.manifold && s.consistently_oriented, "{s:?}");
+    let original = coarsen_io::read_path(&input, &Default::default())
+        .unwrap()
+        .mesh;
+    let v = coarsen_metrics::validity(Some(&original), &m).unwrap();
+    assert_eq!(v.n_flipped, Some(0), "{v:?}");
+}
