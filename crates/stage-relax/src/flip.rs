@@ -16,13 +16,11 @@ pub(crate) fn flip_sweep(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let mut touched = vec![false; mesh.n_faces()];
-    let mut added: std::collections::HashSet<[u32; 2]> = std::collections::HashSet::new();
-    let key = |a: u32, b: u32| if a < b { [a, b] } else { [b, a] };
+    let mut round = FlipRound::new(mesh.n_faces());
     let mut flips = 0;
     for e in 0..topo.n_edges() as u32 {
         let ef = topo.edge_faces(e);
-        if ef.len() != 2 || touched[ef[0] as usize] || touched[ef[1] as usize] {
+        if ef.len() != 2 || round.touched(ef[0] as usize) || round.touched(ef[1] as usize) {
             continue;
         }
         let [a, b] = topo.edge(e);
@@ -40,7 +38,7 @@ pub(crate) fn flip_sweep(
                 _ => continue,
             },
         };
-        if c == d || topo.find_edge(c, d).is_some() || added.contains(&key(c, d)) {
+        if c == d || round.has_edge(topo, c, d) {
             continue;
         }
         let p = |v: u32| mesh.positions[v as usize];
@@ -90,10 +88,41 @@ pub(crate) fn flip_sweep(
         };
         mesh.faces[g1] = new[0];
         mesh.faces[g2] = new[1];
-        touched[f1] = true;
-        touched[f2] = true;
-        added.insert(key(c, d));
+        round.flipped([f1, f2], c, d);
         flips += 1;
     }
     flips
+}
+
+/// What one round of flips has done so far: the faces flipped (each at most once a
+/// round) and the edges made, which its adjacency from before the round does not know.
+pub(crate) struct FlipRound {
+    touched: Vec<bool>,
+    added: std::collections::HashSet<[u32; 2]>,
+}
+
+impl FlipRound {
+    /// A round over `n_faces` faces, nothing flipped yet.
+    pub(crate) fn new(n_faces: usize) -> Self {
+        FlipRound {
+            touched: vec![false; n_faces],
+            added: std::collections::HashSet::new(),
+        }
+    }
+
+    /// Whether face `f` was flipped this round.
+    pub(crate) fn touched(&self, f: usize) -> bool {
+        self.touched[f]
+    }
+
+    /// Whether `c`–`d` is an edge: in `topo` (from before the round) or made this round.
+    pub(crate) fn has_edge(&self, topo: &Topology, c: u32, d: u32) -> bool {
+        topo.find_edge(c, d).is_some() || self.added.contains(&[c.min(d), c.max(d)])
+    }
+
+    /// Records that faces `faces` were flipped into the new edge `c`–`d`.
+    pub(crate) fn flipped(&mut self, faces: [usize; 2], c: u32, d: u32) {
+        faces.iter().for_each(|&f| self.touched[f] = true);
+        self.added.insert([c.min(d), c.max(d)]);
+    }
 }

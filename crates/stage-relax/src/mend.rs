@@ -150,12 +150,10 @@ fn mend_flips(
     tiny: f64,
     floor: f64,
 ) -> usize {
-    let mut touched = vec![false; mesh.n_faces()];
-    let mut added: std::collections::HashSet<[u32; 2]> = std::collections::HashSet::new();
-    let key = |a: u32, b: u32| if a < b { [a, b] } else { [b, a] };
+    let mut round = FlipRound::new(mesh.n_faces());
     let mut flips = 0;
     for f in 0..mesh.n_faces() {
-        if !away[f] || touched[f] {
+        if !away[f] || round.touched(f) {
             continue;
         }
         for k in 0..3 {
@@ -169,7 +167,7 @@ fn mend_flips(
                 continue;
             }
             let g = if ef[0] as usize == f { ef[1] } else { ef[0] } as usize;
-            if touched[g] {
+            if round.touched(g) {
                 continue;
             }
             // g holds b → a.
@@ -178,7 +176,7 @@ fn mend_flips(
                 continue;
             };
             let d = u[(i + 2) % 3];
-            if c == d || topo.find_edge(c, d).is_some() || added.contains(&key(c, d)) {
+            if c == d || round.has_edge(topo, c, d) {
                 continue;
             }
             let p = |v: u32| mesh.positions[v as usize];
@@ -208,9 +206,8 @@ fn mend_flips(
             for (h, t) in [(f, new[0]), (g, new[1])] {
                 let [x, y, z] = t.map(p);
                 away[h] = !surface.agrees(x, y, z);
-                touched[h] = true;
             }
-            added.insert(key(c, d));
+            round.flipped([f, g], c, d);
             flips += 1;
             break;
         }
