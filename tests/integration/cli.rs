@@ -1,6 +1,6 @@
 //! The `coarsen` command: exit codes, outputs, reports, and never a partial output file.
 
-use coarsen_tests::{pipeline_file, run_cli, run_pipeline, stderr, stdout, write_mesh};
+use coarsen_tests::{pipeline_file, read_mesh, run_cli, run_pipeline, stderr, stdout, write_mesh};
 use std::fs;
 
 const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
@@ -22,9 +22,7 @@ fn run_without_input_uses_the_demo_mesh_and_writes_output_and_report() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    let mesh = coarsen_io::read_path(&out, &Default::default())
-        .unwrap()
-        .mesh;
+    let mesh = read_mesh(&out);
     let demo = coarsen_shapes::demo();
     // The demo pipeline removes 75 % of the faces.
     assert_eq!(mesh.n_faces(), demo.n_faces() / 4);
@@ -62,9 +60,7 @@ fn no_command_runs_adaptive_cvt_on_the_file_or_the_demo_mesh() {
         let json: serde_json::Value =
             serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
         assert_eq!(json["pipeline"], "adaptive-cvt", "{with_input}");
-        let mesh = coarsen_io::read_path(&out, &Default::default())
-            .unwrap()
-            .mesh;
+        let mesh = read_mesh(&out);
         assert_eq!(mesh.n_vertices(), 300, "{with_input}");
     }
     // A mistyped command is still reported as one, not read as a file.
@@ -184,13 +180,7 @@ fn command_line_target_and_set_reach_the_stages() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(
-        coarsen_io::read_path(&out, &Default::default())
-            .unwrap()
-            .mesh
-            .n_vertices(),
-        100
-    );
+    assert_eq!(read_mesh(&out).n_vertices(), 100);
     let json: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(json["target"]["vertices"], 100);

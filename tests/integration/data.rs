@@ -2,7 +2,9 @@
 //! `../shared/README.md`, and format round trips are exact.
 
 use coarsen_mesh::Topology;
-use coarsen_tests::{run_cli, shared_data, stderr, stdout};
+use coarsen_tests::{
+    oriented_manifold, read_mesh, run_cli, run_pipeline, shared_data, stderr, stdout,
+};
 
 const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
 
@@ -105,9 +107,7 @@ const EXPECTED: &[Expected] = &[
 fn every_shared_mesh_loads_with_the_documented_counts_and_topology() {
     let Some(dir) = shared_data() else { return };
     for e in EXPECTED {
-        let mesh = coarsen_io::read_path(&dir.join(e.file), &Default::default())
-            .unwrap()
-            .mesh;
+        let mesh = read_mesh(&dir.join(e.file));
         assert_eq!(
             (mesh.n_vertices(), mesh.n_faces()),
             (e.vertices, e.faces),
@@ -189,12 +189,8 @@ fn obj_to_binary_ply_to_obj_keeps_positions_bit_for_bit_and_connectivity() {
             );
             assert!(o.status.success(), "{}: {}", e.file, stderr(&o));
         }
-        let a = coarsen_io::read_path(&src, &Default::default())
-            .unwrap()
-            .mesh;
-        let b = coarsen_io::read_path(&obj, &Default::default())
-            .unwrap()
-            .mesh;
+        let a = read_mesh(&src);
+        let b = read_mesh(&obj);
         let bits = |m: &coarsen_mesh::Mesh| {
             m.positions
                 .iter()
@@ -276,12 +272,9 @@ fn extreme_boundary_curvature_keeps_the_coarse_mesh_with_a_warning() {
     assert!(o.status.success(), "{}", stderr(&o));
     let log = stdout(&o);
     assert!(log.contains("the coarse mesh is kept"), "{log}");
-    let m = coarsen_io::read_path(&out, &Default::default())
-        .unwrap()
-        .mesh;
+    let m = read_mesh(&out);
     assert_eq!(m.n_vertices(), 5000);
-    let s = Topology::build(&m).summary(&m);
-    assert!(s.manifold && s.consistently_oriented, "{s:?}");
+    let s = oriented_manifold(&m, "output");
     assert_eq!(s.n_boundary_loops, 5);
 }
 
@@ -352,11 +345,8 @@ fn meshes_with_edges_of_three_faces_go_through_the_cvt_pipelines() {
             let text = stdout(&o);
             assert!(o.status.success(), "{what}: {}", stderr(&o));
             assert!(text.contains(warning), "{what}: {text}");
-            let m = coarsen_io::read_path(&out, &Default::default())
-                .unwrap()
-                .mesh;
-            let s = Topology::build(&m).summary(&m);
-            assert!(s.manifold && s.consistently_oriented, "{what}: {s:?}");
+            let m = read_mesh(&out);
+            oriented_manifold(&m, &what);
             assert_eq!(m.n_vertices(), 300, "{what}");
         }
     }
@@ -373,20 +363,9 @@ fn a_low_poly_input_is_subdivided_before_the_adaptive_clustering() {
     let input = dir.join("suzanne.obj");
     let out = tmp.path().join("suzanne.ply");
     let report = tmp.path().join("report.json");
-    let o = run_cli(
-        EXE,
-        &[
-            "run",
-            "adaptive-cvt",
-            input.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--vertices",
-            "1200",
-            "--report",
-            report.to_str().unwrap(),
-        ],
-    );
+    let report_path = report.to_str().unwrap();
+    let extra = ["--vertices", "1200", "--report", report_path];
+    let o = run_pipeline(EXE, "adaptive-cvt", &input, &out, &extra);
     assert!(o.status.success(), "{}", stderr(&o));
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
@@ -397,15 +376,10 @@ fn a_low_poly_input_is_subdivided_before_the_adaptive_clustering() {
         .find(|s| s["kind"] == "subdivide")
         .expect("a subdivide stage");
     assert_eq!(sub["figures"]["subdivisions"], 2, "{sub}");
-    let m = coarsen_io::read_path(&out, &Default::default())
-        .unwrap()
-        .mesh;
+    let m = read_mesh(&out);
     assert_eq!(m.n_vertices(), 1200);
-    let s = Topology::build(&m).summary(&m);
-    assert!(s.manifold && s.consistently_oriented, "{s:?}");
-    let original = coarsen_io::read_path(&input, &Default::default())
-        .unwrap()
-        .mesh;
+    oriented_manifold(&m, "output");
+    let original = read_mesh(&input);
     let v = coarsen_metrics::validity(Some(&original), &m).unwrap();
     assert_eq!(v.n_flipped, Some(0), "{v:?}");
 }

@@ -3,7 +3,9 @@
 //! output file, or a run whose repairs and refusals are reported.
 
 use coarsen_mesh::{DVec3, Mesh, Topology};
-use coarsen_tests::{run_cli, run_pipeline, stderr, stdout, write_mesh};
+use coarsen_tests::{
+    oriented_manifold, read_mesh, run_cli, run_pipeline, stderr, stdout, write_mesh,
+};
 use serde_json::Value;
 use std::path::Path;
 
@@ -94,9 +96,7 @@ fn run_file_ok(path: &Path, pipeline: &str, extra: &[&str]) -> Ran {
     assert!(o.status.success(), "{pipeline} {extra:?}: {e}");
     assert!(!e.contains("panicked"), "{e}");
     let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    let output = coarsen_io::read_path(&out, &Default::default())
-        .unwrap()
-        .mesh;
+    let output = read_mesh(&out);
     coarsen_mesh::sanity_check_with(
         &output,
         &coarsen_mesh::SanityOptions {
@@ -291,9 +291,8 @@ fn a_thousand_components_each_keep_their_topology() {
     for pipeline in ["qem", "svec"] {
         let ran = run_ok(&many, "many.ply", pipeline, &["--ratio", "0.5"]);
         assert_eq!(ran.counts(), (4000, 4000), "{pipeline}");
-        let s = Topology::build(&ran.output).summary(&ran.output);
+        let s = oriented_manifold(&ran.output, pipeline);
         assert_eq!(s.n_components, 1000, "{pipeline}");
-        assert!(s.manifold && s.consistently_oriented, "{pipeline}");
         assert_eq!(s.n_boundary_edges, 0, "{pipeline}");
         assert!(s.genus.iter().all(|g| *g == Some(0)), "{pipeline}");
     }
@@ -569,8 +568,7 @@ fn a_fin_on_an_edge_is_cut_off_before_the_cvt_pipelines() {
     assert_eq!(t["n_non_manifold_edges"], 1);
     for pipeline in ["uniform-cvt", "adaptive-cvt"] {
         let ran = run_ok(&finned, "fin.obj", pipeline, &["--vertices", "120"]);
-        let s = Topology::build(&ran.output).summary(&ran.output);
-        assert!(s.manifold && s.consistently_oriented, "{pipeline}: {s:?}");
+        let s = oriented_manifold(&ran.output, pipeline);
         assert_eq!(ran.output.n_vertices(), 120, "{pipeline}");
         // The sphere and the fin, a disc.
         assert_eq!((s.n_components, s.n_boundary_loops), (2, 1), "{pipeline}");
@@ -598,8 +596,7 @@ fn a_lone_triangle_beside_a_surface_is_split_before_the_cvt_pipelines() {
     input.faces.push([n, n + 1, n + 2]);
     for pipeline in ["adaptive-cvt", "uniform-cvt"] {
         let ran = run_ok(&input, "lone.obj", pipeline, &["--vertices", "120"]);
-        let s = Topology::build(&ran.output).summary(&ran.output);
-        assert!(s.manifold && s.consistently_oriented, "{pipeline}: {s:?}");
+        let s = oriented_manifold(&ran.output, pipeline);
         assert_eq!(ran.output.n_vertices(), 120, "{pipeline}");
         assert_eq!((s.n_components, s.n_boundary_loops), (2, 1), "{pipeline}");
         let w = ran.warnings();

@@ -1,7 +1,7 @@
 //! Malformed input files: a clear error naming the file (and line or element), exit code 1,
 //! no panic and no output file.
 
-use coarsen_tests::{run_cli, run_pipeline, stderr, write_mesh};
+use coarsen_tests::{read_mesh, run_cli, run_pipeline, stderr, write_mesh};
 
 const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
 
@@ -186,9 +186,7 @@ fn extreme_coordinates_coarsen_like_ordinary_ones_and_come_back_in_their_units()
         let out = dir.path().join("out.obj");
         let o = run_pipeline(EXE, "qem", &input, &out, &["--vertices", "6"]);
         assert!(o.status.success(), "{scale}: {}", stderr(&o));
-        let mesh = coarsen_io::read_path(&out, &Default::default())
-            .unwrap()
-            .mesh;
+        let mesh = read_mesh(&out);
         assert_eq!((mesh.n_vertices(), mesh.n_faces()), (6, 8), "{scale}");
         // Largest coordinate magnitude (a length would under- or overflow at these sizes).
         let r = mesh

@@ -53,3 +53,19 @@ pub fn stderr(o: &Output) -> String {
 pub fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
+
+/// Reads the mesh at `path` (a run's output or a test mesh), panicking with the file's
+/// error when it cannot.
+pub fn read_mesh(path: &Path) -> coarsen_mesh::Mesh {
+    coarsen_io::read_path(path, &Default::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .mesh
+}
+
+/// The adjacency summary of `mesh`, asserting that it is a consistently oriented
+/// manifold (`what` names the case in the failure).
+pub fn oriented_manifold(mesh: &coarsen_mesh::Mesh, what: &str) -> coarsen_mesh::TopologySummary {
+    let s = coarsen_mesh::Topology::build(mesh).summary(mesh);
+    assert!(s.manifold && s.consistently_oriented, "{what}: {s:?}");
+    s
+}
