@@ -23,6 +23,10 @@ pub struct Reshape {
 pub trait FaceGuard {
     /// True when the face may be reshaped as `r` says.
     fn allows(&mut self, r: &Reshape) -> bool;
+    /// How many faces it tested and refused, for reports (none, by default).
+    fn counts(&self) -> GuardCounts {
+        GuardCounts::default()
+    }
 }
 
 /// No guard: every face passes.
@@ -45,6 +49,17 @@ pub struct GuardCounts {
     pub tested: u64,
     /// Faces the test refused (the face passed before the collapse and fails after).
     pub refused: u64,
+}
+
+impl GuardCounts {
+    /// These counts and `other`'s added up.
+    pub fn plus(&self, other: &GuardCounts) -> GuardCounts {
+        GuardCounts {
+            skipped: self.skipped + other.skipped,
+            tested: self.tested + other.tested,
+            refused: self.refused + other.refused,
+        }
+    }
 }
 
 /// The coherence below which [`Gated::standard`] tests a face.
@@ -107,6 +122,10 @@ impl<T: FnMut(DVec3, DVec3, DVec3) -> bool> Gated<T> {
 }
 
 impl<T: FnMut(DVec3, DVec3, DVec3) -> bool> FaceGuard for Gated<T> {
+    fn counts(&self) -> GuardCounts {
+        self.counts
+    }
+
     fn allows(&mut self, r: &Reshape) -> bool {
         if !self.needs_test(r) {
             self.counts.skipped += 1;

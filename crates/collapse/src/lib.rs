@@ -143,9 +143,11 @@
 //!
 //! # Determinism
 //!
-//! No hash map, no randomness, and the same output bytes for any thread count: only the
-//! initial ranking runs on rayon's threads, and its candidates are queued in the order a
-//! single thread would queue them.
+//! No hash map, no randomness, and the same output bytes for any thread count: the initial
+//! ranking runs on rayon's threads, and its candidates are queued in the order a single
+//! thread would queue them; [`LiveMesh::collapse_in_parts`] (the parallel phase the stages
+//! run first on big meshes) cuts the mesh into parts that depend on the mesh alone, each
+//! collapsed as a serial run would be, and joins them in part order.
 
 mod faces;
 mod guard;
@@ -158,7 +160,7 @@ mod queue;
 mod fixtures;
 
 pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, NoGuard, Reshape};
-pub use live::{LiveMesh, MAX_FACES, Summary, attributes_only};
+pub use live::{LiveMesh, MAX_FACES, PartOptions, Summary, attributes_only};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel};
 
@@ -251,6 +253,38 @@ pub trait CostModel: Sync {
     fn renumber(&mut self, vertices: &[Index], faces: &[Index]) -> bool {
         let _ = (vertices, faces);
         false
+    }
+    /// A model with this one's settings for `part`, a piece of the mesh this model was
+    /// made for (see [`LiveMesh::collapse_in_parts`]), or `None` (the default) when the
+    /// model cannot work on parts.
+    fn for_part(&self, part: &LiveMesh) -> Option<Self>
+    where
+        Self: Sized,
+    {
+        let _ = part;
+        None
+    }
+    /// After [`LiveMesh::collapse_in_parts`]: vertex `kept` of the whole mesh now stands for
+    /// `merged` (`kept` first, then every vertex the parts merged into it, in their order).
+    /// Called for each such vertex, part after part, while the mesh's vertex → faces lists
+    /// are not rebuilt yet: read the positions and faces only. The default calls
+    /// [`CostModel::merged`].
+    fn joined(&mut self, mesh: &LiveMesh, kept: Index, merged: &[Index]) {
+        self.merged(mesh, kept, merged);
+    }
+    /// After [`LiveMesh::collapse_in_parts`] joined the parts (and closed up the mesh, when
+    /// the model could follow): the mesh is whole and current again. Default: nothing.
+    fn after_join(&mut self, mesh: &LiveMesh) {
+        let _ = mesh;
+    }
+    /// A count the model keeps of its collapses (SVEC: those placed by the feature rule),
+    /// which [`LiveMesh::collapse_in_parts`] adds up over the parts. Default 0.
+    fn tally(&self) -> usize {
+        0
+    }
+    /// Adds a part's [`CostModel::tally`] to this model's. Default: nothing.
+    fn add_tally(&mut self, n: usize) {
+        let _ = n;
     }
 }
 
@@ -380,6 +414,30 @@ impl StopReason {
 }
 
 impl Outcome {
+    /// A run that did nothing (and reached its goal).
+    pub fn none() -> Outcome {
+        Outcome {
+            stop: StopReason::Reached,
+            collapses: 0,
+            refused: Refusals::default(),
+            sve: 0.0,
+            max_cost: 0.0,
+            log: Vec::new(),
+        }
+    }
+
+    /// This run followed by `next` (on the same mesh): counts and logs added up, `next`'s
+    /// stop.
+    pub fn then(mut self, next: Outcome) -> Outcome {
+        self.stop = next.stop;
+        self.collapses += next.collapses;
+        self.refused.add(&next.refused);
+        self.sve += next.sve;
+        self.max_cost = self.max_cost.max(next.max_cost);
+        self.log.extend(next.log);
+        self
+    }
+
     /// Why the run stopped short of its goal, for a report warning; `None` when it reached it.
     /// `target` says the goal in words, `max_error` is the limit the run had.
     pub fn shortfall(

@@ -12,6 +12,10 @@ use coarsen_mesh::ring::{RingShape, ring_shape};
 use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};
 use rayon::prelude::*;
 
+mod parts;
+
+pub use parts::PartOptions;
+
 /// Face states.
 const LIVE: u8 = 0;
 const DEAD: u8 = 1;
@@ -52,7 +56,7 @@ enum Refusal {
 
 impl Refusals {
     /// Adds `other`'s counts to these.
-    fn add(&mut self, other: &Refusals) {
+    pub(crate) fn add(&mut self, other: &Refusals) {
         self.link += other.link;
         self.flip += other.flip;
         self.degenerate += other.degenerate;
@@ -173,6 +177,14 @@ pub struct LiveMesh {
     last_deleted: Vec<Index>,
 }
 
+/// How [`LiveMesh::keep_live`] renumbered: the new vertex `i` is the old
+/// `old_vertex[i]`; `new_vertex` and `new_face` map old indices to new ones (or `NONE`).
+struct Renaming {
+    old_vertex: Vec<Index>,
+    new_vertex: Vec<Index>,
+    new_face: Vec<Index>,
+}
+
 /// Work buffers of one run, reused by every collapse.
 struct Scratch {
     ring: Vec<(Index, Index)>,
@@ -186,6 +198,23 @@ struct Scratch {
     touched: Vec<Index>,
     in_touched: Marks,
     seen: Marks,
+}
+
+impl Scratch {
+    /// Empty buffers, with marks for `n` vertices or faces.
+    fn new(n: usize) -> Self {
+        Scratch {
+            ring: Vec::new(),
+            targets: Vec::new(),
+            kept_faces: Vec::new(),
+            crosses: Vec::new(),
+            list: Vec::new(),
+            around: Vec::new(),
+            touched: Vec::new(),
+            in_touched: Marks::new(n),
+            seen: Marks::new(n),
+        }
+    }
 }
 
 /// A set of indices cleared in O(1) by bumping a generation.
@@ -307,6 +336,12 @@ impl LiveMesh {
             .map(|f| f.map(|v| internal[v as usize]))
             .collect();
         Ok(Self::build(positions, faces, Some(original_of)))
+    }
+
+    /// The index of vertex `v` in the input (for a part of a live mesh, see
+    /// [`LiveMesh::collapse_in_parts`], in that live mesh), whatever the numbering inside.
+    pub fn input_index(&self, v: Index) -> Index {
+        self.original(v)
     }
 
     /// The input's index of internal vertex `v` (see [`LiveMesh::new_renumbered`]).
@@ -860,17 +895,7 @@ impl LiveMesh {
         if self.reached(opts.goal) {
             return out;
         }
-        let mut s = Scratch {
-            ring: Vec::new(),
-            targets: Vec::new(),
-            kept_faces: Vec::new(),
-            crosses: Vec::new(),
-            list: Vec::new(),
-            around: Vec::new(),
-            touched: Vec::new(),
-            in_touched: Marks::new(self.pos.len().max(self.faces.len())),
-            seen: Marks::new(self.pos.len().max(self.faces.len())),
-        };
+        let mut s = Scratch::new(self.pos.len().max(self.faces.len()));
         let per_face = if unit == Unit::Edge { 3 } else { 2 };
         // Room for every candidate: each face's edges count half, a boundary edge whole
         // (and a boundary loop has as many edges as vertices).
@@ -992,6 +1017,26 @@ impl LiveMesh {
     /// `model` (crate docs, *Memory order*); false, changing nothing, when the model
     /// cannot follow.
     fn close_up<M: CostModel>(&mut self, model: &mut M, q: &mut Queue) -> bool {
+        let Some(r) = self.keep_live(model) else {
+            return false;
+        };
+        self.lists = self.lists.renumbered(&r.old_vertex, &r.new_face);
+        q.renumber(&r.new_vertex, |e| self.is_current(e));
+        true
+    }
+
+    /// After the parts' results were written in (see `collapse_in_parts`): closes up the
+    /// arrays when `model` can follow, and builds the vertex → faces lists afresh.
+    fn rebuild_closed_up<M: CostModel>(&mut self, model: &mut M) {
+        let _ = self.keep_live(model);
+        let use_face: Vec<bool> = self.face_state.iter().map(|&s| s == LIVE).collect();
+        self.lists = FaceLists::build(self.pos.len(), &self.faces, &use_face);
+    }
+
+    /// Keeps the live vertices and faces, renumbered densely in their order, with `model`
+    /// (the vertex → faces lists excepted); `None`, changing nothing, when the model cannot
+    /// follow.
+    fn keep_live<M: CostModel>(&mut self, model: &mut M) -> Option<Renaming> {
         let mut new_vertex = vec![NONE; self.pos.len()];
         let mut old_vertex: Vec<Index> = Vec::with_capacity(self.n_vertices + 1);
         for (v, &alive) in self.alive.iter().enumerate() {
@@ -1009,7 +1054,7 @@ impl LiveMesh {
             }
         }
         if !model.renumber(&old_vertex, &old_face) {
-            return false;
+            return None;
         }
         match &mut self.base_vertex {
             Some(b) => keep_in_order(b, &old_vertex),
@@ -1033,10 +1078,12 @@ impl LiveMesh {
         }
         keep_in_order(&mut self.face_state, &old_face);
         keep_in_order(&mut self.input_normal, &old_face);
-        self.lists = self.lists.renumbered(&old_vertex, &new_face);
         self.last_deleted.clear();
-        q.renumber(&new_vertex, |e| self.is_current(e));
-        true
+        Some(Renaming {
+            old_vertex,
+            new_vertex,
+            new_face,
+        })
     }
 
     fn reached(&self, goal: Goal) -> bool {

@@ -234,6 +234,16 @@ impl CostModel for QuadricModel {
         crate::keep_in_order(&mut self.quadrics, vertices);
         true
     }
+
+    /// The whole's quadrics of the part's vertices, as the whole's collapses left them.
+    fn for_part(&self, part: &LiveMesh) -> Option<Self> {
+        Some(QuadricModel {
+            quadrics: (0..part.vertex_slots() as Index)
+                .map(|v| self.quadrics[part.input_index(v) as usize])
+                .collect(),
+            cost_unit: self.cost_unit,
+        })
+    }
 }
 
 #[cfg(test)]

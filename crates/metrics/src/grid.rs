@@ -247,10 +247,11 @@ impl<'a> GridFacing<'a> {
 }
 
 /// The facing test of [`GridFacing`] against an input whose grid is built on the first
-/// question only (a collapse stage whose gate may never ask one pays nothing).
+/// question only (a collapse stage whose gate may never ask one pays nothing); shared by
+/// threads, the first to ask builds it.
 pub struct LazyGridFacing<'a> {
     input: &'a Mesh,
-    grid: std::cell::OnceCell<GridFacing<'a>>,
+    grid: std::sync::OnceLock<GridFacing<'a>>,
 }
 
 impl<'a> LazyGridFacing<'a> {
@@ -258,7 +259,7 @@ impl<'a> LazyGridFacing<'a> {
     pub fn new(input: &'a Mesh) -> Self {
         LazyGridFacing {
             input,
-            grid: std::cell::OnceCell::new(),
+            grid: std::sync::OnceLock::new(),
         }
     }
 

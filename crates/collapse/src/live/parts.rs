@@ -1,0 +1,629 @@
+//! The parallel phase: the mesh cut into parts collapsed side by side, their collapses then
+//! made on the whole mesh (see [`LiveMesh::collapse_in_parts`]).
+
+use super::{DEAD, LIVE, LiveMesh};
+use crate::{
+    CostModel, FaceGuard, Goal, Index, NONE, Options, Outcome, StopReason, Unit, VertexKind,
+};
+use coarsen_geom::DVec3;
+use rayon::prelude::*;
+
+/// Settings of [`LiveMesh::collapse_in_parts`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PartOptions {
+    /// No parallel phase on a mesh with fewer live faces than this.
+    pub min_faces: usize,
+    /// No round of parts when fewer collapses than this are left.
+    pub min_collapses: usize,
+    /// About how many faces each part holds (the part count depends on the mesh alone,
+    /// never on the thread count).
+    pub faces_per_part: usize,
+    /// The share of the collapses the goal needs that the parts may make, at most (each
+    /// part its share of them, by its vertices).
+    pub share: f64,
+    /// From the second round on, the parts stop at the cost of the candidate at this rank
+    /// among the round's candidates, as a multiple of the collapses the goal still needs
+    /// (ranked over a sample).
+    pub bound_rank: f64,
+    /// Rounds of parts (each cut halfway between the last one's cuts), at most.
+    pub rounds: usize,
+}
+
+impl PartOptions {
+    /// No parallel phase at all.
+    pub fn off() -> Self {
+        PartOptions {
+            min_faces: usize::MAX,
+            ..PartOptions::default()
+        }
+    }
+}
+
+impl Default for PartOptions {
+    fn default() -> Self {
+        PartOptions {
+            min_faces: 1 << 19,
+            min_collapses: 1 << 14,
+            faces_per_part: 1 << 17,
+            share: 0.9,
+            bound_rank: 1.0,
+            rounds: 2,
+        }
+    }
+}
+
+/// One candidate in this many is costed to find the parts' cost bound.
+const SAMPLE_EVERY: usize = 16;
+
+/// What one part did, in the whole mesh's indices: what its free vertices and their faces
+/// became, and its counts.
+struct PartRun<G> {
+    /// Each surviving free vertex: index, position, summed input normal and area.
+    vertices: Vec<(Index, DVec3, DVec3, f64)>,
+    /// The input vertices merged into each surviving free vertex that merged any, the
+    /// vertex itself first, in the order it merged them.
+    clusters: Vec<Vec<Index>>,
+    /// Each surviving face at a free vertex: index and corners.
+    faces: Vec<(Index, [Index; 3])>,
+    /// Vertices and faces removed.
+    removed_vertices: usize,
+    removed_faces: usize,
+    /// The part model's [`CostModel::tally`].
+    tally: usize,
+    outcome: Outcome,
+    guard: G,
+}
+
+impl LiveMesh {
+    /// Collapses most of the way to `opts.goal` on several threads, before
+    /// [`LiveMesh::collapse_guarded`] finishes on one (the stages call both, in that order);
+    /// returns what it did and the guards the parts used (for their counts).
+    ///
+    /// In each round the vertices are cut into parts of consecutive indices (close in space
+    /// once [`LiveMesh::new_renumbered`] ordered them; about
+    /// [`PartOptions::faces_per_part`] faces each). A vertex is *free* when every vertex of
+    /// its faces lies in its part: collapses of free vertices in different parts touch no
+    /// common vertex or face, so they commute. Each part becomes a live mesh of its own
+    /// (every face at one of its vertices, the vertices that are not free locked), with a
+    /// model made by [`CostModel::for_part`] and a guard by `new_guard`, and collapses in
+    /// its own greedy order, with every check, until it made its share of
+    /// [`PartOptions::share`] of the collapses still needed (shared by free vertices) or,
+    /// from the second round on, its candidates cost more than the round's bound (the
+    /// cost at rank [`PartOptions::bound_rank`] × the collapses still needed among the
+    /// round's candidates, from a sample). What the parts' free vertices and faces became
+    /// is then written into this mesh, part after part, the model told through
+    /// [`CostModel::joined`] and [`CostModel::after_join`], and the arrays closed up. The
+    /// second round's cuts fall halfway between the first's, so that the strips the first
+    /// left locked are collapsed too.
+    ///
+    /// Does nothing (an empty outcome) on a mesh smaller than [`PartOptions::min_faces`],
+    /// while a progressive record is kept (its steps must be made on this mesh, one after
+    /// the other), when `model` cannot work on parts, or when fewer than
+    /// [`PartOptions::min_collapses`] collapses are left. The output differs from a serial run's (the order differs near
+    /// the cuts and between parts), but not with the thread count: the parts depend on the
+    /// mesh alone, each runs as a serial run would, and they are joined in part order.
+    pub fn collapse_in_parts<M, G, F>(
+        &mut self,
+        model: &mut M,
+        new_guard: F,
+        opts: &Options,
+        parts: &PartOptions,
+    ) -> (Outcome, Vec<G>)
+    where
+        M: CostModel + Send,
+        G: FaceGuard + Send,
+        F: Fn() -> G + Sync,
+    {
+        let mut out = Outcome::none();
+        let mut guards = Vec::new();
+        // A progressive record needs every collapse made on this mesh.
+        if self.n_faces < parts.min_faces || self.history.is_some() {
+            return (out, guards);
+        }
+        for round in 0..parts.rounds {
+            if self.remaining(opts.goal) < parts.min_collapses {
+                break;
+            }
+            // Each round's cuts fall halfway between the last round's.
+            let offset = if round % 2 == 0 { 0.0 } else { 0.5 };
+            // The first round works on the fine mesh, where the order of collapses hardly
+            // matters (the serial run is left a tenth of them to place the last ones); later
+            // rounds stop at the cost frontier, so that the dearest collapses, which shape
+            // the result, are taken in one order.
+            let bound_rank = (round > 0).then_some(parts.bound_rank);
+            let (o, g) = self.part_round(model, &new_guard, opts, parts, bound_rank, offset);
+            out = out.then(o);
+            guards.extend(g);
+        }
+        out.stop = StopReason::Reached;
+        (out, guards)
+    }
+
+    /// One round of [`LiveMesh::collapse_in_parts`], its cuts `offset` parts along.
+    fn part_round<M, G, F>(
+        &mut self,
+        model: &mut M,
+        new_guard: &F,
+        opts: &Options,
+        parts: &PartOptions,
+        bound_rank: Option<f64>,
+        offset: f64,
+    ) -> (Outcome, Vec<G>)
+    where
+        M: CostModel + Send,
+        G: FaceGuard + Send,
+        F: Fn() -> G + Sync,
+    {
+        let mut out = Outcome::none();
+        let unit = model.unit();
+        let per_collapse = match (unit, opts.goal) {
+            (Unit::Edge, Goal::Vertices(_)) => 1,
+            (Unit::Edge, Goal::Faces(_)) => 2,
+            (Unit::Triangle, Goal::Vertices(_)) => 2,
+            (Unit::Triangle, Goal::Faces(_)) => 4,
+        };
+        let needed = match opts.goal {
+            Goal::Vertices(n) => self.n_vertices.saturating_sub(n),
+            Goal::Faces(n) => self.n_faces.saturating_sub(n),
+        } / per_collapse;
+        let n_parts = (self.n_faces / parts.faces_per_part.max(1)).clamp(2, 64);
+        let slots = self.pos.len();
+        // Part k holds the vertices cuts[k]..cuts[k + 1].
+        let mut cuts: Vec<usize> = vec![0];
+        cuts.extend(
+            (0..=n_parts)
+                .map(|k| ((k as f64 + offset) * slots as f64 / n_parts as f64) as usize)
+                .filter(|&c| c > 0 && c < slots),
+        );
+        cuts.push(slots);
+        cuts.dedup();
+        let mut part_id = vec![0u32; slots];
+        for (k, w) in cuts.windows(2).enumerate() {
+            part_id[w[0]..w[1]].fill(k as u32);
+        }
+        let part_of = |v: Index| part_id[v as usize];
+        let free: Vec<bool> = (0..slots as Index)
+            .into_par_iter()
+            .map(|v| {
+                let ok_kind = matches!(
+                    self.kind[v as usize],
+                    VertexKind::Interior | VertexKind::Boundary
+                );
+                ok_kind
+                    && self.alive[v as usize]
+                    && self.lists.get(v).iter().all(|&f| {
+                        self.faces[f as usize]
+                            .iter()
+                            .all(|&u| part_of(u) == part_of(v))
+                    })
+            })
+            .collect();
+        let bound = match bound_rank {
+            Some(rank) => self.sample_bound(model, unit, &free, needed, rank),
+            None => f64::INFINITY,
+        };
+        let free_total = free.iter().filter(|&&f| f).count().max(1);
+        let max_error = match opts.max_error {
+            Some(m) => Some(m.min(bound)),
+            None => bound.is_finite().then_some(bound),
+        };
+        let (this, shared): (&LiveMesh, &M) = (self, model);
+        let runs: Vec<PartRun<G>> = cuts
+            .par_windows(2)
+            .map(|w| {
+                let (lo, hi) = (w[0], w[1]);
+                let free_here = free[lo..hi].iter().filter(|&&f| f).count();
+                let cap =
+                    (parts.share * needed as f64 * free_here as f64 / free_total as f64) as usize;
+                this.run_part(
+                    shared,
+                    new_guard,
+                    opts,
+                    (lo as Index, hi as Index),
+                    &free,
+                    cap,
+                    max_error,
+                )
+            })
+            .collect();
+
+        if runs.iter().all(|r| r.outcome.collapses == 0) {
+            out.refused = runs.iter().fold(out.refused, |mut sum, r| {
+                sum.add(&r.outcome.refused);
+                sum
+            });
+            return (out, runs.into_iter().map(|r| r.guard).collect());
+        }
+        // The faces and vertices the parts own go, and what they left comes back.
+        for f in 0..self.faces.len() {
+            if self.face_state[f] == LIVE && self.faces[f].iter().any(|&v| free[v as usize]) {
+                self.face_state[f] = DEAD;
+            }
+        }
+        for (alive, &free) in self.alive.iter_mut().zip(&free) {
+            *alive &= !free;
+        }
+        let mut guards = Vec::with_capacity(runs.len());
+        for run in runs {
+            let mut o = run.outcome;
+            // Candidates at vertices the cut locked, or refused by the boundary rules, are
+            // ranked (and counted) again by the serial phase.
+            o.refused.locked = 0;
+            o.refused.boundary = 0;
+            if opts.keep_log {
+                for r in &mut o.log {
+                    r.kept = self.original(r.kept);
+                    r.removed = r
+                        .removed
+                        .map(|v| if v == NONE { NONE } else { self.original(v) });
+                }
+            } else {
+                o.log = Vec::new();
+            }
+            out = out.then(o);
+            guards.push(run.guard);
+            for &(v, p, normal, area) in &run.vertices {
+                let v = v as usize;
+                self.alive[v] = true;
+                self.pos[v] = p;
+                self.region_normal[v] = normal;
+                self.region_area[v] = area;
+            }
+            for &(f, corners) in &run.faces {
+                self.face_state[f as usize] = LIVE;
+                self.faces[f as usize] = corners;
+            }
+            for members in &run.clusters {
+                // As `merge` links them: each merged vertex's own list after the kept one's.
+                let kept = members[0] as usize;
+                for &m in &members[1..] {
+                    let tail = self.cluster_tail[kept] as usize;
+                    self.cluster_next[tail] = self.base(m);
+                    self.cluster_tail[kept] = self.cluster_tail[m as usize];
+                }
+                model.joined(self, members[0], members);
+            }
+            model.add_tally(run.tally);
+            self.n_vertices -= run.removed_vertices;
+            self.n_faces -= run.removed_faces;
+        }
+        self.rebuild_closed_up(model);
+        model.after_join(self);
+        (out, guards)
+    }
+
+    /// The cost of the candidate at rank `bound_rank · needed` among the candidates of free
+    /// vertices, estimated from one in [`SAMPLE_EVERY`] of them.
+    fn sample_bound<M: CostModel>(
+        &self,
+        model: &M,
+        unit: Unit,
+        free: &[bool],
+        needed: usize,
+        bound_rank: f64,
+    ) -> f64 {
+        let n = self.faces.len();
+        let mut costs: Vec<f64> = (0..n.div_ceil(SAMPLE_EVERY))
+            .into_par_iter()
+            .flat_map_iter(|k| {
+                let f = k * SAMPLE_EVERY;
+                let face = self.faces[f];
+                let live = self.face_state[f] == LIVE && face.iter().all(|&v| free[v as usize]);
+                let cands: [Option<[Index; 3]>; 3] = if !live {
+                    [None; 3]
+                } else {
+                    match unit {
+                        Unit::Triangle => [Some(face), None, None],
+                        Unit::Edge => std::array::from_fn(|c| {
+                            let (a, b) = (face[c], face[(c + 1) % 3]);
+                            (a < b || self.is_boundary_edge(a, b)).then_some([
+                                a.min(b),
+                                a.max(b),
+                                NONE,
+                            ])
+                        }),
+                    }
+                };
+                cands.into_iter().flatten().filter_map(move |c| {
+                    let verts = &c[..if unit == Unit::Edge { 2 } else { 3 }];
+                    let pinned = self.rule(verts).ok()?;
+                    self.plan(model, verts, pinned).map(|p| p.cost)
+                })
+            })
+            .collect();
+        if costs.is_empty() {
+            return 0.0;
+        }
+        let rank =
+            ((bound_rank * needed as f64 / SAMPLE_EVERY as f64) as usize).min(costs.len() - 1);
+        let (_, c, _) = costs.select_nth_unstable_by(rank, f64::total_cmp);
+        *c
+    }
+
+    /// Collapses the part of vertices `lo..hi` on a live mesh of its own, at most `cap`
+    /// times and up to cost `max_error`; its log speaks this mesh's indices.
+    #[allow(clippy::too_many_arguments)]
+    fn run_part<M, G, F>(
+        &self,
+        model: &M,
+        new_guard: &F,
+        opts: &Options,
+        (lo, hi): (Index, Index),
+        free: &[bool],
+        cap: usize,
+        max_error: Option<f64>,
+    ) -> PartRun<G>
+    where
+        M: CostModel,
+        G: FaceGuard,
+        F: Fn() -> G,
+    {
+        // Every live face at a vertex of the part, once (from its first corner in the part).
+        let inside = |v: Index| v >= lo && v < hi;
+        let mut faces: Vec<Index> = Vec::new();
+        for v in lo..hi {
+            for &f in self.lists.get(v) {
+                let face = self.faces[f as usize];
+                if face.iter().find(|&&u| inside(u)) == Some(&v) {
+                    faces.push(f);
+                }
+            }
+        }
+        faces.sort_unstable();
+        let mut verts: Vec<Index> = faces.iter().flat_map(|&f| self.faces[f as usize]).collect();
+        verts.sort_unstable();
+        verts.dedup();
+        let local = |v: Index| verts.binary_search(&v).unwrap_or(0) as Index;
+        let positions: Vec<DVec3> = verts.iter().map(|&v| self.pos[v as usize]).collect();
+        let local_faces: Vec<[Index; 3]> = faces
+            .iter()
+            .map(|&f| self.faces[f as usize].map(local))
+            .collect();
+        // The part speaks this mesh's indices as its input's: its log, and
+        // `LiveMesh::input_index` for the models.
+        let mut part = LiveMesh::build(positions, local_faces, Some(verts.clone()));
+        for (i, &v) in verts.iter().enumerate() {
+            part.kind[i] = if free[v as usize] {
+                self.kind[v as usize]
+            } else {
+                VertexKind::Locked
+            };
+            part.region_normal[i] = self.region_normal[v as usize];
+            part.region_area[i] = self.region_area[v as usize];
+        }
+        for (i, &f) in faces.iter().enumerate() {
+            part.input_normal[i] = self.input_normal[f as usize];
+        }
+        part.diagonal = self.diagonal;
+        part.min_cross = self.min_cross;
+
+        let part_vertices_before = part.n_vertices;
+        let mut guard = new_guard();
+        let (outcome, tally) = match model.for_part(&part) {
+            Some(mut part_model) => {
+                let removes = match model.unit() {
+                    Unit::Edge => 1,
+                    Unit::Triangle => 2,
+                };
+                let goal = Goal::Vertices(part.n_vertices.saturating_sub(cap * removes));
+                let part_opts = Options {
+                    goal,
+                    max_error,
+                    ..*opts
+                };
+                let o = part.collapse_guarded(&mut part_model, &mut guard, &part_opts, &mut |_| {});
+                (o, part_model.tally())
+            }
+            None => (Outcome::none(), 0),
+        };
+
+        // What the free vertices and their faces became, in this mesh's indices.
+        let owned = |i: Index| free[part.input_index(i) as usize];
+        let mut vertices = Vec::new();
+        let mut clusters = Vec::new();
+        for i in 0..part.pos.len() as Index {
+            if !part.alive[i as usize] || !owned(i) {
+                continue;
+            }
+            let iu = i as usize;
+            vertices.push((
+                part.input_index(i),
+                part.pos[iu],
+                part.region_normal[iu],
+                part.region_area[iu],
+            ));
+            let first = part.base(i);
+            if part.cluster_next[first as usize] != NONE {
+                let mut members = Vec::new();
+                let mut b = first;
+                while b != NONE {
+                    members.push(part.original_of_base(b));
+                    b = part.cluster_next[b as usize];
+                }
+                clusters.push(members);
+            }
+        }
+        let mut kept_faces = Vec::new();
+        for (j, &state) in part.face_state.iter().enumerate() {
+            let face = part.faces[j];
+            if state == LIVE && face.iter().any(|&v| owned(v)) {
+                let input_face = match &part.base_face {
+                    Some(b) => b[j],
+                    None => j as Index,
+                };
+                kept_faces.push((
+                    faces[input_face as usize],
+                    face.map(|v| part.input_index(v)),
+                ));
+            }
+        }
+        PartRun {
+            vertices,
+            clusters,
+            faces: kept_faces,
+            removed_vertices: part_vertices_before - part.n_vertices,
+            removed_faces: faces.len() - part.n_faces,
+            tally,
+            outcome,
+            guard,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::*;
+    use crate::{NoGuard, QemOptions, QuadricModel};
+    use coarsen_mesh::Mesh;
+
+    /// Parts of a few hundred faces, so that a small mesh is cut into many.
+    const SMALL: PartOptions = PartOptions {
+        min_faces: 0,
+        min_collapses: 0,
+        faces_per_part: 512,
+        share: 0.9,
+        bound_rank: 1.0,
+        rounds: 2,
+    };
+
+    /// An icosphere with bumps, so that costs vary over it.
+    fn bumpy(levels: u32) -> Mesh {
+        let mut m = icosphere(levels);
+        for p in &mut m.positions {
+            *p *= 1.0 + 0.05 * (5.0 * p.x).sin() * (4.0 * p.y).sin() * (3.0 * p.z).sin();
+        }
+        m
+    }
+
+    /// QEM on `mesh` to `goal`: in parts, then serially; the output and both outcomes.
+    fn qem_in_parts(mesh: &Mesh, goal: Goal, parts: &PartOptions) -> (Mesh, Outcome, Outcome) {
+        let mut live = LiveMesh::new_renumbered(mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let opts = Options::new(goal);
+        let (first, _) = live.collapse_in_parts(&mut model, || NoGuard, &opts, parts);
+        live.check_invariants().unwrap();
+        assert_input_vertices_merged_once(&live);
+        let rest = live.collapse(&mut model, &opts, &mut |_| {});
+        live.check_invariants().unwrap();
+        assert_input_vertices_merged_once(&live);
+        (live.to_mesh(mesh).unwrap().0, first, rest)
+    }
+
+    /// Every input vertex used by a face stands in exactly one live vertex's list.
+    fn assert_input_vertices_merged_once(live: &LiveMesh) {
+        let mut seen = vec![0u32; live.input_vertices];
+        for v in 0..live.pos.len() as Index {
+            if !live.alive[v as usize] {
+                continue;
+            }
+            let mut b = live.base(v);
+            while b != NONE {
+                seen[b as usize] += 1;
+                b = live.cluster_next[b as usize];
+            }
+        }
+        assert!(
+            seen.iter().all(|&n| n == 1),
+            "an input vertex merged twice or lost"
+        );
+    }
+
+    #[test]
+    fn parts_make_most_collapses_and_the_result_is_exact_and_closed() {
+        let sphere = bumpy(5);
+        let n = sphere.n_vertices();
+        let (out, first, rest) = qem_in_parts(&sphere, Goal::Vertices(500), &SMALL);
+        assert_eq!(out.n_vertices(), 500);
+        assert_eq!(assert_closed_manifold(&out).euler, 2);
+        assert_eq!(first.collapses + rest.collapses, n - 500);
+        assert!(first.collapses > (n - 500) * 3 / 4, "{}", first.collapses);
+        assert!(
+            rest.collapses > 0,
+            "the dearest collapses are left to one order"
+        );
+        let placed_close = out.positions.iter().all(|p| (p.length() - 1.0).abs() < 0.1);
+        assert!(placed_close, "a vertex left the surface");
+    }
+
+    #[test]
+    fn the_output_does_not_depend_on_the_thread_count() {
+        let sphere = bumpy(4);
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| qem_in_parts(&sphere, Goal::Vertices(300), &SMALL).0)
+        };
+        let one = on(1);
+        assert_eq!(one, on(2));
+        assert_eq!(one, on(3));
+    }
+
+    #[test]
+    fn a_torus_keeps_its_genus_and_a_grid_its_border() {
+        let t = torus(1.0, 0.3, 96, 48);
+        let (out, first, _) = qem_in_parts(&t, Goal::Vertices(200), &SMALL);
+        assert!(first.collapses > 0);
+        assert_eq!(out.n_vertices(), 200);
+        assert_eq!(assert_closed_manifold(&out).euler, 0);
+
+        let g = grid(64, 64, |x, y| 0.1 * (6.0 * x).sin() * (5.0 * y).cos());
+        let (out, first, _) = qem_in_parts(&g, Goal::Vertices(150), &SMALL);
+        assert!(first.collapses > 0);
+        assert_eq!(out.n_vertices(), 150);
+        let s = LiveMesh::new(&out).unwrap().summary();
+        assert_eq!((s.locked_vertices, s.boundary_loops), (0, 1));
+        // Boundary vertices only move along the square's sides.
+        for p in &out.positions {
+            let on_side = [p.x, p.y].iter().any(|&c| c == 0.0 || c == 1.0);
+            let inside = p.x > 0.0 && p.x < 1.0 && p.y > 0.0 && p.y < 1.0;
+            assert!(on_side || inside, "{p:?} left the square");
+        }
+        assert_eq!((out.bbox().min.x, out.bbox().max.y), (0.0, 1.0));
+    }
+
+    #[test]
+    fn small_meshes_and_progressive_records_are_left_to_the_serial_run() {
+        let sphere = bumpy(3);
+        let mut live = LiveMesh::new(&sphere).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let opts = Options::new(Goal::Vertices(100));
+        let default = PartOptions::default();
+        let (o, _) = live.collapse_in_parts(&mut model, || NoGuard, &opts, &default);
+        assert_eq!(o.collapses, 0, "below min_faces");
+        live.record_progressive();
+        let (o, _) = live.collapse_in_parts(&mut model, || NoGuard, &opts, &SMALL);
+        assert_eq!(o.collapses, 0, "while recording");
+    }
+
+    #[test]
+    fn a_model_that_cannot_work_on_parts_leaves_the_mesh_as_it_was() {
+        let sphere = bumpy(4);
+        let mut live = LiveMesh::new_renumbered(&sphere).unwrap();
+        let before = live.clone();
+        let mut model = shortest_edge();
+        let opts = Options::new(Goal::Vertices(100));
+        let (o, guards) = live.collapse_in_parts(&mut model, || NoGuard, &opts, &SMALL);
+        assert_eq!((o.collapses, guards.len() > 1), (0, true));
+        assert_eq!(live.faces, before.faces);
+        assert_eq!(live.summary(), before.summary());
+    }
+
+    #[test]
+    fn the_log_names_every_collapse_in_input_indices() {
+        let sphere = bumpy(4);
+        let mut live = LiveMesh::new_renumbered(&sphere).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let opts = Options::new(Goal::Vertices(400));
+        let (first, _) = live.collapse_in_parts(&mut model, || NoGuard, &opts, &SMALL);
+        assert_eq!(first.log.len(), first.collapses);
+        let mut gone = vec![false; sphere.n_vertices()];
+        for r in &first.log {
+            assert!(!gone[r.kept as usize], "a removed vertex kept");
+            assert_eq!(r.removed[1], NONE);
+            assert!(!std::mem::replace(&mut gone[r.removed[0] as usize], true));
+        }
+    }
+}
