@@ -15,13 +15,15 @@
 //! | `min_quality` | `0` (off) | refuse collapses leaving a triangle below this quality and below its previous quality |
 //! | `area_weighted` | `true` | weight each face plane by its area |
 //! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
+//! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
 //!
 //! The target comes from the run (`--vertices`, `--faces`, `--ratio` or the pipeline's):
 //! a vertex count is met exactly, a face count or ratio to within one face (an interior
 //! edge collapse removes two faces). The report gives `collapses`, `refused` (by reason),
 //! `sve` (paper 2's squared-volume error, summed over the collapses), `max_cost`, the
 //! final `vertices` and `faces`, why the run `stop`ped, the `locked_vertices` and the
-//! `boundary_loops` before and after, and a warning whenever the target was not reached.
+//! `boundary_loops` before and after, the `parallel_collapses` (made in parts, see below),
+//! and a warning whenever the target was not reached.
 //!
 //! **Facing guard** (`facing_guard`): besides the engine's own flip checks, a collapse is
 //! refused (`refused.facing`) when a face it reshapes would point away (> 90°) from the run
@@ -31,6 +33,17 @@
 //! corners' merged input wraps around a thin part, or they turn by more than 45°); the report
 //! gives how many (`facing_tests`). On the cow's thin legs, ears and tail this removes the
 //! faces that ended nearest to the part's other side.
+//!
+//! **Parallel phase** (`parallel`): on a mesh of 2¹⁹ faces or more, the engine first cuts
+//! the mesh into parts of about 2¹⁷ faces and collapses them side by side, up to nine tenths
+//! of the collapses needed, then once more with the cuts moved halfway (up to the cost that
+//! the collapses still needed reach), and leaves the rest to one greedy order
+//! (`LiveMesh::collapse_in_parts`). The output does not depend on the thread count, but it
+//! is not the purely serial one; with `--progressive` the run is serial (the record needs
+//! every collapse made on the whole mesh), so its output may differ from a run without. On
+//! the bunny subdivided three times (4.4M faces) to 60,000 faces the stage took 9.8 s
+//! instead of 14.1 s, its Hausdorff distance 0.052 % of the diagonal instead of 0.047 %,
+//! Q_avg 0.694 against 0.695; with noise added, 31 s instead of 71 s, `sve` +2 %.
 //!
 //! ```
 //! use coarsen_stage::{Context, Stage, StageReport, Target};
@@ -50,7 +63,8 @@
 //! ```
 
 use coarsen_collapse::{
-    Gated, Goal, GuardCounts, LiveMesh, Options, Outcome, QemOptions, QuadricModel, Summary,
+    FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, PartOptions,
+    QemOptions, QuadricModel, Summary,
 };
 use coarsen_metrics::LazyGridFacing;
 use coarsen_stage::params::check_range;
@@ -79,6 +93,10 @@ params! {
         /// a face could fail (thin parts, sharp turns); `false` leaves only the engine's own
         /// flip checks.
         pub facing_guard: bool = true,
+        /// On meshes of 2¹⁹ faces or more, make most collapses on parts of the mesh side
+        /// by side (`coarsen_collapse::LiveMesh::collapse_in_parts`) before the last ones
+        /// in one greedy order; `false` makes them all in that order.
+        pub parallel: bool = true,
     }
 }
 
@@ -161,15 +179,26 @@ impl Stage for SimplifyQem {
             Goal::Faces(n) => before.faces.saturating_sub(n) / 2,
         };
         progress.begin(Self::KIND, to_remove as u64);
-        let mut advance = |n: usize| progress.advance(n as u64, "collapses");
-        let (outcome, guarded) = if p.facing_guard {
-            let input = LazyGridFacing::new(cx.original);
-            let mut guard = Gated::standard(|a, b, c| input.allows(a, b, c));
-            let outcome = live.collapse_guarded(&mut model, &mut guard, &opts, &mut advance);
-            (outcome, guard.counts)
+        let parts = if p.parallel {
+            PartOptions::default()
         } else {
-            let outcome = live.collapse(&mut model, &opts, &mut advance);
-            (outcome, GuardCounts::default())
+            PartOptions::off()
+        };
+
+        let mut advance = |n: usize| progress.advance(n as u64, "collapses");
+        let (outcome, parallel, guarded) = if p.facing_guard {
+            let input = LazyGridFacing::new(cx.original);
+            let guard = || Gated::standard(|a, b, c| input.allows(a, b, c));
+            collapse(&mut live, &mut model, &opts, &parts, guard, &mut advance)
+        } else {
+            collapse(
+                &mut live,
+                &mut model,
+                &opts,
+                &parts,
+                || NoGuard,
+                &mut advance,
+            )
         };
         progress.end();
         let after = live.summary();
@@ -182,6 +211,7 @@ impl Stage for SimplifyQem {
                 .map(|p| Box::new(p) as coarsen_stage::Handback);
         }
         report(cx.report, &target, p, &outcome, &before, &after);
+        cx.report.figure("parallel_collapses", parallel);
         if p.facing_guard {
             cx.report.figure("facing_tests", guarded.tested);
         }
@@ -190,6 +220,27 @@ impl Stage for SimplifyQem {
         }
         Ok(out)
     }
+}
+
+/// Collapses in parts side by side (on a big enough mesh), then in one greedy order: what
+/// was done, how many collapses the parts made, and what the guards did.
+fn collapse<G: FaceGuard + Send>(
+    live: &mut LiveMesh,
+    model: &mut QuadricModel,
+    opts: &Options,
+    parts: &PartOptions,
+    new_guard: impl Fn() -> G + Sync,
+    advance: &mut dyn FnMut(usize),
+) -> (Outcome, usize, GuardCounts) {
+    let (first, guards) = live.collapse_in_parts(model, &new_guard, opts, parts);
+    let done = first.collapses;
+    advance(done);
+    let mut guard = new_guard();
+    let rest = live.collapse_guarded(model, &mut guard, opts, &mut |n| advance(done + n));
+    let counts = guards
+        .iter()
+        .fold(guard.counts(), |sum, g| sum.plus(&g.counts()));
+    (first.then(rest), done, counts)
 }
 
 /// Fills the stage report: figures, then warnings.
@@ -299,6 +350,7 @@ mod tests {
             min_quality: 1.5,
             area_weighted: true,
             facing_guard: true,
+            parallel: true,
         };
         let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
         assert_eq!(fields, ["max_error", "boundary_weight", "min_quality"]);

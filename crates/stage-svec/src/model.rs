@@ -126,6 +126,8 @@ pub struct SvecModel {
     /// |angle deficit| of each vertex (2π − Σα inside, π − Σα on the boundary).
     deficit: Vec<f64>,
     threshold: f64,
+    /// The settings it was made with.
+    opts: SvecOptions,
     /// 1 / diagonal.
     scale: f64,
     volume_constraint: bool,
@@ -213,6 +215,7 @@ impl SvecModel {
             vertex_area: vec![0.0; n_vertices],
             deficit: vec![0.0; n_vertices],
             threshold: f64::INFINITY,
+            opts: *opts,
             scale,
             volume_constraint: opts.volume_constraint,
             feature_collapses: 0,
@@ -263,6 +266,20 @@ impl SvecModel {
                 mean_plus_sigma(&ks, opts.feature_sigma)
             }
         };
+        m
+    }
+
+    /// The data of `mesh` with this model's settings, unit and feature threshold.
+    fn with_threshold(&self, mesh: &LiveMesh) -> Self {
+        let mut m = SvecModel::new(
+            mesh,
+            &SvecOptions {
+                feature_threshold: Some(self.threshold),
+                ..self.opts
+            },
+        );
+        m.unit = self.unit;
+        m.feature_collapses = self.feature_collapses;
         m
     }
 
@@ -673,6 +690,29 @@ impl CostModel for SvecModel {
         }
         self.ring2 = ring2;
         self.touched = touched;
+    }
+
+    fn for_part(&self, part: &LiveMesh) -> Option<Self> {
+        let mut m = self.with_threshold(part);
+        m.feature_collapses = 0;
+        Some(m)
+    }
+
+    /// Its data are derived from the mesh alone: rebuilt once the parts are joined.
+    fn joined(&mut self, _mesh: &LiveMesh, _kept: Index, _merged: &[Index]) {}
+
+    fn after_join(&mut self, mesh: &LiveMesh) {
+        let feature_collapses = self.feature_collapses;
+        *self = self.with_threshold(mesh);
+        self.feature_collapses = feature_collapses;
+    }
+
+    fn tally(&self) -> usize {
+        self.feature_collapses
+    }
+
+    fn add_tally(&mut self, n: usize) {
+        self.feature_collapses += n;
     }
 
     fn renumber(&mut self, vertices: &[Index], faces: &[Index]) -> bool {

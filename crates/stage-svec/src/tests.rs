@@ -91,6 +91,7 @@ fn needs_a_target_and_checks_its_parameters() {
         min_quality: 3.0,
         target_scale: 0.5,
         facing_guard: true,
+        parallel: true,
     };
     let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
     assert_eq!(
@@ -400,4 +401,52 @@ fn target_scale_stops_at_a_multiple_of_the_target() {
     assert_eq!(out.unwrap().n_vertices(), 150);
     let (out, _) = run(&mesh, Some(Target::Faces(100)), params);
     assert!((299..=300).contains(&out.unwrap().n_faces()));
+}
+
+#[test]
+fn a_big_mesh_collapses_in_parts_first_and_ends_close_to_the_serial_result() {
+    let mesh = tessellated_cube(40);
+    let in_parts = PartOptions {
+        min_faces: 0,
+        min_collapses: 0,
+        faces_per_part: 1024,
+        ..PartOptions::default()
+    };
+    let serial = PartOptions {
+        min_faces: usize::MAX,
+        ..PartOptions::default()
+    };
+    let run_with = |parts: &PartOptions| {
+        let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
+        let params = SvecParams::default();
+        let totals = simplify(
+            &mut live,
+            &params,
+            Goal::Faces(1000),
+            parts,
+            || NoGuard,
+            &mut |_| {},
+        );
+        (live.to_mesh(&mesh).unwrap().0, totals)
+    };
+    let (a, ta) = run_with(&in_parts);
+    let (b, tb) = run_with(&serial);
+    assert_ne!(a, b, "the parts changed the order of collapses");
+    assert_eq!(closed_euler(&a), 2);
+    assert!((999..=1000).contains(&a.n_faces()), "{}", a.n_faces());
+    // The cube's corners are strong features, whichever part collapses next to them.
+    assert!(ta.feature_collapses > 0 && tb.feature_collapses > 0);
+    assert!(
+        ta.feature_collapses * 2 > tb.feature_collapses
+            && tb.feature_collapses * 2 > ta.feature_collapses,
+        "{} against {}",
+        ta.feature_collapses,
+        tb.feature_collapses
+    );
+    assert!(
+        ta.outcome.sve < 1.5 * tb.outcome.sve,
+        "{} against {}",
+        ta.outcome.sve,
+        tb.outcome.sve
+    );
 }
