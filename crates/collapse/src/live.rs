@@ -884,14 +884,7 @@ impl LiveMesh {
     ) -> Outcome {
         let unit = model.unit();
         let reach = model.reach();
-        let mut out = Outcome {
-            stop: StopReason::Reached,
-            collapses: 0,
-            refused: Refusals::default(),
-            sve: 0.0,
-            max_cost: 0.0,
-            log: Vec::new(),
-        };
+        let mut out = Outcome::none();
         if self.reached(opts.goal) {
             return out;
         }
