@@ -488,7 +488,7 @@ mod tests {
     };
 
     /// An icosphere with bumps, so that costs vary over it.
-    fn bumpy(levels: u32) -> Mesh {
+    pub(super) fn bumpy(levels: u32) -> Mesh {
         let mut m = icosphere(levels);
         for p in &mut m.positions {
             *p *= 1.0 + 0.05 * (5.0 * p.x).sin() * (4.0 * p.y).sin() * (3.0 * p.z).sin();
@@ -511,7 +511,7 @@ mod tests {
     }
 
     /// Every input vertex used by a face stands in exactly one live vertex's list.
-    fn assert_input_vertices_merged_once(live: &LiveMesh) {
+    pub(super) fn assert_input_vertices_merged_once(live: &LiveMesh) {
         let mut seen = vec![0u32; live.input_vertices];
         for v in 0..live.pos.len() as Index {
             if !live.alive[v as usize] {
@@ -624,6 +624,87 @@ mod tests {
             assert!(!gone[r.kept as usize], "a removed vertex kept");
             assert_eq!(r.removed[1], NONE);
             assert!(!std::mem::replace(&mut gone[r.removed[0] as usize], true));
+        }
+    }
+}
+
+#[cfg(test)]
+mod properties {
+    use super::tests::{assert_input_vertices_merged_once, bumpy};
+    use super::*;
+    use crate::{NoGuard, QemOptions, QuadricModel};
+    use coarsen_mesh::Mesh;
+    use proptest::prelude::*;
+
+    /// A sphere, a torus or a disc with two holes, each vertex moved by up to `noise`.
+    fn shape(kind: u8, seed: u64, noise: f64) -> Mesh {
+        let mut m = match kind % 3 {
+            0 => bumpy(4),
+            1 => coarsen_shapes::torus(1.0, 0.35, 64, 32).unwrap(),
+            _ => coarsen_shapes::disk_with_holes(2, 40, 1.0).unwrap(),
+        };
+        let mut s = seed;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for p in &mut m.positions {
+            *p += DVec3::new(next(), next(), next()) * noise;
+        }
+        m
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig {
+            cases: 24,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x00C0_11A9_5E00_0001),
+            ..ProptestConfig::default()
+        })]
+
+        /// Whatever the cut, the share and the target: the whole mesh is sound after the
+        /// parts are joined and after the serial finish, every input vertex is merged
+        /// into exactly one output vertex, and the target and the topology are met as a
+        /// serial run meets them.
+        #[test]
+        fn joined_parts_keep_the_mesh_sound(
+            kind in 0u8..3,
+            seed in 1u64..u64::MAX,
+            frac in 0.05f64..0.8,
+            faces_per_part in 128usize..4096,
+            share in 0.3f64..0.95,
+        ) {
+            let mesh = shape(kind, seed, 0.002);
+            let target = ((mesh.n_vertices() as f64 * frac) as usize).max(30);
+            let parts = PartOptions {
+                min_faces: 0,
+                min_collapses: 0,
+                faces_per_part,
+                share,
+                ..PartOptions::default()
+            };
+            let opts = Options::new(Goal::Vertices(target));
+            let run = |parts: &PartOptions| {
+                let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
+                let mut model = QuadricModel::new(&live, &QemOptions::default());
+                let (first, _) = live.collapse_in_parts(&mut model, || NoGuard, &opts, parts);
+                live.check_invariants().unwrap();
+                assert_input_vertices_merged_once(&live);
+                let rest = live.collapse(&mut model, &opts, &mut |_| {});
+                live.check_invariants().unwrap();
+                assert_input_vertices_merged_once(&live);
+                (live.summary(), first, rest)
+            };
+            let (s, first, rest) = run(&parts);
+            let (serial, _, _) = run(&PartOptions::off());
+            let before = LiveMesh::new(&mesh).unwrap().summary();
+            prop_assert!(first.collapses > 0);
+            prop_assert_eq!(rest.stop, StopReason::Reached);
+            prop_assert_eq!(s.vertices, target);
+            prop_assert_eq!(s.vertices, serial.vertices);
+            prop_assert_eq!((s.euler, s.boundary_loops), (before.euler, before.boundary_loops));
+            prop_assert_eq!(s.locked_vertices, 0);
         }
     }
 }
