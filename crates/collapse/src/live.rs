@@ -177,6 +177,17 @@ pub struct LiveMesh {
     last_deleted: Vec<Index>,
 }
 
+/// What [`LiveMesh::build`] derives from its mesh: per vertex its kind and the sums of
+/// the input's area-weighted normals around it, per face its input normal, and the scale.
+struct Derived {
+    kind: Vec<VertexKind>,
+    diagonal: f64,
+    min_cross: f64,
+    input_normal: Vec<DVec3>,
+    region_normal: Vec<DVec3>,
+    region_area: Vec<f64>,
+}
+
 /// How [`LiveMesh::keep_live`] renumbered: the new vertex `i` is the old
 /// `old_vertex[i]`; `new_vertex` and `new_face` map old indices to new ones (or `NONE`).
 struct Renaming {
@@ -400,6 +411,17 @@ impl LiveMesh {
         faces: Vec<[Index; 3]>,
         original_of: Option<Vec<Index>>,
     ) -> LiveMesh {
+        Self::build_with(positions, faces, original_of, None)
+    }
+
+    /// [`LiveMesh::build`] with the vertex kinds, scale and input normals `given` instead
+    /// of derived from the mesh (a part of a live mesh takes them from the whole).
+    fn build_with(
+        positions: Vec<DVec3>,
+        faces: Vec<[Index; 3]>,
+        original_of: Option<Vec<Index>>,
+        given: Option<Derived>,
+    ) -> LiveMesh {
         let mesh = Mesh::new(positions, faces);
         let n = mesh.n_vertices();
         let face_state: Vec<u8> = mesh
@@ -415,7 +437,53 @@ impl LiveMesh {
             .collect();
         let use_face: Vec<bool> = face_state.iter().map(|&s| s == LIVE).collect();
         let lists = FaceLists::build(n, &mesh.faces, &use_face);
+        let Derived {
+            kind,
+            diagonal,
+            min_cross,
+            input_normal,
+            region_normal,
+            region_area,
+        } = match given {
+            Some(d) => d,
+            None => Self::derive(&mesh, &face_state, &lists),
+        };
+        let n_faces = mesh.n_faces();
+        let n_faces_all = mesh.faces.len();
+        let Mesh {
+            positions, faces, ..
+        } = mesh;
+        LiveMesh {
+            pos: positions,
+            faces,
+            face_state,
+            lists,
+            n_vertices: kind.iter().filter(|k| **k != VertexKind::Isolated).count(),
+            n_faces,
+            kind,
+            alive: vec![true; n],
+            stamp: vec![0; n],
+            cluster_next: vec![NONE; n],
+            cluster_tail: (0..n as Index).collect(),
+            diagonal,
+            min_cross,
+            input_normal,
+            region_normal,
+            region_area,
+            history: None,
+            last_deleted: Vec::new(),
+            original_of,
+            base_vertex: None,
+            base_face: None,
+            input_vertices: n,
+            input_faces: n_faces_all,
+        }
+    }
 
+    /// The vertex kinds, the scale, the input face normals and the per-vertex sums of the
+    /// input's area-weighted normals of `mesh`.
+    fn derive(mesh: &Mesh, face_state: &[u8], lists: &FaceLists) -> Derived {
+        let n = mesh.n_vertices();
         let cross_of = |f: usize| {
             let [a, b, c] = mesh.faces[f].map(|v| mesh.positions[v as usize]);
             triangle::cross(a, b, c)
@@ -449,7 +517,7 @@ impl LiveMesh {
                 for (face, _) in mesh
                     .faces
                     .iter()
-                    .zip(&face_state)
+                    .zip(face_state)
                     .filter(|(_, s)| **s == PASSIVE)
                 {
                     for &v in face {
@@ -493,35 +561,13 @@ impl LiveMesh {
                 (region_normal, region_area)
             },
         );
-        let n_faces = mesh.n_faces();
-        let n_faces_all = mesh.faces.len();
-        let Mesh {
-            positions, faces, ..
-        } = mesh;
-        LiveMesh {
-            pos: positions,
-            faces,
-            face_state,
-            lists,
-            n_vertices: kind.iter().filter(|k| **k != VertexKind::Isolated).count(),
-            n_faces,
+        Derived {
             kind,
-            alive: vec![true; n],
-            stamp: vec![0; n],
-            cluster_next: vec![NONE; n],
-            cluster_tail: (0..n as Index).collect(),
             diagonal,
             min_cross,
             input_normal,
             region_normal,
             region_area,
-            history: None,
-            last_deleted: Vec::new(),
-            original_of,
-            base_vertex: None,
-            base_face: None,
-            input_vertices: n,
-            input_faces: n_faces_all,
         }
     }
 

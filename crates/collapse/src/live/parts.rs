@@ -1,7 +1,7 @@
 //! The parallel phase: the mesh cut into parts collapsed side by side, their collapses then
 //! made on the whole mesh (see [`LiveMesh::collapse_in_parts`]).
 
-use super::{DEAD, LIVE, LiveMesh};
+use super::{DEAD, Derived, LIVE, LiveMesh};
 use crate::{
     CostModel, FaceGuard, Goal, Index, NONE, Options, Outcome, StopReason, Unit, VertexKind,
 };
@@ -381,22 +381,32 @@ impl LiveMesh {
             .collect();
         // The part speaks this mesh's indices as its input's: its log, and
         // `LiveMesh::input_index` for the models.
-        let mut part = LiveMesh::build(positions, local_faces, Some(verts.clone()));
-        for (i, &v) in verts.iter().enumerate() {
-            part.kind[i] = if free[v as usize] {
-                self.kind[v as usize]
-            } else {
-                VertexKind::Locked
-            };
-            part.region_normal[i] = self.region_normal[v as usize];
-            part.region_area[i] = self.region_area[v as usize];
-        }
-        for (i, &f) in faces.iter().enumerate() {
-            part.input_normal[i] = self.input_normal[f as usize];
-        }
-        part.diagonal = self.diagonal;
-        part.min_cross = self.min_cross;
-
+        // Its vertices that are not free are locked; the rest is the whole's.
+        let derived = Derived {
+            kind: verts
+                .iter()
+                .map(|&v| match free[v as usize] {
+                    true => self.kind[v as usize],
+                    false => VertexKind::Locked,
+                })
+                .collect(),
+            diagonal: self.diagonal,
+            min_cross: self.min_cross,
+            input_normal: faces
+                .iter()
+                .map(|&f| self.input_normal[f as usize])
+                .collect(),
+            region_normal: verts
+                .iter()
+                .map(|&v| self.region_normal[v as usize])
+                .collect(),
+            region_area: verts
+                .iter()
+                .map(|&v| self.region_area[v as usize])
+                .collect(),
+        };
+        let mut part =
+            LiveMesh::build_with(positions, local_faces, Some(verts.clone()), Some(derived));
         let part_vertices_before = part.n_vertices;
         let mut guard = new_guard();
         let (outcome, tally) = match model.for_part(&part) {
