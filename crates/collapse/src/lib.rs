@@ -160,7 +160,7 @@ mod queue;
 mod fixtures;
 
 pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, NoGuard, Reshape};
-pub use live::{LiveMesh, MAX_FACES, PartOptions, Summary, attributes_only};
+pub use live::{LiveMesh, MAX_FACES, PartOptions, Parted, Summary, attributes_only};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel};
 

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 mod parts;
 
-pub use parts::PartOptions;
+pub use parts::{PartOptions, Parted};
 
 /// Face states.
 const LIVE: u8 = 0;

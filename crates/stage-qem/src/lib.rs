@@ -179,11 +179,7 @@ impl Stage for SimplifyQem {
             Goal::Faces(n) => before.faces.saturating_sub(n) / 2,
         };
         progress.begin(Self::KIND, to_remove as u64);
-        let parts = if p.parallel {
-            PartOptions::default()
-        } else {
-            PartOptions::off()
-        };
+        let parts = PartOptions::when(p.parallel);
 
         let mut advance = |n: usize| progress.advance(n as u64, "collapses");
         let (outcome, parallel, guarded) = if p.facing_guard {
@@ -222,8 +218,7 @@ impl Stage for SimplifyQem {
     }
 }
 
-/// Collapses in parts side by side (on a big enough mesh), then in one greedy order: what
-/// was done, how many collapses the parts made, and what the guards did.
+/// [`LiveMesh::collapse_parted`]'s outcome, collapses made in parts and guard counts.
 fn collapse<G: FaceGuard + Send>(
     live: &mut LiveMesh,
     model: &mut QuadricModel,
@@ -232,15 +227,9 @@ fn collapse<G: FaceGuard + Send>(
     new_guard: impl Fn() -> G + Sync,
     advance: &mut dyn FnMut(usize),
 ) -> (Outcome, usize, GuardCounts) {
-    let (first, guards) = live.collapse_in_parts(model, &new_guard, opts, parts);
-    let done = first.collapses;
-    advance(done);
-    let mut guard = new_guard();
-    let rest = live.collapse_guarded(model, &mut guard, opts, &mut |n| advance(done + n));
-    let counts = guards
-        .iter()
-        .fold(guard.counts(), |sum, g| sum.plus(&g.counts()));
-    (first.then(rest), done, counts)
+    let run = live.collapse_parted(model, new_guard, opts, parts, advance);
+    let counts = run.part_counts.plus(&run.guard.counts());
+    (run.outcome, run.in_parts, counts)
 }
 
 /// Fills the stage report: figures, then warnings.

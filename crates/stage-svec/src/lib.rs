@@ -256,11 +256,7 @@ impl Stage for SimplifySvec {
         };
         progress.begin(Self::KIND, to_remove as u64);
         let mut advance = |n: usize| progress.advance(n as u64, "collapses");
-        let parts = if p.parallel {
-            PartOptions::default()
-        } else {
-            PartOptions::off()
-        };
+        let parts = PartOptions::when(p.parallel);
         let totals = if p.facing_guard {
             let input = LazyGridFacing::new(cx.original);
             simplify(
@@ -322,16 +318,8 @@ fn simplify<G: FaceGuard + Send>(
         keep_log: false,
         ..Options::new(goal)
     };
-    let (first, guards) = live.collapse_in_parts(&mut model, &new_guard, &opts, parts);
-    let mut guarded = guards
-        .iter()
-        .fold(GuardCounts::default(), |sum, g| sum.plus(&g.counts()));
-    let done_in_parts = first.collapses;
-    let done = done_in_parts;
-    progress(done);
-    let mut guard = new_guard();
-    let rest = live.collapse_guarded(&mut model, &mut guard, &opts, &mut |n| progress(done + n));
-    let mut outcome = first.then(rest);
+    let run = live.collapse_parted(&mut model, new_guard, &opts, parts, progress);
+    let (mut outcome, done_in_parts, mut guard) = (run.outcome, run.in_parts, run.guard);
     let triangle_collapses = outcome.collapses;
     let mut edge_collapses = 0;
     if !matches!(outcome.stop, StopReason::MaxError { .. }) {
@@ -343,7 +331,7 @@ fn simplify<G: FaceGuard + Send>(
         edge_collapses = finish.collapses;
         outcome = outcome.then(finish);
     }
-    guarded = guarded.plus(&guard.counts());
+    let guarded = run.part_counts.plus(&guard.counts());
     Totals {
         outcome,
         triangle_collapses,

@@ -2,6 +2,7 @@
 //! made on the whole mesh (see [`LiveMesh::collapse_in_parts`]).
 
 use super::{DEAD, Derived, LIVE, LiveMesh};
+use crate::GuardCounts;
 use crate::{
     CostModel, FaceGuard, Goal, Index, NONE, Options, Outcome, StopReason, Unit, VertexKind,
 };
@@ -30,6 +31,15 @@ pub struct PartOptions {
 }
 
 impl PartOptions {
+    /// The default options when `on`, else [`PartOptions::off`] (a stage's `parallel`).
+    pub fn when(on: bool) -> Self {
+        if on {
+            PartOptions::default()
+        } else {
+            PartOptions::off()
+        }
+    }
+
     /// No parallel phase at all.
     pub fn off() -> Self {
         PartOptions {
@@ -50,6 +60,18 @@ impl Default for PartOptions {
             rounds: 2,
         }
     }
+}
+
+/// What [`LiveMesh::collapse_parted`] did.
+pub struct Parted<G> {
+    /// Both phases' collapses, refusals and stop.
+    pub outcome: Outcome,
+    /// How many of the collapses the parts made.
+    pub in_parts: usize,
+    /// What the parts' guards did.
+    pub part_counts: GuardCounts,
+    /// The serial phase's guard (for a run that goes on, and its counts).
+    pub guard: G,
 }
 
 /// One candidate in this many is costed to find the parts' cost bound.
@@ -137,6 +159,36 @@ impl LiveMesh {
         }
         out.stop = StopReason::Reached;
         (out, guards)
+    }
+
+    /// [`LiveMesh::collapse_in_parts`], then [`LiveMesh::collapse_guarded`] to the goal with
+    /// a fresh guard: what the stages run. `progress` hears the collapses of both.
+    pub fn collapse_parted<M, G, F>(
+        &mut self,
+        model: &mut M,
+        new_guard: F,
+        opts: &Options,
+        parts: &PartOptions,
+        progress: &mut dyn FnMut(usize),
+    ) -> Parted<G>
+    where
+        M: CostModel + Send,
+        G: FaceGuard + Send,
+        F: Fn() -> G + Sync,
+    {
+        let (first, guards) = self.collapse_in_parts(model, &new_guard, opts, parts);
+        let in_parts = first.collapses;
+        progress(in_parts);
+        let mut guard = new_guard();
+        let rest = self.collapse_guarded(model, &mut guard, opts, &mut |n| progress(in_parts + n));
+        Parted {
+            outcome: first.then(rest),
+            in_parts,
+            part_counts: guards
+                .iter()
+                .fold(GuardCounts::default(), |sum, g| sum.plus(&g.counts())),
+            guard,
+        }
     }
 
     /// One round of [`LiveMesh::collapse_in_parts`], its cuts `offset` parts along.
