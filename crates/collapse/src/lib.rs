@@ -243,6 +243,13 @@ pub trait CostModel: Sync {
     /// The position and cost of `merge`, or `None` to refuse it. Must be deterministic:
     /// the engine calls it again when the candidate comes off the queue.
     fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan>;
+    /// Makes the model ready to cost `mesh`'s candidates: called before a serial run ranks
+    /// them and before a round of parts samples their costs. A model made without its
+    /// per-candidate data (because the parts would rebuild it) builds it here. Default:
+    /// nothing.
+    fn prepare(&mut self, mesh: &LiveMesh) {
+        let _ = mesh;
+    }
     /// Called after `merged` (which includes `kept`) became vertex `kept`, already at its
     /// new position and with its new faces.
     fn merged(&mut self, mesh: &LiveMesh, kept: Index, merged: &[Index]);

@@ -947,6 +947,7 @@ impl LiveMesh {
             Unit::Triangle => 0,
         };
         let mut q = Queue::new(self.pos.len(), self.n_faces * per_face / 2 + open + 16);
+        model.prepare(self);
         self.rank_all(model, unit, &mut q, &mut out.refused);
         q.sort_initial();
         // A progressive record speaks the numbering of each collapse's time.

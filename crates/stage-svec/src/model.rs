@@ -108,6 +108,8 @@ impl Default for SvecOptions {
 #[derive(Clone, Debug)]
 pub struct SvecModel {
     unit: Unit,
+    /// Whether the face and vertex data below are there ([`SvecModel::deferred`]).
+    built: bool,
     /// Plane, quadric weight and area of each face, side by side (a sum over faces reads
     /// one record per face).
     face: Vec<FaceData>,
@@ -155,21 +157,22 @@ struct FaceData {
     area: f64,
 }
 
-/// |2π − Σα| (interior) or |π − Σα| (boundary) at `v`, and the area around it, from the
-/// faces' corner angles and areas.
+/// |2π − Σα| (interior) or |π − Σα| (boundary) at `v`, and the area around it, from
+/// `corner(f, c)`: the angle of face `f` at its corner `c`, and its area.
+#[inline]
 fn deficit_and_area(
     mesh: &LiveMesh,
-    angles: &[[f64; 3]],
-    data: &[FaceData],
     v: Index,
+    corner: impl Fn(Index, usize) -> (f64, f64),
 ) -> (f64, f64) {
     let mut angle_sum = 0.0;
     let mut a = 0.0;
     for &f in mesh.faces_around(v) {
         let face = mesh.face(f);
         let c = face.iter().position(|&u| u == v).unwrap_or(0);
-        angle_sum += angles[f as usize][c];
-        a += data[f as usize].area;
+        let (angle, area) = corner(f, c);
+        angle_sum += angle;
+        a += area;
     }
     let full = if mesh.kind(v) == VertexKind::Boundary {
         PI
@@ -177,6 +180,29 @@ fn deficit_and_area(
         2.0 * PI
     };
     ((full - angle_sum).abs(), a)
+}
+
+/// Sets the angle deficit and area of every vertex of `mesh` with faces, from
+/// `corner` (see [`deficit_and_area`]), on rayon's threads a block at a time.
+fn fill_vertices(
+    mesh: &LiveMesh,
+    corner: impl Fn(Index, usize) -> (f64, f64) + Sync,
+    deficit: &mut [f64],
+    vertex_area: &mut [f64],
+) {
+    let verts: Vec<Index> = (0..mesh.vertex_slots() as Index)
+        .filter(|&v| mesh.is_alive(v) && !mesh.faces_around(v).is_empty())
+        .collect();
+    for block in verts.chunks(SETUP_BLOCK) {
+        let da: Vec<(f64, f64)> = block
+            .par_iter()
+            .map(|&v| deficit_and_area(mesh, v, &corner))
+            .collect();
+        for (&v, (d, a)) in block.iter().zip(da) {
+            deficit[v as usize] = d;
+            vertex_area[v as usize] = a;
+        }
+    }
 }
 
 /// Calls `visit` once for each face around any of `verts` (faces around several of them
@@ -198,15 +224,77 @@ impl SvecModel {
     /// The data of `mesh`'s faces and vertices, and the feature threshold of its triangles.
     pub fn new(mesh: &LiveMesh, opts: &SvecOptions) -> Self {
         let n_faces = mesh.live_faces().last().map_or(0, |f| f as usize + 1);
-        let n_vertices = mesh.vertex_slots();
+        let mut m = SvecModel::sized(mesh, opts, n_faces, mesh.vertex_slots());
+        // Each face's and vertex's data from the mesh and the data before it, on rayon's
+        // threads a block at a time (the same values as one by one).
+        let faces: Vec<Index> = mesh.live_faces().collect();
+        for block in faces.chunks(SETUP_BLOCK) {
+            let shapes: Vec<Shape> = block
+                .par_iter()
+                .map(|&f| Shape::of(mesh, m.scale, f))
+                .collect();
+            for (&f, s) in block.iter().zip(shapes) {
+                m.set_shape(f, s);
+            }
+        }
+        let (angles, face) = (&m.angles, &m.face);
+        let corner = |f: Index, c: usize| (angles[f as usize][c], face[f as usize].area);
+        fill_vertices(mesh, corner, &mut m.deficit, &mut m.vertex_area);
+        for block in faces.chunks(SETUP_BLOCK) {
+            let qs: Vec<_> = block.par_iter().map(|&f| m.quadric_of(mesh, f)).collect();
+            for (&f, q) in block.iter().zip(qs) {
+                m.set_quadric(f, q);
+            }
+        }
+        m.threshold = match opts.feature_threshold {
+            Some(t) => t,
+            None => m.auto_threshold(mesh),
+        };
+        m
+    }
+
+    /// `mesh`'s feature threshold with none of its face data, which
+    /// [`CostModel::prepare`] builds: for a mesh the parallel phase cuts into parts (each
+    /// part gets a model of its own, and the joined mesh one afresh), it spares building
+    /// and holding the whole mesh's.
+    pub fn deferred(mesh: &LiveMesh, opts: &SvecOptions) -> Self {
+        let mut m = SvecModel::sized(mesh, opts, 0, 0);
+        m.built = false;
+        m.threshold = match opts.feature_threshold {
+            Some(t) => t,
+            None => {
+                // The vertices' data from the positions, the same numbers as `new`'s.
+                let scale = m.scale;
+                let corner = |f: Index, c: usize| {
+                    let [a, b, d] = mesh.face(f).map(|v| mesh.position(v));
+                    let area = 0.5 * triangle::cross(a, b, d).length() * scale * scale;
+                    (triangle::angles(a, b, d)[c], area)
+                };
+                let n = mesh.vertex_slots();
+                let (mut deficit, mut vertex_area) = (vec![0.0; n], vec![0.0; n]);
+                fill_vertices(mesh, corner, &mut deficit, &mut vertex_area);
+                m.deficit = deficit;
+                m.vertex_area = vertex_area;
+                let t = m.auto_threshold(mesh);
+                m.deficit = Vec::new();
+                m.vertex_area = Vec::new();
+                t
+            }
+        };
+        m
+    }
+
+    /// A model with room for `n_faces` faces and `n_vertices` vertices, all zero.
+    fn sized(mesh: &LiveMesh, opts: &SvecOptions, n_faces: usize, n_vertices: usize) -> Self {
         let d = mesh.diagonal();
         let scale = if d > 0.0 && d.is_finite() {
             1.0 / d
         } else {
             1.0
         };
-        let mut m = SvecModel {
+        SvecModel {
             unit: Unit::Triangle,
+            built: true,
             face: vec![FaceData::default(); n_faces],
             normal_sum: vec![0; n_faces],
             normal_count: vec![0; n_faces],
@@ -224,49 +312,17 @@ impl SvecModel {
             face_mark: vec![0; n_faces],
             vertex_mark: vec![0; n_vertices],
             generation: 0,
-        };
-        // Each face's and vertex's data from the mesh and the data before it, on rayon's
-        // threads a block at a time (the same values as one by one).
-        let faces: Vec<Index> = mesh.live_faces().collect();
-        let verts: Vec<Index> = (0..n_vertices as Index)
-            .filter(|&v| mesh.is_alive(v) && !mesh.faces_around(v).is_empty())
+        }
+    }
+
+    /// Mean + `feature_sigma` · σ of K_t over `mesh`'s triangles, from the vertices' data.
+    fn auto_threshold(&self, mesh: &LiveMesh) -> f64 {
+        let ks: Vec<f64> = mesh
+            .live_faces()
+            .map(|f| self.triangle_curvature(&mesh.face(f)))
+            .filter(|k| k.is_finite())
             .collect();
-        for block in faces.chunks(SETUP_BLOCK) {
-            let shapes: Vec<Shape> = block
-                .par_iter()
-                .map(|&f| Shape::of(mesh, scale, f))
-                .collect();
-            for (&f, s) in block.iter().zip(shapes) {
-                m.set_shape(f, s);
-            }
-        }
-        for block in verts.chunks(SETUP_BLOCK) {
-            let da: Vec<(f64, f64)> = block
-                .par_iter()
-                .map(|&v| deficit_and_area(mesh, &m.angles, &m.face, v))
-                .collect();
-            for (&v, da) in block.iter().zip(da) {
-                m.set_vertex(v, da);
-            }
-        }
-        for block in faces.chunks(SETUP_BLOCK) {
-            let qs: Vec<_> = block.par_iter().map(|&f| m.quadric_of(mesh, f)).collect();
-            for (&f, q) in block.iter().zip(qs) {
-                m.set_quadric(f, q);
-            }
-        }
-        m.threshold = match opts.feature_threshold {
-            Some(t) => t,
-            None => {
-                let ks: Vec<f64> = mesh
-                    .live_faces()
-                    .map(|f| m.triangle_curvature(&mesh.face(f)))
-                    .filter(|k| k.is_finite())
-                    .collect();
-                mean_plus_sigma(&ks, opts.feature_sigma)
-            }
-        };
-        m
+        mean_plus_sigma(&ks, self.opts.feature_sigma)
     }
 
     /// The data of `mesh` with this model's settings, unit and feature threshold.
@@ -353,7 +409,10 @@ impl SvecModel {
 
     /// A_v and the angle deficit of vertex `v`.
     fn update_vertex(&mut self, mesh: &LiveMesh, v: Index) {
-        self.set_vertex(v, deficit_and_area(mesh, &self.angles, &self.face, v));
+        let da = deficit_and_area(mesh, v, |f, c| {
+            (self.angles[f as usize][c], self.face[f as usize].area)
+        });
+        self.set_vertex(v, da);
     }
 
     fn set_vertex(&mut self, v: Index, (deficit, area): (f64, f64)) {
@@ -624,7 +683,14 @@ impl CostModel for SvecModel {
         })
     }
 
+    fn prepare(&mut self, mesh: &LiveMesh) {
+        if !self.built {
+            *self = self.with_threshold(mesh);
+        }
+    }
+
     fn merged(&mut self, mesh: &LiveMesh, kept: Index, merged: &[Index]) {
+        debug_assert!(self.built, "collapses on a deferred model");
         // The caches still describe the mesh before the collapse: the plan that was
         // carried out used the feature rule exactly when this says so.
         let interior = merged.iter().all(|&v| mesh.kind(v) == VertexKind::Interior);
@@ -716,6 +782,10 @@ impl CostModel for SvecModel {
     }
 
     fn renumber(&mut self, vertices: &[Index], faces: &[Index]) -> bool {
+        if !self.built {
+            // Nothing to rename yet.
+            return true;
+        }
         keep_in_order(&mut self.face, faces);
         keep_in_order(&mut self.normal_sum, faces);
         keep_in_order(&mut self.normal_count, faces);

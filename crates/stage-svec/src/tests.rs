@@ -450,3 +450,41 @@ fn a_big_mesh_collapses_in_parts_first_and_ends_close_to_the_serial_result() {
         tb.outcome.sve
     );
 }
+
+#[test]
+fn a_deferred_model_has_the_full_models_threshold_and_once_prepared_its_plans() {
+    for mesh in [tessellated_cube(6), bumpy_grid(12)] {
+        let live = LiveMesh::new_renumbered(&mesh).unwrap();
+        let opts = SvecOptions::default();
+        let full = SvecModel::new(&live, &opts);
+        let mut deferred = SvecModel::deferred(&live, &opts);
+        assert!(full.feature_threshold().is_finite());
+        assert_eq!(
+            deferred.feature_threshold().to_bits(),
+            full.feature_threshold().to_bits()
+        );
+        deferred.prepare(&live);
+        for f in live.live_faces() {
+            let t = live.face(f);
+            let merge = Merge {
+                vertices: &t,
+                pinned: None,
+            };
+            assert_eq!(deferred.plan(&live, &merge), full.plan(&live, &merge));
+        }
+        // A serial run handed a deferred model (as when no part could collapse anything)
+        // builds it before ranking: the same output as from a full model.
+        let run = |mut model: SvecModel| {
+            let mut live = LiveMesh::new_renumbered(&mesh).unwrap();
+            let opts = Options {
+                keep_log: false,
+                ..Options::new(Goal::Faces(mesh.n_faces() / 4))
+            };
+            let o = live.collapse(&mut model, &opts, &mut |_| {});
+            assert!(o.collapses > 0);
+            live.to_mesh(&mesh).unwrap().0
+        };
+        let from_deferred = run(SvecModel::deferred(&live, &opts));
+        assert_eq!(from_deferred, run(SvecModel::new(&live, &opts)));
+    }
+}

@@ -138,8 +138,7 @@ impl LiveMesh {
     {
         let mut out = Outcome::none();
         let mut guards = Vec::new();
-        // A progressive record needs every collapse made on this mesh.
-        if self.n_faces < parts.min_faces || self.history.is_some() {
+        if !self.will_part(parts) {
             return (out, guards);
         }
         for round in 0..parts.rounds {
@@ -159,6 +158,13 @@ impl LiveMesh {
         }
         out.stop = StopReason::Reached;
         (out, guards)
+    }
+
+    /// Whether [`LiveMesh::collapse_in_parts`] cuts this mesh into parts with `parts` (when
+    /// collapses are left to make).
+    pub fn will_part(&self, parts: &PartOptions) -> bool {
+        // A progressive record needs every collapse made on this mesh.
+        self.n_faces >= parts.min_faces && self.history.is_none()
     }
 
     /// [`LiveMesh::collapse_in_parts`], then [`LiveMesh::collapse_guarded`] to the goal with
@@ -251,7 +257,10 @@ impl LiveMesh {
             })
             .collect();
         let bound = match bound_rank {
-            Some(rank) => self.sample_bound(model, unit, &free, needed, rank),
+            Some(rank) => {
+                model.prepare(self);
+                self.sample_bound(model, unit, &free, needed, rank)
+            }
             None => f64::INFINITY,
         };
         let free_total = free.iter().filter(|&&f| f).count().max(1);
