@@ -266,9 +266,12 @@ impl SvecModel {
                 // The vertices' data from the positions, the same numbers as `new`'s.
                 let scale = m.scale;
                 let corner = |f: Index, c: usize| {
-                    let [a, b, d] = mesh.face(f).map(|v| mesh.position(v));
-                    let area = 0.5 * triangle::cross(a, b, d).length() * scale * scale;
-                    (triangle::angles(a, b, d)[c], area)
+                    let p = mesh.face(f).map(|v| mesh.position(v));
+                    let area = 0.5 * triangle::cross(p[0], p[1], p[2]).length() * scale * scale;
+                    // `triangle::angles(..)[c]`, without the other two corners.
+                    let at = p[c];
+                    let angle = triangle::angle_between(p[(c + 1) % 3] - at, p[(c + 2) % 3] - at);
+                    (angle, area)
                 };
                 let n = mesh.vertex_slots();
                 let (mut deficit, mut vertex_area) = (vec![0.0; n], vec![0.0; n]);
