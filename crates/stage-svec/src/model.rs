@@ -258,7 +258,9 @@ impl SvecModel {
     /// part gets a model of its own, and the joined mesh one afresh), it spares building
     /// and holding the whole mesh's.
     pub fn deferred(mesh: &LiveMesh, opts: &SvecOptions) -> Self {
-        let mut m = SvecModel::sized(mesh, opts, 0, 0);
+        let automatic = opts.feature_threshold.is_none();
+        let n_vertices = if automatic { mesh.vertex_slots() } else { 0 };
+        let mut m = SvecModel::sized(mesh, opts, 0, n_vertices);
         m.built = false;
         m.threshold = match opts.feature_threshold {
             Some(t) => t,
@@ -273,17 +275,14 @@ impl SvecModel {
                     let angle = triangle::angle_between(p[(c + 1) % 3] - at, p[(c + 2) % 3] - at);
                     (angle, area)
                 };
-                let n = mesh.vertex_slots();
-                let (mut deficit, mut vertex_area) = (vec![0.0; n], vec![0.0; n]);
-                fill_vertices(mesh, corner, &mut deficit, &mut vertex_area);
-                m.deficit = deficit;
-                m.vertex_area = vertex_area;
-                let t = m.auto_threshold(mesh);
-                m.deficit = Vec::new();
-                m.vertex_area = Vec::new();
-                t
+                fill_vertices(mesh, corner, &mut m.deficit, &mut m.vertex_area);
+                m.auto_threshold(mesh)
             }
         };
+        // Only the threshold is kept.
+        m.deficit = Vec::new();
+        m.vertex_area = Vec::new();
+        m.vertex_mark = Vec::new();
         m
     }
 

@@ -464,6 +464,18 @@ fn a_deferred_model_has_the_full_models_threshold_and_once_prepared_its_plans() 
             full.feature_threshold().to_bits()
         );
         deferred.prepare(&live);
+        // A threshold given rather than measured is kept as given.
+        let given = SvecOptions {
+            feature_threshold: Some(0.5 * full.feature_threshold()),
+            ..opts
+        };
+        let mut deferred_given = SvecModel::deferred(&live, &given);
+        deferred_given.prepare(&live);
+        let full_given = SvecModel::new(&live, &given);
+        assert_eq!(
+            deferred_given.feature_threshold(),
+            given.feature_threshold.unwrap()
+        );
         for f in live.live_faces() {
             let t = live.face(f);
             let merge = Merge {
@@ -471,6 +483,10 @@ fn a_deferred_model_has_the_full_models_threshold_and_once_prepared_its_plans() 
                 pinned: None,
             };
             assert_eq!(deferred.plan(&live, &merge), full.plan(&live, &merge));
+            assert_eq!(
+                deferred_given.plan(&live, &merge),
+                full_given.plan(&live, &merge)
+            );
         }
         // A serial run handed a deferred model (as when no part could collapse anything)
         // builds it before ranking: the same output as from a full model.
