@@ -72,11 +72,16 @@ fn angle_of((s, c): (f64, f64)) -> f64 {
 /// Interior angles in radians at `a`, `b` and `c`.
 #[inline]
 pub fn angles(a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
-    [
-        angle_between(b - a, c - a),
-        angle_between(c - b, a - b),
-        angle_between(a - c, b - c),
-    ]
+    let t = [a, b, c];
+    [angle_at(t, 0), angle_at(t, 1), angle_at(t, 2)]
+}
+
+/// Interior angle in radians of triangle `t` at its corner `corner` (0, 1 or 2): the same
+/// number as [`angles`] gives for it.
+#[inline]
+pub fn angle_at(t: [DVec3; 3], corner: usize) -> f64 {
+    let at = t[corner];
+    angle_between(t[(corner + 1) % 3] - at, t[(corner + 2) % 3] - at)
 }
 
 /// Smallest interior angle in radians: the least of [`angles`], bit for bit.

@@ -31,6 +31,13 @@ fn normal_term(n: DVec3, m: DVec3) -> i64 {
 /// the memory of the answers).
 const SETUP_BLOCK: usize = 1 << 16;
 
+/// The area of a face whose cross product is `len` long, in units of the squared
+/// diagonal (`scale`: 1 / diagonal).
+#[inline]
+fn scaled_area(len: f64, scale: f64) -> f64 {
+    0.5 * len * scale * scale
+}
+
 /// What [`SvecModel`] derives from the shape of one face.
 struct Shape {
     angles: [f64; 3],
@@ -54,7 +61,7 @@ impl Shape {
         } else {
             DVec3::ZERO
         };
-        let s = 0.5 * len * scale * scale;
+        let s = scaled_area(len, scale);
         let [x, y, z] = angles;
         let shape = 2.0 * (1.0 - x.min(y).min(z).cos()) * s;
         // Distances squared are in world units: scale them to a unit diagonal too.
@@ -268,12 +275,9 @@ impl SvecModel {
                 // The vertices' data from the positions, the same numbers as `new`'s.
                 let scale = m.scale;
                 let corner = |f: Index, c: usize| {
-                    let p = mesh.face(f).map(|v| mesh.position(v));
-                    let area = 0.5 * triangle::cross(p[0], p[1], p[2]).length() * scale * scale;
-                    // `triangle::angles(..)[c]`, without the other two corners.
-                    let at = p[c];
-                    let angle = triangle::angle_between(p[(c + 1) % 3] - at, p[(c + 2) % 3] - at);
-                    (angle, area)
+                    let t = mesh.face(f).map(|v| mesh.position(v));
+                    let len = triangle::cross(t[0], t[1], t[2]).length();
+                    (triangle::angle_at(t, c), scaled_area(len, scale))
                 };
                 fill_vertices(mesh, corner, &mut m.deficit, &mut m.vertex_area);
                 m.auto_threshold(mesh)
