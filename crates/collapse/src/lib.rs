@@ -49,8 +49,10 @@
 //!    lazily (each holds the sum of its vertices' version stamps) rather than being
 //!    removed from the queue. After a collapse the candidates around the new vertex are
 //!    re-costed and pushed again, and refused candidates whose neighbourhood changed are
-//!    re-queued. The loop stops at the goal, at the error limit, or when no candidate is
-//!    left.
+//!    re-queued — except those the link condition refused for a ring vertex that two ring
+//!    edges leave or enter (the witness), which wait until a collapse merges it: nothing
+//!    else can lift the refusal. The loop stops at the goal, at the error limit, or when no
+//!    candidate is left.
 //! 4. **Compact** ([`LiveMesh::to_mesh`]): surviving vertices and faces keep their input
 //!    order; every attribute is carried by `Mesh::rebuilt` (a merged vertex is the equal
 //!    blend of all input vertices merged into it; a face keeps its input face as parent).

@@ -2,13 +2,13 @@
 
 use crate::faces::FaceLists;
 use crate::progressive::{ChangedFace, DeletedFace, Progressive, Step, fingerprint};
-use crate::queue::{Entry, Queue};
+use crate::queue::{Entry, Fate, Queue};
 use crate::{
     CollapseError, CollapseRecord, CostModel, FaceGuard, Goal, Index, Merge, NONE, NoGuard,
     Options, Outcome, Plan, Reach, Refusals, Reshape, StopReason, Unit, VertexKind, keep_in_order,
 };
 use coarsen_geom::{Aabb, DVec3, is_finite, triangle};
-use coarsen_mesh::ring::{RingShape, ring_shape};
+use coarsen_mesh::ring::{RingShape, repeated_end, ring_shape};
 use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};
 use rayon::prelude::*;
 
@@ -200,6 +200,9 @@ struct Renaming {
 struct Scratch {
     ring: Vec<(Index, Index)>,
     targets: Vec<Index>,
+    /// After a refusal by the link condition: a vertex of the ring that two ring edges
+    /// leave or enter ([`NONE`] when the ring fails otherwise).
+    witness: Index,
     kept_faces: Vec<(Index, usize)>,
     /// Per kept face: its cross product before and after the merge, and whether it was
     /// degenerate before.
@@ -217,6 +220,7 @@ impl Scratch {
         Scratch {
             ring: Vec::new(),
             targets: Vec::new(),
+            witness: NONE,
             kept_faces: Vec::new(),
             crosses: Vec::new(),
             list: Vec::new(),
@@ -981,7 +985,7 @@ impl LiveMesh {
             // queue entry stays small.
             let Some(plan) = self.plan(model, verts, pinned) else {
                 out.refused.count(Refusal::Model);
-                q.park(e);
+                q.park(e, NONE);
                 continue;
             };
             // A candidate outside the model's reach keeps its queued cost when its
@@ -997,15 +1001,17 @@ impl LiveMesh {
             {
                 break StopReason::MaxError { cost: plan.cost };
             }
-            // Refused candidates wait until a collapse touches one of their vertices.
+            // Refused candidates wait until a collapse touches one of their vertices (one
+            // refused by the link condition, until a collapse merges its witness).
             if let Err(r) = self.check(verts, plan.position, opts.min_quality, &mut s) {
                 out.refused.count(r);
-                q.park(e);
+                let witness = if r == Refusal::Link { s.witness } else { NONE };
+                q.park(e, witness);
                 continue;
             }
             if let Err(r) = self.guard(guard, verts, plan.position, &s) {
                 out.refused.count(r);
-                q.park(e);
+                q.park(e, NONE);
                 continue;
             }
             let sve = self.sve(verts, plan.position);
@@ -1036,7 +1042,15 @@ impl LiveMesh {
             out.collapses += 1;
             out.sve += sve;
             out.max_cost = out.max_cost.max(plan.cost);
-            self.requeue(model, unit, reach, kept, &mut q, &mut s, &mut out.refused);
+            self.requeue(
+                model,
+                unit,
+                reach,
+                (kept, verts),
+                &mut q,
+                &mut s,
+                &mut out.refused,
+            );
             let live_estimate = self.n_faces * per_face / 2;
             q.sweep_if_stale(live_estimate, |e| self.is_current(e));
             if may_close_up
@@ -1322,19 +1336,7 @@ impl LiveMesh {
         min_quality: f64,
         s: &mut Scratch,
     ) -> Result<(), Refusal> {
-        s.ring.clear();
-        s.kept_faces.clear();
-        for &v in verts {
-            for &f in self.lists.get(v) {
-                let face = self.faces[f as usize];
-                if face.iter().filter(|u| verts.contains(u)).count() >= 2 {
-                    continue;
-                }
-                let c = corner_of(face, v);
-                s.ring.push(ring_edge(face, c));
-                s.kept_faces.push((f, c));
-            }
-        }
+        self.gather_ring(verts, s);
         // Degenerate faces first: the commonest refusal, and cheaper than the link test
         // (the verdict is the same in any order; only the reason counted can differ).
         s.crosses.clear();
@@ -1350,12 +1352,9 @@ impl LiveMesh {
             }
             s.crosses.push((n_old, n_new, was_degenerate));
         }
-        let on_boundary = verts
-            .iter()
-            .any(|&v| self.kind[v as usize] == VertexKind::Boundary);
-        match (ring_shape(&mut s.ring, &mut s.targets), on_boundary) {
-            (RingShape::Cycle, false) | (RingShape::Path, true) => {}
-            _ => return Err(Refusal::Link),
+        if let Err(witness) = self.link(verts, s) {
+            s.witness = witness;
+            return Err(Refusal::Link);
         }
         let merged_normal: DVec3 = verts.iter().map(|&v| self.region_normal[v as usize]).sum();
         let merged_area: f64 = verts.iter().map(|&v| self.region_area[v as usize]).sum();
@@ -1397,6 +1396,41 @@ impl LiveMesh {
             }
         }
         Ok(())
+    }
+
+    /// The faces around `verts` that survive merging them (`s.kept_faces`, with the corner
+    /// that moves) and their ring edges (`s.ring`).
+    fn gather_ring(&self, verts: &[Index], s: &mut Scratch) {
+        s.ring.clear();
+        s.kept_faces.clear();
+        for &v in verts {
+            for &f in self.lists.get(v) {
+                let face = self.faces[f as usize];
+                if face.iter().filter(|u| verts.contains(u)).count() >= 2 {
+                    continue;
+                }
+                let c = corner_of(face, v);
+                s.ring.push(ring_edge(face, c));
+                s.kept_faces.push((f, c));
+            }
+        }
+    }
+
+    /// The link condition on the ring [`LiveMesh::gather_ring`] gathered for `verts`: one
+    /// cycle (one path on the boundary), else the witness, a ring vertex that two ring
+    /// edges leave or enter ([`NONE`] when the ring fails otherwise).
+    ///
+    /// A collapse that merges none of `verts` and not the witness leaves the witness's
+    /// ring edges as they were (it renames other ring vertices and removes only edges
+    /// between two merged ones), so the refusal stands until one does.
+    fn link(&self, verts: &[Index], s: &mut Scratch) -> Result<(), Index> {
+        let on_boundary = verts
+            .iter()
+            .any(|&v| self.kind[v as usize] == VertexKind::Boundary);
+        match (ring_shape(&mut s.ring, &mut s.targets), on_boundary) {
+            (RingShape::Cycle, false) | (RingShape::Path, true) => Ok(()),
+            _ => Err(repeated_end(&s.ring, &mut s.targets).unwrap_or(NONE)),
+        }
     }
 
     /// The guard's verdict on the faces [`LiveMesh::check`] just passed (in `s.kept_faces`)
@@ -1552,15 +1586,15 @@ impl LiveMesh {
         self.stamp[kept as usize] = self.stamp[kept as usize].wrapping_add(1);
     }
 
-    /// After a collapse into `kept`: re-costs the candidates it made stale and re-queues
-    /// the refused candidates around it.
+    /// After a collapse of `merged` into `kept`: re-costs the candidates it made stale and
+    /// re-queues the refused candidates around it that it may have made valid.
     #[allow(clippy::too_many_arguments)]
     fn requeue<M: CostModel>(
         &mut self,
         model: &M,
         unit: Unit,
         reach: Reach,
-        kept: Index,
+        (kept, merged): (Index, &[Index]),
         q: &mut Queue,
         s: &mut Scratch,
         refused: &mut Refusals,
@@ -1629,8 +1663,23 @@ impl LiveMesh {
                 }
             }
         }
-        for &v in &s.touched {
-            q.release(v, |e| self.is_current(e));
+        for i in 0..s.touched.len() {
+            q.release(s.touched[i], |e, witness| {
+                if !self.is_current(e) {
+                    Fate::Drop
+                } else if witness != NONE && !merged.contains(&witness) {
+                    // Still refused (see `link`): checked in debug builds.
+                    debug_assert!({
+                        self.gather_ring(e.vertices(), s);
+                        self.link(e.vertices(), s).is_err()
+                    });
+                    #[cfg(test)]
+                    tests::KEPT_PARKED.with(|k| k.set(k.get() + 1));
+                    Fate::Keep
+                } else {
+                    Fate::Requeue
+                }
+            });
         }
     }
 }
@@ -2115,6 +2164,35 @@ mod tests {
         let (b, ob) = qem(&mesh, Goal::Vertices(50));
         assert_eq!(a, b);
         assert_eq!(oa, ob);
+    }
+
+    thread_local! {
+        /// How often a parked candidate stayed parked for its witness, on this thread.
+        pub(super) static KEPT_PARKED: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    }
+
+    #[test]
+    fn link_refusals_wait_for_their_witness_to_merge() {
+        // Triangle collapses down to a few vertices refuse many candidates for the link
+        // condition; those whose witness a collapse did not merge stay parked, each
+        // checked (in this debug build) to be refused still.
+        let mesh = icosphere(3);
+        let mut model = Scripted {
+            unit: Unit::Triangle,
+            reach: Reach::Kept,
+            cost: |m: &LiveMesh, v: &[Index]| {
+                triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
+            },
+        };
+        KEPT_PARKED.with(|k| k.set(0));
+        let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(12));
+        let kept = KEPT_PARKED.with(|k| k.get());
+        assert!(
+            outcome.refused.link > 0 && kept > 0,
+            "{kept} kept, {:?}",
+            outcome.refused
+        );
+        assert_eq!(assert_closed_manifold(&out).euler, 2);
     }
 
     #[test]

@@ -29,7 +29,9 @@
 //!   and every move also writes the slot's position.
 //! * **Parking.** A candidate refused by a validity check stays refused until something
 //!   around it changes. It is parked on each of its vertices; when a collapse touches one
-//!   of them, the parked candidate goes back on the heap (behind everything queued so far).
+//!   of them, the engine decides its [`Fate`]: dropped when stale, back on the heap (behind
+//!   everything queued so far), or left parked when the collapse cannot have changed the
+//!   verdict (the parked entry's *witness*, see [`Queue::park`]).
 
 use crate::Index;
 use rayon::prelude::*;
@@ -166,14 +168,35 @@ impl Heap {
 
 const NIL: u32 = u32::MAX;
 
+/// What [`Queue::release`] does with a parked entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Fate {
+    /// Stale: gone for good.
+    Drop,
+    /// Back on the heap.
+    Requeue,
+    /// Still refused: stays parked on the vertex.
+    Keep,
+}
+
+/// One parked entry.
+#[derive(Clone, Copy, Debug)]
+struct Parked {
+    entry: Entry,
+    /// The vertex the refusal hangs on ([`crate::NONE`]: none known).
+    witness: Index,
+    /// Whether it has gone back on the heap or been dropped.
+    released: bool,
+}
+
 #[derive(Debug, Default)]
 pub(crate) struct Queue {
     heap: Heap,
     /// The initial ranking, sorted dearest first (it pops from the end).
     run: Vec<Entry>,
     next_seq: u64,
-    /// Parked entries and whether each has gone back on the heap (or been dropped).
-    parked: Vec<(Entry, bool)>,
+    /// Parked entries.
+    parked: Vec<Parked>,
     n_released: usize,
     /// Per vertex: first node of its parked list in `nodes`.
     park_head: Vec<u32>,
@@ -249,10 +272,16 @@ impl Queue {
         }
     }
 
-    /// Parks a refused entry until one of its vertices is touched.
-    pub(crate) fn park(&mut self, e: Entry) {
+    /// Parks a refused entry until one of its vertices is touched, with the vertex its
+    /// refusal hangs on, if any (`witness`, else [`crate::NONE`]: [`Queue::release`] hands
+    /// it back).
+    pub(crate) fn park(&mut self, e: Entry, witness: Index) {
         let id = self.parked.len() as u32;
-        self.parked.push((e, false));
+        self.parked.push(Parked {
+            entry: e,
+            witness,
+            released: false,
+        });
         for &v in e.vertices() {
             let head = &mut self.park_head[v as usize];
             self.nodes.push((id, *head));
@@ -282,28 +311,48 @@ impl Queue {
         self.n_released = 0;
         self.park_head = vec![NIL; new_vertex.iter().filter(|&&v| v != crate::NONE).count()];
         // Parked again in their order: each vertex's list keeps its order.
-        for (mut e, released) in parked {
-            if !released && rename(&mut e) {
-                self.park(e);
+        for mut p in parked {
+            if !p.released && rename(&mut p.entry) {
+                if p.witness != crate::NONE {
+                    p.witness = new_vertex[p.witness as usize];
+                }
+                self.park(p.entry, p.witness);
             }
         }
     }
 
-    /// Re-queues the entries parked on `v` that `current` still accepts.
-    pub(crate) fn release(&mut self, v: Index, current: impl Fn(&Entry) -> bool) {
+    /// Decides the fate of each entry parked on `v` by `fate(entry, witness)`: re-queued,
+    /// dropped, or kept on `v`'s list (in its order).
+    pub(crate) fn release(&mut self, v: Index, mut fate: impl FnMut(&Entry, Index) -> Fate) {
         let mut node = std::mem::replace(&mut self.park_head[v as usize], NIL);
+        // The last node kept so far.
+        let mut last = NIL;
         while node != NIL {
             let (id, next) = self.nodes[node as usize];
-            let (e, released) = &mut self.parked[id as usize];
-            if !*released {
-                *released = true;
-                self.n_released += 1;
-                let e = *e;
-                if current(&e) {
-                    self.push(e.cost, e.vertices, e.stamp);
+            let p = &mut self.parked[id as usize];
+            if !p.released {
+                let e = p.entry;
+                match fate(&e, p.witness) {
+                    Fate::Keep => {
+                        match last {
+                            NIL => self.park_head[v as usize] = node,
+                            _ => self.nodes[last as usize].1 = node,
+                        }
+                        last = node;
+                    }
+                    f => {
+                        p.released = true;
+                        self.n_released += 1;
+                        if f == Fate::Requeue {
+                            self.push(e.cost, e.vertices, e.stamp);
+                        }
+                    }
                 }
             }
             node = next;
+        }
+        if last != NIL {
+            self.nodes[last as usize].1 = NIL;
         }
         if self.n_released > 1024 && self.n_released > 2 * (self.parked.len() - self.n_released) {
             self.compact_parked();
@@ -341,15 +390,15 @@ impl Queue {
         let old = std::mem::replace(&mut self.parked, room);
         self.nodes.clear();
         // Only vertices of parked entries can have a list: reset those, not all heads.
-        for (e, _) in &old {
-            for &v in e.vertices() {
+        for p in &old {
+            for &v in p.entry.vertices() {
                 self.park_head[v as usize] = NIL;
             }
         }
         self.n_released = 0;
-        for (e, released) in old {
-            if !released {
-                self.park(e);
+        for p in old {
+            if !p.released {
+                self.park(p.entry, p.witness);
             }
         }
     }
@@ -429,24 +478,85 @@ mod tests {
 
     #[test]
     fn parked_entries_return_once_when_a_vertex_is_touched() {
+        let requeue = |_: &Entry, _: Index| Fate::Requeue;
         let mut q = Queue::new(10, 8);
         q.push(1.0, [2, 3, NONE], 0);
         let e = q.pop().unwrap();
-        q.park(e);
+        q.park(e, NONE);
         assert_eq!(q.len(), 0);
-        q.release(4, |_| true);
+        q.release(4, requeue);
         assert_eq!(q.len(), 0);
-        q.release(3, |_| true);
+        q.release(3, requeue);
         assert_eq!(q.len(), 1);
         // Already released through vertex 3: touching vertex 2 does not queue it twice.
-        q.release(2, |_| true);
+        q.release(2, requeue);
         assert_eq!(q.len(), 1);
         let back = q.pop().unwrap();
         assert_eq!(back.vertices, [2, 3, NONE]);
         assert!(back.seq > e.seq, "a re-queued entry goes behind");
         // A stale parked entry is dropped rather than re-queued.
-        q.park(back);
-        q.release(2, |_| false);
+        q.park(back, NONE);
+        q.release(2, |_, _| Fate::Drop);
         assert_eq!(q.len(), 0);
+        q.release(3, requeue);
+        assert_eq!(
+            q.len(),
+            0,
+            "dropped through one vertex, gone from the others"
+        );
+    }
+
+    #[test]
+    fn kept_entries_stay_parked_in_order_with_their_witness() {
+        let mut q = Queue::new(10, 8);
+        for (k, v) in [4, 5, 6, 7].into_iter().enumerate() {
+            q.push(k as f64, [1, v, NONE], 0);
+            let e = q.pop().unwrap();
+            q.park(e, v + 1);
+        }
+        // Vertex 1's list, newest first: 7, 6, 5, 4. Keep the entries whose witness is
+        // odd (those of 6 and 4), re-queue the others.
+        let mut seen = Vec::new();
+        q.release(1, |e, w| {
+            seen.push((e.vertices[1], w));
+            if w % 2 == 1 {
+                Fate::Keep
+            } else {
+                Fate::Requeue
+            }
+        });
+        assert_eq!(seen, [(7, 8), (6, 7), (5, 6), (4, 5)]);
+        assert_eq!(q.len(), 2);
+        // The kept ones are still on vertex 1's list, in their order, and still parked
+        // on their other vertex.
+        let mut again = Vec::new();
+        q.release(1, |e, w| {
+            again.push((e.vertices[1], w));
+            Fate::Keep
+        });
+        assert_eq!(again, [(6, 7), (4, 5)]);
+        q.release(6, |_, _| Fate::Requeue);
+        assert_eq!(q.len(), 3);
+        let mut last = Vec::new();
+        q.release(1, |e, _| {
+            last.push(e.vertices[1]);
+            Fate::Requeue
+        });
+        assert_eq!(last, [4]);
+        assert_eq!(q.len(), 4);
+        // Renumbering renames the witness with the entry.
+        q.push(9.0, [2, 3, NONE], 0);
+        while q.pop().is_some() {}
+        q.push(9.0, [2, 3, NONE], 0);
+        let e = q.pop().unwrap();
+        q.park(e, 4);
+        let rename: Vec<Index> = (0..10).map(|v| 9 - v).collect();
+        q.renumber(&rename, |_| true);
+        let mut renamed = Vec::new();
+        q.release(7, |e, w| {
+            renamed.push((e.vertices, w));
+            Fate::Keep
+        });
+        assert_eq!(renamed, [([7, 6, NONE], 5)]);
     }
 }

@@ -38,6 +38,31 @@ pub fn ring_shape(edges: &mut [(Index, Index)], targets: &mut Vec<Index>) -> Rin
     }
 }
 
+/// A vertex that two of the ring edges `edges` leave, or two enter, if any: it makes the
+/// ring [`RingShape::Invalid`] whatever else the ring holds (`scratch` is scratch space).
+pub fn repeated_end(edges: &[(Index, Index)], scratch: &mut Vec<Index>) -> Option<Index> {
+    if edges.len() <= SMALL {
+        return edges.iter().enumerate().find_map(|(i, e)| {
+            edges[..i].iter().find_map(|d| {
+                if d.0 == e.0 {
+                    Some(e.0)
+                } else if d.1 == e.1 {
+                    Some(e.1)
+                } else {
+                    None
+                }
+            })
+        });
+    }
+    let mut repeated = |end: fn(&(Index, Index)) -> Index| {
+        scratch.clear();
+        scratch.extend(edges.iter().map(end));
+        scratch.sort_unstable();
+        scratch.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
+    };
+    repeated(|e| e.0).or_else(|| repeated(|e| e.1))
+}
+
 /// [`ring_shape`] of a non-empty ring by sorting its edges and targets.
 fn sorted_ring_shape(edges: &mut [(Index, Index)], targets: &mut Vec<Index>) -> RingShape {
     edges.sort_unstable();
@@ -243,6 +268,26 @@ mod tests {
             let want = if open { RingShape::Path } else { RingShape::Cycle };
             proptest::prop_assert_eq!(shape(&ring), want);
             proptest::prop_assert_eq!(sorted_shape(&ring), want);
+        }
+
+        #[test]
+        fn a_repeated_end_is_found_exactly_when_an_end_repeats(
+            edges in proptest::collection::vec((0u32..40, 0u32..40), 0..30),
+        ) {
+            let end = repeated_end(&edges, &mut Vec::new());
+            let count = |v: Index, side: fn(&(Index, Index)) -> Index| {
+                edges.iter().filter(|e| side(e) == v).count()
+            };
+            let right = match end {
+                Some(v) => count(v, |e| e.0) >= 2 || count(v, |e| e.1) >= 2,
+                None => edges
+                    .iter()
+                    .all(|e| count(e.0, |d| d.0) == 1 && count(e.1, |d| d.1) == 1),
+            };
+            proptest::prop_assert!(right, "{:?} for {:?}", end, edges);
+            if end.is_some() {
+                proptest::prop_assert_eq!(shape(&edges), RingShape::Invalid);
+            }
         }
     }
 }
