@@ -104,3 +104,14 @@ pub fn shortest_edge() -> Scripted<impl Fn(&LiveMesh, &[Index]) -> f64> {
         cost: |m: &LiveMesh, v: &[Index]| (m.position(v[0]) - m.position(v[1])).length_squared(),
     }
 }
+
+/// Triangle collapses costed by area, re-costing as far as `reach`.
+pub fn smallest_triangle(reach: Reach) -> Scripted<impl Fn(&LiveMesh, &[Index]) -> f64> {
+    Scripted {
+        unit: Unit::Triangle,
+        reach,
+        cost: |m: &LiveMesh, v: &[Index]| {
+            coarsen_geom::triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
+        },
+    }
+}

@@ -2177,13 +2177,7 @@ mod tests {
         // condition; those whose witness a collapse did not merge stay parked, each
         // checked (in this debug build) to be refused still.
         let mesh = icosphere(3);
-        let mut model = Scripted {
-            unit: Unit::Triangle,
-            reach: Reach::Kept,
-            cost: |m: &LiveMesh, v: &[Index]| {
-                triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
-            },
-        };
+        let mut model = smallest_triangle(Reach::Kept);
         KEPT_PARKED.with(|k| k.set(0));
         let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(12));
         let kept = KEPT_PARKED.with(|k| k.get());
@@ -2198,13 +2192,7 @@ mod tests {
     #[test]
     fn triangle_collapses_keep_a_closed_manifold() {
         let mesh = icosphere(2);
-        let mut model = Scripted {
-            unit: Unit::Triangle,
-            reach: Reach::Ring,
-            cost: |m: &LiveMesh, v: &[Index]| {
-                triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
-            },
-        };
+        let mut model = smallest_triangle(Reach::Ring);
         let (out, outcome, _) = run(&mesh, &mut model, Goal::Vertices(40));
         assert_eq!(outcome.stop, StopReason::Reached);
         assert!(
@@ -2269,13 +2257,7 @@ mod tests {
     #[test]
     fn triangle_collapses_on_a_grid_keep_its_one_boundary_loop() {
         let mesh = grid(10, 10, bump);
-        let mut model = Scripted {
-            unit: Unit::Triangle,
-            reach: Reach::Ring,
-            cost: |m: &LiveMesh, v: &[Index]| {
-                triangle::area(m.position(v[0]), m.position(v[1]), m.position(v[2]))
-            },
-        };
+        let mut model = smallest_triangle(Reach::Ring);
         let (out, _, _) = run(&mesh, &mut model, Goal::Vertices(30));
         let s = LiveMesh::new(&out).unwrap().summary();
         assert_eq!((s.locked_vertices, s.boundary_loops, s.euler), (0, 1, 1));
