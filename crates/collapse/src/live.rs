@@ -1046,7 +1046,8 @@ impl LiveMesh {
                 model,
                 unit,
                 reach,
-                (kept, verts),
+                kept,
+                verts,
                 &mut q,
                 &mut s,
                 &mut out.refused,
@@ -1594,7 +1595,8 @@ impl LiveMesh {
         model: &M,
         unit: Unit,
         reach: Reach,
-        (kept, merged): (Index, &[Index]),
+        kept: Index,
+        merged: &[Index],
         q: &mut Queue,
         s: &mut Scratch,
         refused: &mut Refusals,
@@ -1663,6 +1665,7 @@ impl LiveMesh {
                 }
             }
         }
+        // By index: the decision borrows the scratch (its debug check gathers rings in it).
         for i in 0..s.touched.len() {
             q.release(s.touched[i], |e, witness| {
                 if !self.is_current(e) {
