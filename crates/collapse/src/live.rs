@@ -197,6 +197,33 @@ struct Renaming {
 }
 
 /// Work buffers of one run, reused by every collapse.
+/// A collapse run between calls of [`LiveMesh::resume`]: its queue, work buffers and what
+/// it did so far.
+struct Run {
+    q: Queue,
+    s: Scratch,
+    out: Outcome,
+    /// The candidate that stopped the last call at its error limit, first in line.
+    held: Option<Entry>,
+    /// Whether the arrays may still be closed up (never while a progressive record is kept).
+    may_close_up: bool,
+}
+
+impl Run {
+    /// The costs of the current candidates in the queue (the held one included), added to
+    /// `costs`.
+    fn queued_costs(&self, mesh: &LiveMesh, costs: &mut Vec<f64>) {
+        let held = self.held.iter();
+        costs.extend(
+            self.q
+                .entries()
+                .chain(held)
+                .filter(|e| mesh.is_current(e))
+                .map(|e| e.cost),
+        );
+    }
+}
+
 struct Scratch {
     ring: Vec<(Index, Index)>,
     targets: Vec<Index>,
@@ -932,13 +959,19 @@ impl LiveMesh {
         opts: &Options,
         progress: &mut dyn FnMut(usize),
     ) -> Outcome {
-        let unit = model.unit();
-        let reach = model.reach();
-        let mut out = Outcome::none();
         if self.reached(opts.goal) {
-            return out;
+            return Outcome::none();
         }
-        let mut s = Scratch::new(self.pos.len().max(self.faces.len()));
+        let mut run = self.start(model, opts);
+        run.out.stop = self.resume(&mut run, model, guard, opts, progress);
+        run.out
+    }
+
+    /// The queue of every candidate, ranked, for [`LiveMesh::resume`].
+    fn start<M: CostModel>(&mut self, model: &mut M, opts: &Options) -> Run {
+        let unit = model.unit();
+        let mut out = Outcome::none();
+        let s = Scratch::new(self.pos.len().max(self.faces.len()));
         let per_face = if unit == Unit::Edge { 3 } else { 2 };
         // Room for every candidate: each face's edges count half, a boundary edge whole
         // (and a boundary loop has as many edges as vertices).
@@ -954,17 +987,45 @@ impl LiveMesh {
         model.prepare(self);
         self.rank_all(model, unit, &mut q, &mut out.refused);
         q.sort_initial();
-        // A progressive record speaks the numbering of each collapse's time.
-        let mut may_close_up = self.history.is_none();
         if opts.keep_log {
             out.log.reserve(self.remaining(opts.goal));
         }
+        Run {
+            q,
+            s,
+            out,
+            held: None,
+            // A progressive record speaks the numbering of each collapse's time.
+            may_close_up: self.history.is_none(),
+        }
+    }
 
-        out.stop = loop {
+    /// Collapses in `run`'s queue order until `opts.goal`, `opts.max_error` or the end of
+    /// the queue; the candidate that passed the error limit is held for the next call (with
+    /// a higher limit, the run goes on as if it had never stopped).
+    fn resume<M: CostModel, G: FaceGuard>(
+        &mut self,
+        run: &mut Run,
+        model: &mut M,
+        guard: &mut G,
+        opts: &Options,
+        progress: &mut dyn FnMut(usize),
+    ) -> StopReason {
+        let unit = model.unit();
+        let reach = model.reach();
+        let per_face = if unit == Unit::Edge { 3 } else { 2 };
+        let Run {
+            q,
+            s,
+            out,
+            held,
+            may_close_up,
+        } = run;
+        loop {
             if self.reached(opts.goal) {
                 break StopReason::Reached;
             }
-            let Some(e) = q.pop() else {
+            let Some(e) = held.take().or_else(|| q.pop()) else {
                 break StopReason::Exhausted;
             };
             // Stale: a vertex changed or went since the entry was queued; a fresh entry
@@ -999,17 +1060,18 @@ impl LiveMesh {
             if let Some(max) = opts.max_error
                 && plan.cost > max
             {
+                *held = Some(e);
                 break StopReason::MaxError { cost: plan.cost };
             }
             // Refused candidates wait until a collapse touches one of their vertices (one
             // refused by the link condition, until a collapse merges its witness).
-            if let Err(r) = self.check(verts, plan.position, opts.min_quality, &mut s) {
+            if let Err(r) = self.check(verts, plan.position, opts.min_quality, s) {
                 out.refused.count(r);
                 let witness = if r == Refusal::Link { s.witness } else { NONE };
                 q.park(e, witness);
                 continue;
             }
-            if let Err(r) = self.guard(guard, verts, plan.position, &s) {
+            if let Err(r) = self.guard(guard, verts, plan.position, s) {
                 out.refused.count(r);
                 q.park(e, NONE);
                 continue;
@@ -1024,7 +1086,7 @@ impl LiveMesh {
                         .find(|&v| self.kind[v as usize] == VertexKind::Boundary)
                 })
                 .unwrap_or(verts[0]);
-            self.merge(verts, kept, plan.position, &mut s);
+            self.merge(verts, kept, plan.position, s);
             model.merged(self, kept, verts);
             let mut removed = [NONE; 2];
             for (slot, &v) in removed.iter_mut().zip(verts.iter().filter(|&&v| v != kept)) {
@@ -1042,30 +1104,20 @@ impl LiveMesh {
             out.collapses += 1;
             out.sve += sve;
             out.max_cost = out.max_cost.max(plan.cost);
-            self.requeue(
-                model,
-                unit,
-                reach,
-                kept,
-                verts,
-                &mut q,
-                &mut s,
-                &mut out.refused,
-            );
+            self.requeue(model, unit, reach, kept, verts, q, s, &mut out.refused);
             let live_estimate = self.n_faces * per_face / 2;
             q.sweep_if_stale(live_estimate, |e| self.is_current(e));
-            if may_close_up
+            if *may_close_up
                 && self.faces.len() >= opts.compact_min_faces
                 && 2 * self.n_faces < self.faces.len()
                 && !self.reached(opts.goal)
             {
-                may_close_up = self.close_up(model, &mut q);
+                *may_close_up = self.close_up(model, q);
             }
             if out.collapses.is_multiple_of(PROGRESS_EVERY) {
                 progress(out.collapses);
             }
-        };
-        out
+        }
     }
 
     /// Renumbers the live vertices and faces densely, in their order, with the queue and
@@ -2555,6 +2607,30 @@ mod tests {
         assert!(matches!(outcome.stop, StopReason::MaxError { cost } if cost > limit));
         assert!(outcome.log.iter().all(|r| r.cost <= limit));
         assert!(outcome.collapses < full.collapses);
+    }
+
+    #[test]
+    fn a_run_stopped_at_an_error_limit_goes_on_as_if_it_had_never_stopped() {
+        let mesh = grid(12, 12, bump);
+        let (whole, full) = qem(&mesh, Goal::Vertices(10));
+        let limit = full.log[full.log.len() / 2].cost;
+        let mut live = LiveMesh::new(&mesh).unwrap();
+        let mut model = QuadricModel::new(&live, &QemOptions::default());
+        let opts = Options::new(Goal::Vertices(10));
+        let limited = Options {
+            max_error: Some(limit),
+            ..opts
+        };
+        let mut run = live.start(&mut model, &limited);
+        let stop = live.resume(&mut run, &mut model, &mut NoGuard, &limited, &mut |_| {});
+        assert!(matches!(stop, StopReason::MaxError { .. }));
+        assert!(run.held.is_some());
+        let halfway = run.out.collapses;
+        assert!(halfway > 0 && halfway < full.collapses);
+        let stop = live.resume(&mut run, &mut model, &mut NoGuard, &opts, &mut |_| {});
+        assert_eq!(stop, StopReason::Reached);
+        assert_eq!(run.out.log, full.log);
+        assert_eq!(live.to_mesh(&mesh).unwrap().0, whole);
     }
 
     #[test]

@@ -272,6 +272,11 @@ impl Queue {
         }
     }
 
+    /// Every queued entry (parked ones aside), in no particular order.
+    pub(crate) fn entries(&self) -> impl Iterator<Item = &Entry> {
+        self.heap.items.iter().chain(&self.run)
+    }
+
     /// Parks a refused entry until one of its vertices is touched, with the vertex its
     /// refusal hangs on, if any (`witness`, else [`crate::NONE`]: [`Queue::release`] hands
     /// it back).

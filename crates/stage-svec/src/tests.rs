@@ -406,10 +406,12 @@ fn target_scale_stops_at_a_multiple_of_the_target() {
 #[test]
 fn a_big_mesh_collapses_in_parts_first_and_ends_close_to_the_serial_result() {
     let mesh = tessellated_cube(40);
+    // As the stage runs it, in steps.
     let in_parts = PartOptions {
         min_faces: 0,
         min_collapses: 0,
         faces_per_part: 1024,
+        steps: crate::PARALLEL_STEPS,
         ..PartOptions::default()
     };
     let serial = PartOptions {

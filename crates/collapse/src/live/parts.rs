@@ -1,7 +1,7 @@
 //! The parallel phase: the mesh cut into parts collapsed side by side, their collapses then
 //! made on the whole mesh (see [`LiveMesh::collapse_in_parts`]).
 
-use super::{DEAD, Derived, LIVE, LiveMesh};
+use super::{DEAD, Derived, LIVE, LiveMesh, Run};
 use crate::GuardCounts;
 use crate::{
     CostModel, FaceGuard, Goal, Index, NONE, Options, Outcome, StopReason, Unit, VertexKind,
@@ -28,6 +28,9 @@ pub struct PartOptions {
     pub bound_rank: f64,
     /// Rounds of parts (each cut halfway between the last one's cuts), at most.
     pub rounds: usize,
+    /// Steps of each round after the first, at most: the parts stay and collapse on up to a
+    /// higher cost bound at each step (1: one step, the rest is left to the serial run).
+    pub steps: usize,
 }
 
 impl PartOptions {
@@ -58,6 +61,7 @@ impl Default for PartOptions {
             share: 0.9,
             bound_rank: 1.0,
             rounds: 2,
+            steps: 1,
         }
     }
 }
@@ -112,7 +116,15 @@ impl LiveMesh {
     /// [`PartOptions::share`] of the collapses still needed (shared by free vertices) or,
     /// from the second round on, its candidates cost more than the round's bound (the
     /// cost at rank [`PartOptions::bound_rank`] × the collapses still needed among the
-    /// round's candidates, from a sample). What the parts' free vertices and faces became
+    /// round's candidates, from a sample). With [`PartOptions::steps`] above one, the parts
+    /// of a bounded round stay and go on in steps, each up to a higher bound: the cost at
+    /// the same rank among their queued candidates, each part capped by how many of its
+    /// candidates cost that or less (so that they never make more collapses than needed
+    /// between them), until fewer than [`PartOptions::min_collapses`] are needed, a step
+    /// makes few, or the rank leaves the cheaper half of the queued candidates (where the
+    /// one greedy order would take candidates not made yet first). Each part's queue
+    /// carries over, so each part goes on exactly as a serial run of it with the higher
+    /// bound would. What the parts' free vertices and faces became
     /// is then written into this mesh, part after part, the model told through
     /// [`CostModel::joined`] and [`CostModel::after_join`], and the arrays closed up. The
     /// second round's cuts fall halfway between the first's, so that the strips the first
@@ -269,24 +281,40 @@ impl LiveMesh {
             None => bound.is_finite().then_some(bound),
         };
         let (this, shared): (&LiveMesh, &M) = (self, model);
-        let runs: Vec<PartRun<G>> = cuts
-            .par_windows(2)
-            .map(|w| {
-                let (lo, hi) = (w[0], w[1]);
-                let free_here = free[lo..hi].iter().filter(|&&f| f).count();
-                let cap =
-                    (parts.share * needed as f64 * free_here as f64 / free_total as f64) as usize;
-                this.run_part(
-                    shared,
-                    new_guard,
-                    opts,
-                    (lo as Index, hi as Index),
-                    &free,
-                    cap,
-                    max_error,
-                )
-            })
-            .collect();
+        let share_cap = |(lo, hi): (usize, usize)| {
+            let free_here = free[lo..hi].iter().filter(|&&f| f).count();
+            (parts.share * needed as f64 * free_here as f64 / free_total as f64) as usize
+        };
+        let runs: Vec<PartRun<G>> = match bound_rank.filter(|_| parts.steps > 1) {
+            // One step per part: it is built, collapsed and done with on one thread.
+            None => cuts
+                .par_windows(2)
+                .map(|w| {
+                    let (lo, hi) = (w[0], w[1]);
+                    let mut part =
+                        this.start_part(shared, new_guard, (lo as Index, hi as Index), &free);
+                    part.step(opts, share_cap((lo, hi)), max_error);
+                    part.finish(&free)
+                })
+                .collect(),
+            Some(rank) => {
+                let mut all: Vec<Part<M, G>> = cuts
+                    .par_windows(2)
+                    .map(|w| {
+                        this.start_part(shared, new_guard, (w[0] as Index, w[1] as Index), &free)
+                    })
+                    .collect();
+                let caps: Vec<usize> = cuts.windows(2).map(|w| share_cap((w[0], w[1]))).collect();
+                let limits = StepLimits {
+                    bound_rank: rank,
+                    needed,
+                    min_collapses: parts.min_collapses,
+                    steps: parts.steps,
+                };
+                stepped(&mut all, caps, opts, bound, &limits);
+                all.into_par_iter().map(|p| p.finish(&free)).collect()
+            }
+        };
 
         if runs.iter().all(|r| r.outcome.collapses == 0) {
             out.refused = runs.iter().fold(out.refused, |mut sum, r| {
@@ -401,19 +429,14 @@ impl LiveMesh {
         *c
     }
 
-    /// Collapses the part of vertices `lo..hi` on a live mesh of its own, at most `cap`
-    /// times and up to cost `max_error`; its log speaks this mesh's indices.
-    #[allow(clippy::too_many_arguments)]
-    fn run_part<M, G, F>(
+    /// The part of vertices `lo..hi` as a live mesh of its own.
+    fn start_part<M, G, F>(
         &self,
         model: &M,
         new_guard: &F,
-        opts: &Options,
         (lo, hi): (Index, Index),
         free: &[bool],
-        cap: usize,
-        max_error: Option<f64>,
-    ) -> PartRun<G>
+    ) -> Part<M, G>
     where
         M: CostModel,
         G: FaceGuard,
@@ -466,28 +489,154 @@ impl LiveMesh {
                 .map(|&v| self.region_area[v as usize])
                 .collect(),
         };
-        let mut part =
-            LiveMesh::build_with(positions, local_faces, Some(verts.clone()), Some(derived));
-        let part_vertices_before = part.n_vertices;
-        let mut guard = new_guard();
-        let (outcome, tally) = match model.for_part(&part) {
-            Some(mut part_model) => {
-                let removes = match model.unit() {
-                    Unit::Edge => 1,
-                    Unit::Triangle => 2,
-                };
-                let goal = Goal::Vertices(part.n_vertices.saturating_sub(cap * removes));
-                let part_opts = Options {
-                    goal,
-                    max_error,
-                    ..*opts
-                };
-                let o = part.collapse_guarded(&mut part_model, &mut guard, &part_opts, &mut |_| {});
-                (o, part_model.tally())
-            }
-            None => (Outcome::none(), 0),
-        };
+        let mesh = LiveMesh::build_with(positions, local_faces, Some(verts.clone()), Some(derived));
+        Part {
+            vertices_before: mesh.n_vertices,
+            model: model.for_part(&mesh),
+            mesh,
+            faces,
+            guard: new_guard(),
+            run: None,
+        }
+    }
+}
 
+/// When [`stepped`] raises its bound and when it stops.
+struct StepLimits {
+    /// Each next bound is the cost at rank `bound_rank` × the collapses still needed.
+    bound_rank: f64,
+    /// The collapses the goal needs.
+    needed: usize,
+    /// No next step once fewer collapses than this are needed, or after a step that made
+    /// fewer than a sixteenth of this.
+    min_collapses: usize,
+    /// Steps at most.
+    steps: usize,
+}
+
+/// Collapses `parts` side by side in steps up to a rising cost bound, as one greedy run
+/// over all of them would up to each bound (except for the ties between parts): the first
+/// step up to `bound` and `caps`, each next one up to the cost at the rank the limits give
+/// among the parts' queued candidates, each part at most as many times as it has
+/// candidates at that cost or less (so that the parts never make more than the collapses
+/// needed between them).
+fn stepped<M, G>(
+    parts: &mut [Part<M, G>],
+    mut caps: Vec<usize>,
+    opts: &Options,
+    mut bound: f64,
+    limits: &StepLimits,
+) where
+    M: CostModel + Send,
+    G: FaceGuard + Send,
+{
+    let limit = |bound: f64| Some(opts.max_error.map_or(bound, |m| m.min(bound)));
+    let mut made = 0;
+    for _ in 0..limits.steps {
+        parts
+            .par_iter_mut()
+            .zip(&caps)
+            .for_each(|(p, &cap)| p.step(opts, cap, limit(bound)));
+        let now: usize = parts.iter().map(|p| p.collapses()).sum();
+        let left = limits.needed.saturating_sub(now);
+        if left < limits.min_collapses || now - made < limits.min_collapses / 16 {
+            break;
+        }
+        made = now;
+        let costs: Vec<Vec<f64>> = parts
+            .iter()
+            .map(|p| {
+                let mut c = Vec::new();
+                p.queued_costs(&mut c);
+                c
+            })
+            .collect();
+        let mut all: Vec<f64> = costs.concat();
+        let rank = (limits.bound_rank * left as f64) as usize;
+        // The rank must lie among the cheaper half of the queued candidates: when the
+        // parts hold few more candidates than collapses needed (the rest are parked or
+        // locked), the one greedy order would take many candidates not made yet before
+        // their dearest, and the bound would run ahead of it.
+        if 2 * rank > all.len() {
+            break;
+        }
+        let (_, &mut next, _) = all.select_nth_unstable_by(rank, f64::total_cmp);
+        if next <= bound {
+            break;
+        }
+        bound = next;
+        let below: Vec<usize> = costs
+            .iter()
+            .map(|c| c.iter().filter(|&&x| x <= bound).count())
+            .collect();
+        let total: usize = below.iter().sum();
+        let scale = (left as f64 / total.max(1) as f64).min(1.0);
+        caps = below.iter().map(|&n| (n as f64 * scale) as usize).collect();
+    }
+}
+
+/// One part of a round: a live mesh of its own with its model, guard and collapse run.
+struct Part<M, G> {
+    mesh: LiveMesh,
+    /// The whole mesh's index of each of its faces.
+    faces: Vec<Index>,
+    vertices_before: usize,
+    /// `None` when the model cannot work on parts.
+    model: Option<M>,
+    guard: G,
+    run: Option<Run>,
+}
+
+impl<M: CostModel, G: FaceGuard> Part<M, G> {
+    /// Collapses at most `cap` more times and up to cost `max_error` (its candidates are
+    /// ranked at the first step that may collapse).
+    fn step(&mut self, opts: &Options, cap: usize, max_error: Option<f64>) {
+        let Some(model) = self.model.as_mut() else {
+            return;
+        };
+        let removes = match model.unit() {
+            Unit::Edge => 1,
+            Unit::Triangle => 2,
+        };
+        let goal = Goal::Vertices(self.mesh.n_vertices.saturating_sub(cap * removes));
+        if self.mesh.reached(goal) {
+            return;
+        }
+        let part_opts = Options {
+            goal,
+            max_error,
+            ..*opts
+        };
+        let run = self
+            .run
+            .get_or_insert_with(|| self.mesh.start(model, &part_opts));
+        self.mesh
+            .resume(run, model, &mut self.guard, &part_opts, &mut |_| {});
+    }
+
+    /// Collapses made so far.
+    fn collapses(&self) -> usize {
+        self.run.as_ref().map_or(0, |r| r.out.collapses)
+    }
+
+    /// The costs of its current queued candidates, added to `costs`.
+    fn queued_costs(&self, costs: &mut Vec<f64>) {
+        if let Some(run) = &self.run {
+            run.queued_costs(&self.mesh, costs);
+        }
+    }
+
+    /// What the free vertices (by `free`, in the whole mesh's indices) and their faces
+    /// became.
+    fn finish(self, free: &[bool]) -> PartRun<G> {
+        let part = self.mesh;
+        let faces = self.faces;
+        let (outcome, tally) = match (self.run, &self.model) {
+            (Some(run), Some(m)) => (run.out, m.tally()),
+            _ => (Outcome::none(), 0),
+        };
+        let guard = self.guard;
+        let part_vertices_before = self.vertices_before;
         // What the free vertices and their faces became, in this mesh's indices.
         let owned = |i: Index| free[part.input_index(i) as usize];
         let mut vertices = Vec::new();
@@ -556,6 +705,18 @@ mod tests {
         share: 0.9,
         bound_rank: 1.0,
         rounds: 2,
+        steps: 1,
+    };
+
+    /// [`SMALL`] with the second round in steps.
+    const STEPPED: PartOptions = PartOptions { steps: 16, ..SMALL };
+
+    /// Parts big enough, and a first round short enough, for steps to find candidates
+    /// left in them.
+    const BIG_STEPPED: PartOptions = PartOptions {
+        faces_per_part: 4096,
+        share: 0.5,
+        ..STEPPED
     };
 
     /// An icosphere with bumps, so that costs vary over it.
@@ -620,16 +781,44 @@ mod tests {
     #[test]
     fn the_output_does_not_depend_on_the_thread_count() {
         let sphere = bumpy(4);
-        let on = |threads: usize| {
+        let on = |threads: usize, parts: &PartOptions| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| qem_in_parts(&sphere, Goal::Vertices(300), &SMALL).0)
+                .install(|| qem_in_parts(&sphere, Goal::Vertices(300), parts).0)
         };
-        let one = on(1);
-        assert_eq!(one, on(2));
-        assert_eq!(one, on(3));
+        let one = on(1, &SMALL);
+        assert_eq!(one, on(2, &SMALL));
+        assert_eq!(one, on(3, &SMALL));
+        let one = on(1, &STEPPED);
+        assert_eq!(one, on(2, &STEPPED));
+        assert_eq!(one, on(3, &STEPPED));
+    }
+
+    #[test]
+    fn steps_leave_less_to_the_serial_run_and_never_overshoot() {
+        let sphere = bumpy(5);
+        let n = sphere.n_vertices();
+        let goal = Goal::Vertices(500);
+        let once = PartOptions {
+            steps: 1,
+            ..BIG_STEPPED
+        };
+        let (_, once, _) = qem_in_parts(&sphere, goal, &once);
+        let (out, stepped, rest) = qem_in_parts(&sphere, goal, &BIG_STEPPED);
+        assert!(
+            stepped.collapses > once.collapses,
+            "{} in steps against {} in one",
+            stepped.collapses,
+            once.collapses
+        );
+        assert_eq!(stepped.collapses + rest.collapses, n - 500);
+        assert_eq!(out.n_vertices(), 500);
+        assert_eq!(assert_closed_manifold(&out).euler, 2);
+        // Each step stops at its bound: the parts' dearest collapse costs no more than the
+        // serial run's dearest.
+        assert!(stepped.max_cost <= rest.max_cost);
     }
 
     #[test]
@@ -734,7 +923,7 @@ mod properties {
             ..ProptestConfig::default()
         })]
 
-        /// Whatever the cut, the share and the target: the whole mesh is sound after the
+        /// Whatever the cut, the share, the steps and the target: the whole mesh is sound after the
         /// parts are joined and after the serial finish, every input vertex is merged
         /// into exactly one output vertex, and the target and the topology are met as a
         /// serial run meets them.
@@ -745,6 +934,7 @@ mod properties {
             frac in 0.05f64..0.8,
             faces_per_part in 128usize..4096,
             share in 0.3f64..0.95,
+            steps in 1usize..20,
         ) {
             let mesh = shape(kind, seed, 0.002);
             let target = ((mesh.n_vertices() as f64 * frac) as usize).max(30);
@@ -753,6 +943,7 @@ mod properties {
                 min_collapses: 0,
                 faces_per_part,
                 share,
+                steps,
                 ..PartOptions::default()
             };
             let opts = Options::new(Goal::Vertices(target));
