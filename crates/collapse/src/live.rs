@@ -196,7 +196,6 @@ struct Renaming {
     new_face: Vec<Index>,
 }
 
-/// Work buffers of one run, reused by every collapse.
 /// A collapse run between calls of [`LiveMesh::resume`]: its queue, work buffers and what
 /// it did so far.
 struct Run {
@@ -224,6 +223,7 @@ impl Run {
     }
 }
 
+/// Work buffers of one run, reused by every collapse.
 struct Scratch {
     ring: Vec<(Index, Index)>,
     targets: Vec<Index>,

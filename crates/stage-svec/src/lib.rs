@@ -104,11 +104,12 @@
 //! and leaves the rest to one greedy order (`LiveMesh::collapse_in_parts`). The steps
 //! move most of the coarse end, where a collapse costs the most (five to ten refusals
 //! each), from one thread to both: at 4.4M faces the serial finish fell from 85K
-//! collapses to 15K, the stage by 11 % (QEM, whose second round already makes nine
+//! collapses to 15K, the stage by 11–14 % (QEM, whose second round already makes nine
 //! tenths of what is left, keeps one step: continuing its parts' queues instead of the
-//! serial run's fresh ranking took P<30° at 4.4M from 16 % to 35 %). The output does not depend on the thread count, but it
-//! is not the purely serial one; with `--progressive` the run is serial (the record needs
-//! every collapse made on the whole mesh), so its output may differ from a run without. On
+//! serial run's fresh ranking took P<30° at 4.4M from 16 % to 35 %). The output does not
+//! depend on the thread count, but it is not the purely serial one; with `--progressive`
+//! the run is serial (the record needs every collapse made on the whole mesh), so its
+//! output may differ from a run without. Before the steps, on
 //! the bunny subdivided twice (1.1M faces) to 15,000 faces: 6.4 s instead of 10.8 s, with
 //! the same triangles (P<30° 47.6 % against 47.4 %, Q_avg 0.575 against 0.576) and less
 //! error (`sve` 2.72e-16 against 2.89e-16, Hausdorff 0.49 % against 0.52 %); subdivided three
