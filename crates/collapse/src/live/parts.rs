@@ -276,10 +276,7 @@ impl LiveMesh {
             None => f64::INFINITY,
         };
         let free_total = free.iter().filter(|&&f| f).count().max(1);
-        let max_error = match opts.max_error {
-            Some(m) => Some(m.min(bound)),
-            None => bound.is_finite().then_some(bound),
-        };
+        let max_error = error_limit(opts, bound);
         let (this, shared): (&LiveMesh, &M) = (self, model);
         let share_cap = |(lo, hi): (usize, usize)| {
             let free_here = free[lo..hi].iter().filter(|&&f| f).count();
@@ -501,6 +498,15 @@ impl LiveMesh {
     }
 }
 
+/// The parts' error limit: the run's own, or `bound` when that is lower (no limit when
+/// neither is finite).
+fn error_limit(opts: &Options, bound: f64) -> Option<f64> {
+    match opts.max_error {
+        Some(m) => Some(m.min(bound)),
+        None => bound.is_finite().then_some(bound),
+    }
+}
+
 /// When [`stepped`] raises its bound and when it stops.
 struct StepLimits {
     /// Each next bound is the cost at rank `bound_rank` × the collapses still needed.
@@ -530,13 +536,12 @@ fn stepped<M, G>(
     M: CostModel + Send,
     G: FaceGuard + Send,
 {
-    let limit = |bound: f64| Some(opts.max_error.map_or(bound, |m| m.min(bound)));
     let mut made = 0;
     for _ in 0..limits.steps {
         parts
             .par_iter_mut()
             .zip(&caps)
-            .for_each(|(p, &cap)| p.step(opts, cap, limit(bound)));
+            .for_each(|(p, &cap)| p.step(opts, cap, error_limit(opts, bound)));
         let now: usize = parts.iter().map(|p| p.collapses()).sum();
         let left = limits.needed.saturating_sub(now);
         if left < limits.min_collapses || now - made < limits.min_collapses / 16 {
