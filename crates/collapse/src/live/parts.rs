@@ -124,11 +124,13 @@ impl LiveMesh {
     /// makes few, or the rank leaves the cheaper half of the queued candidates (where the
     /// one greedy order would take candidates not made yet first). Each part's queue
     /// carries over, so each part goes on exactly as a serial run of it with the higher
-    /// bound would. What the parts' free vertices and faces became
-    /// is then written into this mesh, part after part, the model told through
-    /// [`CostModel::joined`] and [`CostModel::after_join`], and the arrays closed up. The
-    /// second round's cuts fall halfway between the first's, so that the strips the first
-    /// left locked are collapsed too.
+    /// bound would.
+    ///
+    /// What the parts' free vertices and faces became is then written into this mesh, part
+    /// after part, the model told through [`CostModel::joined`] and
+    /// [`CostModel::after_join`], and the arrays closed up. The second round's cuts fall
+    /// halfway between the first's, so that the strips the first left locked are collapsed
+    /// too.
     ///
     /// Does nothing (an empty outcome) on a mesh smaller than [`PartOptions::min_faces`],
     /// while a progressive record is kept (its steps must be made on this mesh, one after
