@@ -15,6 +15,7 @@ static ALLOCATOR: coarsen_malloc::HugeBlocks = coarsen_malloc::HugeBlocks;
 mod cases;
 mod features;
 mod levers;
+mod pyacvd;
 mod scale;
 mod speed;
 
@@ -55,6 +56,9 @@ enum Command {
         /// Leave out the speed section (whole `coarsen` processes, 7 runs per case).
         #[arg(long)]
         no_speed: bool,
+        /// Leave out the pyacvd section (pyacvd beside the CVT pipelines, a few minutes).
+        #[arg(long)]
+        no_pyacvd: bool,
     },
     /// Print only the feature-edge section (fandisk at 70 % removed).
     Features {
@@ -64,6 +68,12 @@ enum Command {
     },
     /// Print only the speed section (whole `coarsen` processes on the bunny).
     Speed {
+        /// Folder of the test meshes.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
+        data: PathBuf,
+    },
+    /// Print only the pyacvd section (pyacvd beside the CVT pipelines, when a Python has it).
+    Pyacvd {
         /// Folder of the test meshes.
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
         data: PathBuf,
@@ -96,11 +106,21 @@ fn main() -> ExitCode {
             out,
             no_scale,
             no_speed,
-        } => tables(&data, &out, !no_scale, !no_speed),
+            no_pyacvd,
+        } => tables(
+            &data,
+            &out,
+            Sections {
+                scale: !no_scale,
+                speed: !no_speed,
+                pyacvd: !no_pyacvd,
+            },
+        ),
         Command::Features { data } => feature_section(&data).map(|s| print!("{s}")),
         Command::Speed { data } => {
             speed::section(&data.join("stanford-bunny.obj")).map(|s| print!("{s}"))
         }
+        Command::Pyacvd { data } => pyacvd_section(&data).map(|s| print!("{s}")),
         Command::Cli { args } => return speed::child(args),
         Command::ScaleCase {
             pipeline,
@@ -146,7 +166,14 @@ struct Measured {
     load_seconds: f64,
 }
 
-fn tables(data: &Path, out: &Path, with_scale: bool, with_speed: bool) -> Result<()> {
+/// The timed sections `tables` runs beside the quality tables.
+struct Sections {
+    scale: bool,
+    speed: bool,
+    pyacvd: bool,
+}
+
+fn tables(data: &Path, out: &Path, with: Sections) -> Result<()> {
     if !data.join("stanford-bunny.obj").is_file() {
         bail!(
             "the test meshes are not in {} (pass --data DIR)",
@@ -189,15 +216,17 @@ fn tables(data: &Path, out: &Path, with_scale: bool, with_speed: bool) -> Result
     };
     text.push_str(&features::section(&registry, &loaded(features::MESH)?)?);
     text.push_str(&levers::section(&registry, &loaded(levers::MESH)?)?);
-    if with_speed {
+    if with.speed {
         text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
     }
-    if with_scale {
-        let bunny = match inputs.get("stanford-bunny.obj") {
-            Some((m, _, _)) => m.clone(),
-            None => load(&data.join("stanford-bunny.obj"))?,
-        };
-        text.push_str(&scale::section(&scale::big_mesh(&bunny)?)?);
+    if with.scale || with.pyacvd {
+        let big = scale::big_mesh(&loaded("stanford-bunny.obj")?)?;
+        if with.scale {
+            text.push_str(&scale::section(&big)?);
+        }
+        if with.pyacvd {
+            text.push_str(&pyacvd::section(&data.join("stanford-bunny.obj"), &big)?);
+        }
     }
     print!("{text}");
     if out != Path::new("-") {
@@ -205,6 +234,12 @@ fn tables(data: &Path, out: &Path, with_scale: bool, with_speed: bool) -> Result
         eprintln!("wrote {}", out.display());
     }
     Ok(())
+}
+
+/// The pyacvd section on the bunny of `data` and the bunny subdivided three times.
+fn pyacvd_section(data: &Path) -> Result<String> {
+    let bunny = data.join("stanford-bunny.obj");
+    pyacvd::section(&bunny, &scale::big_mesh(&load(&bunny)?)?)
 }
 
 /// The feature-edge section (issue #6) on the fandisk of `data`.

@@ -103,7 +103,7 @@ pub fn section(bunny: &Path) -> Result<String> {
 }
 
 /// The median of `t` (sorts it).
-fn median(t: &mut [f64]) -> f64 {
+pub(crate) fn median(t: &mut [f64]) -> f64 {
     t.sort_by(f64::total_cmp);
     match t.len() {
         0 => f64::NAN,
