@@ -149,13 +149,20 @@ pub(crate) fn surface_normal_with(
 }
 
 /// True when triangle `abc` points away (> 90°) from the input normal at the nearest point
-/// of the input to its centroid — the test behind [`Validity::n_flipped`].
-fn faces_away(mesh: &Mesh, topo: &Topology, bvh: &Bvh, a: DVec3, b: DVec3, c: DVec3) -> bool {
+/// of the input to its centroid — the test behind [`Validity::n_flipped`]; `normal` gives
+/// the input normal at a face and barycentric point ([`surface_normal`]).
+fn faces_away(
+    bvh: &Bvh,
+    normal: impl Fn(u32, [f64; 3]) -> DVec3,
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+) -> bool {
     let n_out = triangle::cross(a, b, c);
     n_out != DVec3::ZERO
         && bvh
             .closest_point(triangle::centroid(a, b, c))
-            .is_some_and(|hit| n_out.dot(surface_normal(mesh, topo, hit.face, hit.bary)) < 0.0)
+            .is_some_and(|hit| n_out.dot(normal(hit.face, hit.bary)) < 0.0)
 }
 
 /// Output faces whose normal points away (> 90°) from the input normal nearest their
@@ -167,11 +174,12 @@ pub(crate) fn count_flipped(
     in_topology: &Topology,
 ) -> usize {
     let (out_mesh, in_mesh) = (output.mesh, input.mesh);
+    let normal = |f, bary| surface_normal(in_mesh, in_topology, f, bary);
     map_chunks(out_mesh.n_faces(), CHUNK, |range| {
         range
             .filter(|&f| {
                 let [a, b, c] = out_mesh.corners(f);
-                faces_away(in_mesh, in_topology, in_bvh, a, b, c)
+                faces_away(in_bvh, normal, a, b, c)
             })
             .count()
     })
@@ -179,25 +187,78 @@ pub(crate) fn count_flipped(
     .sum()
 }
 
-/// The indexes of an input surface that [`Facing`] reads: its adjacency and face hierarchy.
-/// Owns no reference to the mesh, so a run can build it once and share it.
+/// The indexes of an input surface that [`Facing`] reads: its faces around each vertex
+/// (for the normals at vertices and edges), its boundary edges and its face hierarchy.
+/// Owns no reference to the mesh or its adjacency, so a run can build it once, share it,
+/// and let the adjacency go.
 pub struct SurfaceIndex {
-    topo: Arc<Topology>,
+    /// Vertex `v`'s faces are `vertex_faces[vertex_face_offsets[v]..vertex_face_offsets[v + 1]]`,
+    /// in the adjacency's order.
+    vertex_face_offsets: Vec<u32>,
+    vertex_faces: Vec<u32>,
+    /// The edges of one face, in the adjacency's edge order.
+    boundary_edges: Vec<[u32; 2]>,
     bvh: Bvh,
 }
 
 impl SurfaceIndex {
     /// Indexes `input` (its faces and adjacency).
     pub fn new(input: &Mesh) -> Self {
-        SurfaceIndex::with_topology(input, Arc::new(Topology::build(input)))
+        SurfaceIndex::with_topology(input, &Topology::build(input))
     }
 
     /// Indexes the faces of `input`, whose adjacency `topo` was built earlier.
-    pub fn with_topology(input: &Mesh, topo: Arc<Topology>) -> Self {
+    pub fn with_topology(input: &Mesh, topo: &Topology) -> Self {
+        let n = input.n_vertices();
+        let mut vertex_face_offsets = Vec::with_capacity(n + 1);
+        let mut vertex_faces = Vec::with_capacity(3 * input.n_faces());
+        vertex_face_offsets.push(0);
+        for v in 0..n as u32 {
+            vertex_faces.extend_from_slice(topo.vertex_faces(v));
+            vertex_face_offsets.push(vertex_faces.len() as u32);
+        }
         SurfaceIndex {
-            topo,
+            vertex_face_offsets,
+            vertex_faces,
+            boundary_edges: (0..topo.n_edges() as u32)
+                .filter(|&e| topo.is_boundary_edge(e))
+                .map(|e| topo.edge(e))
+                .collect(),
             bvh: Bvh::build(&input.positions, &input.faces),
         }
+    }
+
+    /// The faces around vertex `v`.
+    fn vertex_faces(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        match self.vertex_face_offsets.get(v..v + 2) {
+            Some(&[a, b]) => &self.vertex_faces[a as usize..b as usize],
+            _ => &[],
+        }
+    }
+
+    /// The input normal at barycentric point `bary` of face `face` of `mesh` (the mesh
+    /// indexed), as [`surface_normal`] gives it from the adjacency.
+    fn normal(&self, mesh: &Mesh, face: u32, bary: [f64; 3]) -> DVec3 {
+        let vertex_normal = |v: u32| -> DVec3 {
+            self.vertex_faces(v)
+                .iter()
+                .map(|&f| face_cross(mesh, f))
+                .sum()
+        };
+        let edge_normal = |a: u32, b: u32| -> DVec3 {
+            // The faces on edge ab, ascending as the adjacency lists an edge's faces (the
+            // same sum, bit for bit).
+            let mut on_edge: Vec<u32> = self
+                .vertex_faces(a)
+                .iter()
+                .copied()
+                .filter(|&f| mesh.faces[f as usize].contains(&b))
+                .collect();
+            on_edge.sort_unstable();
+            on_edge.into_iter().map(|f| face_cross(mesh, f)).sum()
+        };
+        surface_normal_with(mesh, face, bary, vertex_normal, edge_normal)
     }
 }
 
@@ -224,14 +285,15 @@ impl<'a> Facing<'a> {
         &self.index.bvh
     }
 
-    /// The input's adjacency.
-    pub fn topology(&self) -> &Topology {
-        &self.index.topo
+    /// The input's boundary edges (edges of one face), in the order of its adjacency's edges.
+    pub fn boundary_edges(&self) -> &[[u32; 2]] {
+        &self.index.boundary_edges
     }
 
     /// True when triangle `abc` would count as flipped against the input.
     pub fn faces_away(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
-        faces_away(self.mesh, &self.index.topo, &self.index.bvh, a, b, c)
+        let normal = |f, bary| self.index.normal(self.mesh, f, bary);
+        faces_away(&self.index.bvh, normal, a, b, c)
     }
 }
 
@@ -343,6 +405,52 @@ mod tests {
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
         output.faces[0].swap(1, 2);
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(1));
+    }
+
+    /// The surface index keeps the faces around each vertex and the boundary edges, not
+    /// the adjacency: its normals at vertices, on edges and inside faces must be the
+    /// adjacency's, bit for bit, and its boundary edges the adjacency's, in order.
+    #[test]
+    fn the_surface_index_gives_the_adjacency_normals_bit_for_bit() {
+        let mut m = icosphere(2);
+        // Uneven faces (so that the order of a sum would show) and a hole.
+        for (i, p) in m.positions.iter_mut().enumerate() {
+            *p *= 1.0 + 0.1 * ((i as f64) * 0.7).sin();
+        }
+        m.faces.retain(|f| !f.contains(&5));
+        let topo = Topology::build(&m);
+        let index = SurfaceIndex::with_topology(&m, &topo);
+        let third = 1.0 / 3.0;
+        let points = [
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.5, 0.5, 0.0],
+            [0.0, 0.3, 0.7],
+            [0.6, 0.0, 0.4],
+            [third, third, third],
+        ];
+        for f in 0..m.n_faces() as u32 {
+            for bary in points {
+                let (a, b) = (
+                    index.normal(&m, f, bary),
+                    surface_normal(&m, &topo, f, bary),
+                );
+                assert_eq!(
+                    a.to_array().map(f64::to_bits),
+                    b.to_array().map(f64::to_bits)
+                );
+            }
+        }
+        let boundary: Vec<[u32; 2]> = (0..topo.n_edges() as u32)
+            .filter(|&e| topo.is_boundary_edge(e))
+            .map(|e| topo.edge(e))
+            .collect();
+        assert_eq!(boundary.len(), 5, "the hole's rim");
+        assert_eq!(
+            Facing::with_index(&m, Arc::new(index)).boundary_edges(),
+            boundary
+        );
     }
 
     #[test]

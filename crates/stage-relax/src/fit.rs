@@ -5,14 +5,15 @@ use super::*;
 
 /// Points of the input whose distance to `mesh` is watched (true: on the boundary): its
 /// used vertices, edge midpoints, face centroids and the points halfway from each centroid
-/// to a corner; only those farther than `min_dist` from `mesh`.
+/// to a corner; only those farther than `min_dist` from `mesh`. Builds the input's
+/// adjacency for its edges (the surface index keeps only what the projections need).
 pub(crate) fn input_samples(
     surface: &Surface<'_>,
     mesh: &Mesh,
     min_dist: f64,
 ) -> Vec<(DVec3, bool)> {
     let input = surface.mesh;
-    let t = surface.facing.topology();
+    let t = &Topology::build(input);
     let mut samples: Vec<(DVec3, bool)> = (0..input.n_vertices() as u32)
         .filter(|&v| !t.is_isolated_vertex(v))
         .map(|v| (input.positions[v as usize], t.is_boundary_vertex(v)))

@@ -191,10 +191,10 @@ impl<'a> Surface<'a> {
     /// `mesh` with its index built earlier by [`SurfaceIndex::new`] from the same mesh.
     pub fn with_index(mesh: &'a Mesh, index: Arc<SurfaceIndex>) -> Self {
         let facing = Facing::with_index(mesh, index);
-        let t = facing.topology();
-        let boundary = (0..t.n_edges() as u32)
-            .filter(|&e| t.is_boundary_edge(e))
-            .map(|e| t.edge(e).map(|v| mesh.positions[v as usize]))
+        let boundary = facing
+            .boundary_edges()
+            .iter()
+            .map(|e| e.map(|v| mesh.positions[v as usize]))
             .collect();
         Surface {
             mesh,

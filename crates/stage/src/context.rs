@@ -193,17 +193,22 @@ impl<'a> Context<'a> {
     }
 
     /// Like [`Context::input_index`], for a value built from the run input and its
-    /// adjacency ([`Context::input_topology`]).
+    /// adjacency ([`Context::input_topology`]); the adjacency is only looked for when the
+    /// value is not built yet.
     pub fn input_index_with_topology<T: std::any::Any + Send + Sync>(
         &self,
-        build: impl FnOnce(&Mesh, std::sync::Arc<coarsen_mesh::Topology>) -> T,
+        build: impl FnOnce(&Mesh, &coarsen_mesh::Topology) -> T,
     ) -> Result<std::sync::Arc<T>, coarsen_mesh::TopologyError> {
-        let topo = self.input_topology()?;
-        Ok(self.input_index(|m| build(m, topo)))
+        let original = self.original;
+        let build = || self.input_topology().map(|topo| build(original, &topo));
+        match self.shared {
+            Some(s) => s.try_input_index(build),
+            None => build().map(std::sync::Arc::new),
+        }
     }
 
-    /// The adjacency of the run input ([`Context::original`]), built at most once per run
-    /// (and not at all when the adjacency kept between stages is the input's).
+    /// The adjacency of the run input ([`Context::original`]): the one a stage still holds
+    /// or the one kept between stages when that is the input's, else built anew.
     pub fn input_topology(
         &self,
     ) -> Result<std::sync::Arc<coarsen_mesh::Topology>, coarsen_mesh::TopologyError> {

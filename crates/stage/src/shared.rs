@@ -4,7 +4,7 @@
 
 use coarsen_mesh::{Mesh, Topology, TopologyError};
 use std::any::{Any, TypeId};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError, Weak};
 
 /// A value derived from the run's input.
 type Entry = Arc<dyn Any + Send + Sync>;
@@ -22,7 +22,9 @@ struct Adjacency {
 pub struct Shared {
     input: Mutex<Vec<(TypeId, Entry)>>,
     adjacency: Mutex<Option<Adjacency>>,
-    input_topology: Mutex<Option<Arc<Topology>>>,
+    /// The run input's adjacency while anything holds it: not kept for its own sake (at
+    /// 4.4M faces it is 350 MiB, and the input indexes keep what they need of it).
+    input_topology: Mutex<Weak<Topology>>,
 }
 
 impl Shared {
@@ -34,27 +36,39 @@ impl Shared {
     /// The value of type `T` derived from the run input: built by `build` on the first
     /// call, the same value afterwards. `build` must depend on the run input alone.
     pub fn input_index<T: Any + Send + Sync>(&self, build: impl FnOnce() -> T) -> Arc<T> {
+        match self.try_input_index(|| Ok::<T, std::convert::Infallible>(build())) {
+            Ok(v) => v,
+            Err(never) => match never {},
+        }
+    }
+
+    /// Like [`Shared::input_index`], for a `build` that may fail (nothing is kept then).
+    pub fn try_input_index<T: Any + Send + Sync, E>(
+        &self,
+        build: impl FnOnce() -> Result<T, E>,
+    ) -> Result<Arc<T>, E> {
         let key = TypeId::of::<T>();
         let mut input = self.input.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some((_, v)) = input.iter().find(|(k, _)| *k == key)
             && let Ok(v) = Arc::clone(v).downcast::<T>()
         {
-            return v;
+            return Ok(v);
         }
-        let v = Arc::new(build());
+        let v = Arc::new(build()?);
         input.push((key, Arc::clone(&v) as Entry));
-        v
+        Ok(v)
     }
 
-    /// The adjacency of the run input `input`: built once per run, or taken from the
-    /// adjacency kept for the next stage when that was built from the input's faces.
+    /// The adjacency of the run input `input`: the one built before while something still
+    /// holds it, or the adjacency kept for the next stage when that was built from the
+    /// input's faces, else a new one.
     pub fn input_topology(&self, input: &Mesh) -> Result<Arc<Topology>, TopologyError> {
         let mut slot = self
             .input_topology
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
-        if let Some(t) = slot.as_ref() {
-            return Ok(Arc::clone(t));
+        if let Some(t) = slot.upgrade() {
+            return Ok(t);
         }
         let kept = self
             .adjacency
@@ -67,7 +81,7 @@ impl Shared {
             Some(t) => t,
             None => Arc::new(Topology::try_build(input)?),
         };
-        *slot = Some(Arc::clone(&t));
+        *slot = Arc::downgrade(&t);
         Ok(t)
     }
 
@@ -163,6 +177,40 @@ mod tests {
         let built = fresh.input_topology(&input).unwrap();
         assert_eq!(built.n_faces(), 2);
         assert!(Arc::ptr_eq(&fresh.input_topology(&input).unwrap(), &built));
+    }
+
+    #[test]
+    fn the_input_topology_goes_when_nothing_holds_it_and_comes_back_on_request() {
+        let shared = Shared::new();
+        let input = two_triangles();
+        let t = shared.input_topology(&input).unwrap();
+        let weak = Arc::downgrade(&t);
+        drop(t);
+        assert!(
+            weak.upgrade().is_none(),
+            "the shared state does not keep it alive"
+        );
+        let again = shared.input_topology(&input).unwrap();
+        assert_eq!(again.n_faces(), 2);
+        // An index built from it is built once, and the adjacency is not asked for again.
+        let mut builds = 0;
+        for _ in 0..2 {
+            let v = shared
+                .try_input_index(|| {
+                    builds += 1;
+                    shared.input_topology(&input).map(|t| t.n_edges())
+                })
+                .unwrap();
+            assert_eq!(*v, 5);
+        }
+        assert_eq!(builds, 1);
+        let failed: Result<Arc<u8>, &str> = shared.try_input_index(|| Err("no"));
+        assert_eq!(failed.unwrap_err(), "no");
+        assert_eq!(
+            *shared.input_index(|| 3u8),
+            3,
+            "a failed build keeps nothing"
+        );
     }
 
     #[test]
