@@ -150,12 +150,8 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
                 == (kept.n_components, kept.n_boundary_loops, kept.genus);
         let _ = writeln!(
             s,
-            "| {label} | `{pipeline}` | {shown} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {h} | {} | {seconds:.2} |",
-            q.alpha_min_deg,
-            q.alpha_avg_deg,
-            q.p_lt30_pct,
-            q.q_min,
-            q.q_avg,
+            "| {label} | `{pipeline}` | {shown} | {} | {h} | {} | {seconds:.2} |",
+            crate::quality_cells(q),
             if valid { "yes" } else { "no" },
         );
     }

@@ -350,6 +350,14 @@ fn run_case(
     }
 }
 
+/// The triangle-quality cells of a table row: α_min, α_avg, P<30°, Q_min, Q_avg.
+fn quality_cells(q: &coarsen_metrics::Quality) -> String {
+    format!(
+        "{:.2} | {:.2} | {:.2} | {:.3} | {:.3}",
+        q.alpha_min_deg, q.alpha_avg_deg, q.p_lt30_pct, q.q_min, q.q_avg
+    )
+}
+
 fn mesh_name(file: &str) -> &str {
     file.strip_suffix(".obj").unwrap_or(file)
 }
@@ -421,14 +429,10 @@ fn measured_row(case: &Case, outcome: &Outcome) -> String {
                 .map(|s| format!("{:.3}", s.seconds))
                 .collect();
             format!(
-                "{lead}| {} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {} | {} | {} | {} | {} | {} | {:.3} |\n",
+                "{lead}| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} |\n",
                 v.n_vertices,
                 v.n_faces,
-                q.alpha_min_deg,
-                q.alpha_avg_deg,
-                q.p_lt30_pct,
-                q.q_min,
-                q.q_avg,
+                quality_cells(q),
                 pct(f.map(|f| f.hausdorff_pct)),
                 pct(f.map(|f| f.mean_dist_pct)),
                 pct(f.map(|f| f.rms_dist_pct)),

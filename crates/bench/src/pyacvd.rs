@@ -8,14 +8,13 @@
 //! pyacvd is not a dependency of the workspace: the section runs it through a Python that
 //! has it (`COARSEN_BENCH_PYTHON`, else `python3`) and says so when there is none.
 
-use crate::speed::median;
-use crate::{load, validity_text};
+use crate::speed::{median, timed};
+use crate::{load, quality_cells, validity_text};
 use anyhow::{Context as _, Result, bail};
 use coarsen_mesh::Mesh;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Instant;
 
 /// Rounds per case; the table gives medians.
 const ROUNDS: usize = 3;
@@ -137,15 +136,11 @@ pub fn section(bunny: &Path, big: &Mesh) -> Result<String> {
             let total = median(&mut timings[i].iter().map(|t| t.total).collect::<Vec<_>>());
             let _ = writeln!(
                 s,
-                "| {name} | {n} v | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {} | {} | {clustering:.2} | {total:.2} | {:.2} |",
+                "| {name} | {n} v | {} | {} | {} | {} | {} | {} | {clustering:.2} | {total:.2} | {:.2} |",
                 tool.label(),
                 v.n_vertices,
                 v.n_faces,
-                q.alpha_min_deg,
-                q.alpha_avg_deg,
-                q.p_lt30_pct,
-                q.q_min,
-                q.q_avg,
+                quality_cells(q),
                 m.fidelity
                     .as_ref()
                     .map_or("—".into(), |f| format!("{:.3}", f.hausdorff_pct)),
@@ -193,14 +188,7 @@ fn run(python: &str, tool: Tool, file: &Path, n: usize, out: &Path, dir: &Path) 
                 .arg(out)
                 .args(["--vertices", &n.to_string(), "--report"])
                 .arg(&report);
-            let t = Instant::now();
-            let o = cmd
-                .output()
-                .context("the benchmark starts a copy of itself")?;
-            let total = t.elapsed().as_secs_f64();
-            if !o.status.success() {
-                bail!("{}", String::from_utf8_lossy(&o.stderr).trim());
-            }
+            let total = timed(&mut cmd, pipeline)?;
             let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report)?)?;
             let clustering = json["stages"]
                 .as_array()

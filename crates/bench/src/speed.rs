@@ -63,18 +63,7 @@ pub fn section(bunny: &Path) -> Result<String> {
                 };
             }
             cmd.stdout(std::process::Stdio::null());
-            let t = Instant::now();
-            let out = cmd
-                .output()
-                .context("the benchmark starts a copy of itself")?;
-            let seconds = t.elapsed().as_secs_f64();
-            if !out.status.success() {
-                bail!(
-                    "`{label}` failed: {}",
-                    String::from_utf8_lossy(&out.stderr).trim()
-                );
-            }
-            times[i].push(seconds);
+            times[i].push(timed(&mut cmd, label)?);
         }
     }
     let mut s = String::new();
@@ -100,6 +89,23 @@ pub fn section(bunny: &Path) -> Result<String> {
     }
     s.push('\n');
     Ok(s)
+}
+
+/// Runs `cmd` (a copy of this program) to its end: its wall time in seconds, or an error
+/// naming `label` with the child's message when it fails.
+pub(crate) fn timed(cmd: &mut Command, label: &str) -> Result<f64> {
+    let t = Instant::now();
+    let out = cmd
+        .output()
+        .context("the benchmark starts a copy of itself")?;
+    let seconds = t.elapsed().as_secs_f64();
+    if !out.status.success() {
+        bail!(
+            "`{label}` failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok(seconds)
 }
 
 /// The median of `t` (sorts it).
