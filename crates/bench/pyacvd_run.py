@@ -5,11 +5,10 @@ its points, build the remesh and save it; print one line of `key=value` timings.
 
 Times are seconds from `time.perf_counter`, taken around pyacvd's own calls: `read` (pyvista
 reads the file), `setup` (pyacvd's `Clustering`: its point weights and neighbour lists),
-`subdivide`, `cluster` and `mesh` (`create_mesh`). Saving the output is not timed. `peak`
-is the process's high-water mark in MiB.
+`subdivide` (which sets up the subdivided mesh's weights and neighbour lists again),
+`cluster` and `mesh` (`create_mesh`). Saving the output is not timed.
 """
 
-import resource
 import sys
 import time
 import warnings
@@ -34,10 +33,9 @@ def main() -> None:
     remesh = clus.create_mesh()
     t.append(time.perf_counter())
     remesh.save(out)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     names = ["read", "setup", "subdivide", "cluster", "mesh"]
     parts = " ".join(f"{n}={b - a}" for n, a, b in zip(names, t, t[1:]))
-    print(f"{parts} total={t[-1] - t[0]} peak={peak} vertices={remesh.n_points} faces={remesh.n_cells}")
+    print(f"{parts} total={t[-1] - t[0]} vertices={remesh.n_points} faces={remesh.n_cells}")
 
 
 if __name__ == "__main__":

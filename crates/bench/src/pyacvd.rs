@@ -77,8 +77,9 @@ pub fn section(bunny: &Path, big: &Mesh) -> Result<String> {
         "pyacvd {version} (uniform ACVD on the mesh's points) and coarsen's CVT pipelines on the \
          same inputs, {ROUNDS} rounds taken in turns; the outputs of the last round measured \
          by the same metrics against the input. *Clustering*: for pyacvd its `Clustering` \
-         set-up (point weights, neighbour lists) and `cluster` call; for coarsen the \
-         `cluster.cvt` stage (its adjacency included). *Total*: for pyacvd from reading the \
+         set-up (point weights, neighbour lists; after a subdivision, the subdivided mesh's \
+         set-up is part of the subdivision and left out) and `cluster` call; for coarsen \
+         the `cluster.cvt` stage (its adjacency included). *Total*: for pyacvd from reading the \
          file to the remeshed output in memory (the interpreter's start, the imports and the \
          saving left out); for coarsen the wall time of the whole `coarsen run` process \
          (start, reading, every stage, writing the file). Medians.\n"

@@ -196,7 +196,7 @@ pub struct SurfaceIndex {
     /// in the adjacency's order.
     vertex_face_offsets: Vec<u32>,
     vertex_faces: Vec<u32>,
-    /// The edges of one face, in the adjacency's edge order.
+    /// The boundary edges (edges of one face), in the adjacency's edge order.
     boundary_edges: Vec<[u32; 2]>,
     bvh: Bvh,
 }
