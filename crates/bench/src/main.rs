@@ -26,6 +26,7 @@ use coarsen_mesh::{Mesh, hygiene};
 use coarsen_metrics::{MetricsReport, Validity};
 use coarsen_pipeline::{Overrides, Pipeline, RunOptions, RunReport};
 use coarsen_stage::{Registry, Target};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -219,14 +220,19 @@ fn tables(data: &Path, out: &Path, with: Sections) -> Result<()> {
     if with.speed {
         text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
     }
-    if with.scale || with.pyacvd {
-        let big = scale::big_mesh(&loaded("stanford-bunny.obj")?)?;
-        if with.scale {
-            text.push_str(&scale::section(&big)?);
-        }
-        if with.pyacvd {
-            text.push_str(&pyacvd::section(&data.join("stanford-bunny.obj"), &big)?);
-        }
+    let big = match with.scale {
+        true => Some(scale::big_mesh(&loaded("stanford-bunny.obj")?)?),
+        false => None,
+    };
+    if let Some(big) = &big {
+        text.push_str(&scale::section(big)?);
+    }
+    if with.pyacvd {
+        let big = || match &big {
+            Some(b) => Ok(Cow::Borrowed(b)),
+            None => Ok(Cow::Owned(scale::big_mesh(&loaded("stanford-bunny.obj")?)?)),
+        };
+        text.push_str(&pyacvd::section(&data.join("stanford-bunny.obj"), big)?);
     }
     print!("{text}");
     if out != Path::new("-") {
@@ -239,7 +245,7 @@ fn tables(data: &Path, out: &Path, with: Sections) -> Result<()> {
 /// The pyacvd section on the bunny of `data` and the bunny subdivided three times.
 fn pyacvd_section(data: &Path) -> Result<String> {
     let bunny = data.join("stanford-bunny.obj");
-    pyacvd::section(&bunny, &scale::big_mesh(&load(&bunny)?)?)
+    pyacvd::section(&bunny, || Ok(Cow::Owned(scale::big_mesh(&load(&bunny)?)?)))
 }
 
 /// The feature-edge section (issue #6) on the fandisk of `data`.
