@@ -17,7 +17,7 @@ use coarsen_metrics::{MetricsOptions, measure};
 use coarsen_spatial::Bvh;
 use std::time::Instant;
 
-#[path = "../benches/support/meshes.rs"]
+#[path = "../../benches/src/meshes.rs"]
 mod meshes;
 
 /// Peak resident memory of this process so far, in MiB, from `/proc/self/status`.

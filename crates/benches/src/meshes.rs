@@ -1,5 +1,6 @@
-//! Meshes built in code (and the bunny read from `../shared/data`) for the benchmark and
-//! the `scale` example: both include this file with `#[path]`.
+//! Meshes built in code (and the bunny read from `../shared/data`) for the metrics
+//! benchmark and `coarsen-metrics`' `scale` example (which includes this file with
+//! `#[path]`).
 
 use coarsen_mesh::{DVec3, Mesh};
 use std::collections::HashMap;

@@ -1,7 +1,7 @@
 //! Throughput of the binary PLY writer and reader on a ~4M-triangle mesh, and of the OBJ
 //! reader on the Stanford bunny.
 //!
-//! Run: `cargo bench -p coarsen-io --bench ply`. Criterion prints MB/s (MiB/s) for each.
+//! Run: `cargo bench -p coarsen-benches --bench ply`. Criterion prints MB/s (MiB/s) for each.
 //! The mesh is generated here: a wavy height field on a 1415 × 1415 grid (2.0M vertices,
 //! 4.0M triangles), so the bench depends on nothing but this crate.
 

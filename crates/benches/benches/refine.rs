@@ -2,14 +2,14 @@
 //! has it): the `curvature` stage's estimate of F, then the refinement passes to λ ≥ 2 with
 //! the default parameters, and a single pass alone.
 //!
-//! `cargo bench -p coarsen-stage-refine`.
+//! `cargo bench -p coarsen-benches --bench refine`.
 
 use coarsen_mesh::Mesh;
 use coarsen_stage_refine::{RefineParams, refine};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
-#[path = "../tests/support/mod.rs"]
+#[path = "../../stage-refine/tests/support/mod.rs"]
 mod support;
 
 fn bench(c: &mut Criterion) {

@@ -1,4 +1,4 @@
-//! Benchmarks of the metrics (`cargo bench -p coarsen-metrics`).
+//! Benchmarks of the metrics (`cargo bench -p coarsen-benches --bench metrics`).
 //!
 //! * `measure/sphere 70K vs 10K`: the full report of a ~70K-face sphere against a
 //!   ~10K-face one (two latitude–longitude tessellations of the same sphere);
@@ -22,8 +22,7 @@ use coarsen_spatial::{Bvh, NearSet};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
-#[path = "support/meshes.rs"]
-mod meshes;
+use coarsen_benches::meshes;
 
 fn large() -> bool {
     std::env::var_os("COARSEN_BENCH_LARGE").is_some_and(|v| v == "1")

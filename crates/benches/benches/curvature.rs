@@ -1,7 +1,7 @@
 //! Time of the `curvature` stage (Meyer et al., the default) on the Stanford bunny
 //! (69,451 faces, when `../shared/data` has it) and on an 81,920-face bumpy sphere.
 //!
-//! Run: `cargo bench -p coarsen-stage-curvature --bench curvature`. The time covers the
+//! Run: `cargo bench -p coarsen-benches --bench curvature`. The time covers the
 //! whole stage: adjacency, per-face terms, per-vertex sums, the boundary rings and the
 //! three attribute columns (the input mesh is cloned outside the timing). `topology_only`
 //! times the adjacency build alone, the stage's one sequential phase.

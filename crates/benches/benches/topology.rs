@@ -1,4 +1,4 @@
-//! Benchmarks of the mesh topology (`cargo bench -p coarsen-mesh`).
+//! Benchmarks of the mesh topology (`cargo bench -p coarsen-benches --bench topology`).
 //!
 //! * `topology/build torus 70K` and `topology/build torus 1M`: [`Topology::build`] on
 //!   closed tori of about 70K and 1M faces (every vertex of valence 6, the common case);

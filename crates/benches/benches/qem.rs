@@ -1,6 +1,6 @@
 //! Timing of `simplify.qem` beside meshoptimizer's simplifier on the same inputs.
 //!
-//! `cargo bench -p coarsen-stage-qem` measures each case several times, the two
+//! `cargo bench -p coarsen-benches --bench qem` measures each case several times, the two
 //! simplifiers in turns, and shows the median CPU time per call of the whole process, all
 //! threads counted (wall time where Linux's `schedstat` is unavailable), so that other
 //! processes on a busy machine do not inflate the figures:
@@ -9,7 +9,7 @@
 //! * a 1.3M-face icosphere down to 60 000 faces;
 //! * issue #6's speed bar: the bunny subdivided 1-to-4 three times (4.4M faces) down to
 //!   60 000 faces by `simplify.qem` and `simplify.svec` against meshoptimizer
-//!   (`cargo bench -p coarsen-stage-qem --bench qem -- scale` runs only this case), with
+//!   (`cargo bench -p coarsen-benches --bench qem -- scale` runs only this case), with
 //!   the ratios by wall time beside those by CPU time (the engine's set-up runs on
 //!   rayon's threads: wall time is what a user waits, CPU time what the machine spends).
 //!   In each of [`SCALE_ROUNDS`] rounds meshoptimizer runs, then QEM, SVEC and
