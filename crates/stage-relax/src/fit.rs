@@ -414,6 +414,11 @@ pub(crate) fn fit(
                 .then(x.1.total_cmp(&y.1))
                 .then(x.2.cmp(&y.2))
         });
+        // The largest bound at which each collapse candidate was refused this round
+        // (infinite: not plannable): refused at no larger one either, it is not planned
+        // again. A candidate whose ends are not touched keeps its neighbourhood all round
+        // (every edit marks the vertices of the faces it changes and moves).
+        let mut refused_at = vec![f64::NEG_INFINITY; collapses.len()];
         let mut touched = vec![false; mesh.n_vertices()];
         let mut made = 0;
         for &(d, iv, f) in far
@@ -531,8 +536,9 @@ pub(crate) fn fit(
             // Distance the split removes (the far point's distance is at most this after).
             let gain = d - at.distance(p);
             let mut chosen = None;
-            for &(err, _, k) in &collapses {
-                if err > tol.max(FIT_TRADE * gain) {
+            let bound = tol.max(FIT_TRADE * gain);
+            for (i, &(err, _, k)) in collapses.iter().enumerate() {
+                if err > bound {
                     break;
                 }
                 let [a, b] = topo.edge(k);
@@ -540,16 +546,19 @@ pub(crate) fn fit(
                     || touched[b as usize]
                     || around.contains(&a)
                     || around.contains(&b)
+                    || bound <= refused_at[i]
                 {
                     continue;
                 }
                 let Some(col) = plan_collapse(mesh, &built, Some(surface), k, cos_turn, floor)
                 else {
+                    refused_at[i] = f64::INFINITY;
                     continue;
                 };
-                if collapse_error(mesh, &topo, k, col.at, &mut tris) > tol.max(FIT_TRADE * gain)
-                    || leaves_input(surface, &tris, tol.max(FIT_TRADE * gain))
+                if collapse_error(mesh, &topo, k, col.at, &mut tris) > bound
+                    || leaves_input(surface, &tris, bound)
                 {
+                    refused_at[i] = bound;
                     continue;
                 }
                 chosen = Some(col);

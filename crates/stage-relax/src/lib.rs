@@ -179,7 +179,9 @@ fn fan_shape(
 pub struct Surface<'a> {
     mesh: &'a Mesh,
     facing: Facing<'a>,
-    boundary: Vec<[DVec3; 2]>,
+    /// The input's boundary edges as degenerate triangles `[a, b, b]` (their nearest point
+    /// is the segment's), indexed; `None` without a boundary.
+    boundary: Option<Bvh>,
 }
 
 impl<'a> Surface<'a> {
@@ -191,11 +193,12 @@ impl<'a> Surface<'a> {
     /// `mesh` with its index built earlier by [`SurfaceIndex::new`] from the same mesh.
     pub fn with_index(mesh: &'a Mesh, index: Arc<SurfaceIndex>) -> Self {
         let facing = Facing::with_index(mesh, index);
-        let boundary = facing
+        let segments: Vec<[u32; 3]> = facing
             .boundary_edges()
             .iter()
-            .map(|e| e.map(|v| mesh.positions[v as usize]))
+            .map(|&[a, b]| [a, b, b])
             .collect();
+        let boundary = (!segments.is_empty()).then(|| Bvh::build(&mesh.positions, &segments));
         Surface {
             mesh,
             facing,
@@ -210,14 +213,7 @@ impl<'a> Surface<'a> {
 
     /// The nearest point of the boundary edges.
     fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
-        self.boundary
-            .iter()
-            .map(|[a, b]| {
-                let q = closest_point_on_segment(p, *a, *b).0;
-                (q, q.distance_squared(p))
-            })
-            .min_by(|x, y| x.1.total_cmp(&y.1))
-            .map(|(q, _)| q)
+        self.boundary.as_ref()?.closest_point(p).map(|h| h.point)
     }
 
     /// True when the triangle `abc` does not face away from the input (the metrics'
