@@ -867,6 +867,46 @@ mod tests {
         assert!(a.positions.iter().all(|p| (p.length() - 1.0).abs() < 1e-3));
     }
 
+    /// The boundary's index finds the nearest boundary point a scan of every boundary edge
+    /// finds, from points inside, outside, above and at the corners of a grid.
+    #[test]
+    fn boundary_projection_finds_the_nearest_boundary_point() {
+        let m = bumped_grid(8, 0.0625);
+        let surface = Surface::new(&m);
+        let t = Topology::build(&m);
+        let edges: Vec<[DVec3; 2]> = (0..t.n_edges() as u32)
+            .filter(|&e| t.is_boundary_edge(e))
+            .map(|e| t.edge(e).map(|v| m.positions[v as usize]))
+            .collect();
+        assert_eq!(edges.len(), 32);
+        for i in 0..400u32 {
+            let s = f64::from(i);
+            let p = DVec3::new(
+                1.6 * (s * 0.618).fract() - 0.8,
+                1.6 * (s * 0.414).fract() - 0.8,
+                0.3 * (s * 0.732).fract() - 0.1,
+            );
+            let scan = edges
+                .iter()
+                .map(|[a, b]| closest_point_on_segment(p, *a, *b).0.distance(p))
+                .fold(f64::INFINITY, f64::min);
+            let q = surface.project_boundary(p).unwrap();
+            assert!(
+                (q.distance(p) - scan).abs() <= 1e-12,
+                "{p}: {q} at {} against {scan}",
+                q.distance(p)
+            );
+            assert!(
+                edges
+                    .iter()
+                    .any(|[a, b]| closest_point_on_segment(q, *a, *b).0.distance(q) <= 1e-12)
+            );
+        }
+        // An input without a boundary has no boundary point.
+        let closed = coarsen_shapes::icosphere(1.0, 1).unwrap();
+        assert_eq!(Surface::new(&closed).project_boundary(DVec3::X), None);
+    }
+
     #[test]
     fn fitting_is_deterministic_across_thread_counts() {
         let original = bumped_grid(64, 0.0625);
