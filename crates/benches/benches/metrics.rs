@@ -13,7 +13,7 @@
 //! * `bvh/build 70K`: building the spatial index;
 //! * with `COARSEN_BENCH_LARGE=1` only: `measure/sphere 4M vs 10K` and `bvh/build 4M`.
 //!
-//! `cargo run --release -p coarsen-metrics --example scale` times the same cases once
+//! `cargo bench -p coarsen-benches --bench scale -- CASE` times the same cases once
 //! each, with the thread count and peak memory.
 
 use coarsen_mesh::DVec3;

@@ -7,6 +7,22 @@
 //! ```
 //!
 //! They live apart from the crates they measure so that `cargo test` builds none of their
-//! dependencies (criterion, meshoptimizer and their trees).
+//! dependencies (criterion, meshoptimizer and their trees). The timing tools among them
+//! (`throughput`, `scale`, `build_timing`) take their input after `--`.
 
 pub mod meshes;
+
+/// The arguments of a timing tool run as a bench target (`cargo bench -p coarsen-benches
+/// --bench NAME -- ARGS`), without the program's name and the `--bench` cargo adds; `None`,
+/// after printing `usage`, when cargo ran the tool among all the benchmarks and its first
+/// argument is not one of its own (`mine`).
+pub fn tool_args(usage: &str, mine: impl Fn(&str) -> bool) -> Option<Vec<String>> {
+    let all: Vec<String> = std::env::args().skip(1).collect();
+    let under_cargo = all.iter().any(|a| a == "--bench");
+    let args: Vec<String> = all.into_iter().filter(|a| a != "--bench").collect();
+    if under_cargo && !args.first().is_some_and(|a| mine(a)) {
+        eprintln!("{usage} (nothing to time: skipped)");
+        return None;
+    }
+    Some(args)
+}

@@ -1,6 +1,5 @@
 //! Meshes built in code (and the bunny read from `../shared/data`) for the metrics
-//! benchmark and `coarsen-metrics`' `scale` example (which includes this file with
-//! `#[path]`).
+//! benchmark and the `scale` tool.
 
 use coarsen_mesh::{DVec3, Mesh};
 use std::collections::HashMap;

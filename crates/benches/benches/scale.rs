@@ -2,7 +2,7 @@
 //! that the peak belongs to that case:
 //!
 //! ```text
-//! cargo run --release -p coarsen-metrics --example scale -- CASE [THREADS] [REPEATS]
+//! cargo bench -p coarsen-benches --bench scale -- CASE [THREADS] [REPEATS]
 //! ```
 //!
 //! `CASE` is `measure-70k` (a ~70K-face sphere against a ~10K-face one), `measure-4m`
@@ -12,13 +12,11 @@
 //! `REPEATS` times (default 3) and prints every wall time, then the process's peak resident
 //! memory (`VmHWM`, Linux only) and what the meshes alone hold.
 
+use coarsen_benches::meshes;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::{MetricsOptions, measure};
 use coarsen_spatial::Bvh;
 use std::time::Instant;
-
-#[path = "../../benches/src/meshes.rs"]
-mod meshes;
 
 /// Peak resident memory of this process so far, in MiB, from `/proc/self/status`.
 fn peak_mib() -> Option<f64> {
@@ -52,7 +50,19 @@ fn mesh_mib(m: &Mesh) -> f64 {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    const CASES: [&str; 5] = [
+        "measure-70k",
+        "measure-4m",
+        "measure-bunny",
+        "bvh-70k",
+        "bvh-4m",
+    ];
+    let Some(args) = coarsen_benches::tool_args(
+        "usage: scale CASE [THREADS] [REPEATS], CASE one of measure-70k, measure-4m, measure-bunny, bvh-70k, bvh-4m",
+        |a| CASES.contains(&a),
+    ) else {
+        return;
+    };
     let case = args
         .first()
         .map_or("measure-70k", String::as_str)

@@ -1,6 +1,6 @@
 //! Times [`Topology::build`] on a mesh file: the median and spread of `N` builds.
 //!
-//! `cargo run --release -p coarsen-mesh --example build_timing -- MESH [N [alternate]]`
+//! `cargo bench -p coarsen-benches --bench build_timing -- MESH [N [alternate]]`
 //! (`RAYON_NUM_THREADS=1` for the serial figure). With `alternate`, the builds alternate
 //! between a one-thread pool and the default one, so that both figures see the same load
 //! on a shared machine, and one more line gives the two medians, minimums and the median
@@ -15,9 +15,14 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    const USAGE: &str = "usage: build_timing MESH [N [alternate]]";
+    let Some(args) = coarsen_benches::tool_args(USAGE, |a| std::path::Path::new(a).is_file())
+    else {
+        return;
+    };
+    let mut args = args.into_iter();
     let Some(path) = args.next().map(PathBuf::from) else {
-        eprintln!("usage: build_timing MESH [N]");
+        eprintln!("{USAGE}");
         std::process::exit(2);
     };
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(5);

@@ -1,14 +1,18 @@
 //! Times the phases of one clustering (adjacency, set-up, seeding, minimisation) on a mesh
-//! file: `cargo run --release -p coarsen-stage-cvt --example throughput -- FILE N [ENERGY]`.
+//! file: `cargo bench -p coarsen-benches --bench throughput -- FILE N [ENERGY]`.
 
 use coarsen_mesh::Topology;
 use coarsen_stage_cvt::{Clusterer, Energy, Shu2009, Valette2004};
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
-    let (Some(path), Some(n)) = (args.get(1), args.get(2)) else {
-        return Err("usage: throughput FILE N [valette2004|shu2009]".into());
+    const USAGE: &str = "usage: throughput FILE N [valette2004|shu2009]";
+    let Some(args) = coarsen_benches::tool_args(USAGE, |a| std::path::Path::new(a).is_file())
+    else {
+        return Ok(());
+    };
+    let (Some(path), Some(n)) = (args.first(), args.get(1)) else {
+        return Err(USAGE.into());
     };
     let n: usize = n.parse()?;
     let mesh = coarsen_io::read_path(std::path::Path::new(path), &Default::default())?.mesh;
@@ -21,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mesh.n_faces(),
         t.elapsed().as_secs_f64()
     );
-    match args.get(3).map(String::as_str) {
+    match args.get(2).map(String::as_str) {
         Some("shu2009") => time(&mesh, &topo, &Shu2009 { r: 2.0 }, n),
         _ => time(&mesh, &topo, &Valette2004, n),
     }
