@@ -868,7 +868,8 @@ mod tests {
     }
 
     /// The boundary's index finds the nearest boundary point a scan of every boundary edge
-    /// finds, from points inside, outside, above and at the corners of a grid.
+    /// finds, from 400 points over, under and beside a bumped grid (the grid spans ±0.5,
+    /// the points ±0.8).
     #[test]
     fn boundary_projection_finds_the_nearest_boundary_point() {
         let m = bumped_grid(8, 0.0625);
