@@ -9,6 +9,7 @@
 //! time of a build (all threads), and a hash of the tables so that two builds of the same
 //! mesh can be compared for identity.
 
+use coarsen_benches::cpu_seconds;
 use coarsen_mesh::Topology;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::path::PathBuf;
@@ -61,24 +62,6 @@ fn main() {
         times[times.len() - 1],
         cpu[cpu.len() / 2],
     );
-}
-
-/// User plus system CPU seconds of this process so far (all threads), from
-/// `/proc/self/stat` (Linux, 100 ticks a second); 0 elsewhere.
-fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    // Fields after the command name, which ends at the last ')': utime and stime are
-    // the 12th and 13th of them.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let ticks: f64 = rest
-        .split_whitespace()
-        .skip(11)
-        .take(2)
-        .filter_map(|t| t.parse::<f64>().ok())
-        .sum();
-    ticks / 100.0
 }
 
 /// Builds `n` times on one thread and `n` times on the default pool, alternating, and

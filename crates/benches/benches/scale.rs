@@ -12,7 +12,7 @@
 //! `REPEATS` times (default 3) and prints every wall time, then the process's peak resident
 //! memory (`VmHWM`, Linux only) and what the meshes alone hold.
 
-use coarsen_benches::meshes;
+use coarsen_benches::{cpu_seconds, meshes};
 use coarsen_mesh::Mesh;
 use coarsen_metrics::{MetricsOptions, measure};
 use coarsen_spatial::Bvh;
@@ -24,25 +24,6 @@ fn peak_mib() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
-}
-
-/// CPU time (user + system) of this process so far, in seconds, from `/proc/self/stat`
-/// (clock ticks of 1/100 s).
-fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return f64::NAN;
-    };
-    // The fields after the command name, which is in parentheses and may hold spaces.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let field = |i: usize| {
-        rest.split_whitespace()
-            .nth(i)
-            .and_then(|x| x.parse::<f64>().ok())
-    };
-    match (field(11), field(12)) {
-        (Some(user), Some(system)) => (user + system) / 100.0,
-        _ => f64::NAN,
-    }
 }
 
 fn mesh_mib(m: &Mesh) -> f64 {
@@ -57,10 +38,11 @@ fn main() {
         "bvh-70k",
         "bvh-4m",
     ];
-    let Some(args) = coarsen_benches::tool_args(
-        "usage: scale CASE [THREADS] [REPEATS], CASE one of measure-70k, measure-4m, measure-bunny, bvh-70k, bvh-4m",
-        |a| CASES.contains(&a),
-    ) else {
+    let usage = format!(
+        "usage: scale CASE [THREADS] [REPEATS], CASE one of {}",
+        CASES.join(", ")
+    );
+    let Some(args) = coarsen_benches::tool_args(&usage, |a| CASES.contains(&a)) else {
         return;
     };
     let case = args
@@ -90,9 +72,7 @@ fn main() {
             }
         },
         other => {
-            eprintln!(
-                "unknown case `{other}`: measure-70k, measure-4m, measure-bunny, bvh-70k or bvh-4m"
-            );
+            eprintln!("unknown case `{other}`; {usage}");
             std::process::exit(2);
         }
     };

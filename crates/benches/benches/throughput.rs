@@ -1,6 +1,7 @@
 //! Times the phases of one clustering (adjacency, set-up, seeding, minimisation) on a mesh
 //! file: `cargo bench -p coarsen-benches --bench throughput -- FILE N [ENERGY]`.
 
+use coarsen_benches::cpu_seconds;
 use coarsen_mesh::Topology;
 use coarsen_stage_cvt::{Clusterer, Energy, Shu2009, Valette2004};
 use std::time::Instant;
@@ -17,9 +18,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n: usize = n.parse()?;
     let mesh = coarsen_io::read_path(std::path::Path::new(path), &Default::default())?.mesh;
     let mesh = coarsen_mesh::clean(mesh, &Default::default())?.0;
-    let (t, u) = (Instant::now(), cpu());
+    let (t, u) = (Instant::now(), cpu_seconds());
     let topo = Topology::build(&mesh);
-    eprintln!("cpu: topology {:.2} s", cpu() - u);
+    eprintln!("cpu: topology {:.2} s", cpu_seconds() - u);
     eprintln!(
         "faces {}, topology {:.3} s",
         mesh.n_faces(),
@@ -38,19 +39,19 @@ fn time<E: Energy>(
     energy: &E,
     n: usize,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let (t, u) = (Instant::now(), cpu());
+    let (t, u) = (Instant::now(), cpu_seconds());
     let mut c = Clusterer::new(mesh, topo, energy, None)?;
     let t_new = t.elapsed().as_secs_f64();
-    let u_new = cpu() - u;
-    let (t, u) = (Instant::now(), cpu());
+    let u_new = cpu_seconds() - u;
+    let (t, u) = (Instant::now(), cpu_seconds());
     c.set_tolerance(1e-4);
     c.seed(n, 1)?;
     let t_seed = t.elapsed().as_secs_f64();
-    let u_seed = cpu() - u;
-    let (t, u) = (Instant::now(), cpu());
+    let u_seed = cpu_seconds() - u;
+    let (t, u) = (Instant::now(), cpu_seconds());
     let log = c.minimize(200, None, |_, _, _| {});
     let t_min = t.elapsed().as_secs_f64();
-    let u_min = cpu() - u;
+    let u_min = cpu_seconds() - u;
     eprintln!("cpu: new {u_new:.2} s, seed {u_seed:.2} s, minimize {u_min:.2} s");
     eprintln!(
         "new {t_new:.3} s, seed {t_seed:.3} s, minimize {t_min:.3} s; passes {}, moves {}, refused {}, E0 {:.6e}, E {:.6e}",
@@ -61,15 +62,4 @@ fn time<E: Energy>(
         log.energy.last().copied().unwrap_or(f64::NAN)
     );
     Ok(())
-}
-
-/// CPU seconds used by this process so far (user + system, from /proc/self/stat).
-fn cpu() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let rest = stat.rsplit(')').next().unwrap_or("");
-    let f: Vec<f64> = rest
-        .split_whitespace()
-        .map(|x| x.parse().unwrap_or(0.0))
-        .collect();
-    (f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0)) / 100.0
 }

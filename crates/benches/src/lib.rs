@@ -26,3 +26,23 @@ pub fn tool_args(usage: &str, mine: impl Fn(&str) -> bool) -> Option<Vec<String>
     }
     Some(args)
 }
+
+/// User plus system CPU seconds of this process so far, all threads (Linux's
+/// `/proc/self/stat`, in ticks of 1/100 s); NaN where it cannot be read.
+pub fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return f64::NAN;
+    };
+    // The fields after the command name, which is in parentheses and may hold spaces:
+    // utime and stime are the 12th and 13th of them.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let field = |i: usize| {
+        rest.split_whitespace()
+            .nth(i)
+            .and_then(|x| x.parse::<f64>().ok())
+    };
+    match (field(11), field(12)) {
+        (Some(user), Some(system)) => (user + system) / 100.0,
+        _ => f64::NAN,
+    }
+}
