@@ -419,43 +419,56 @@ fn short_boundary_loop(topo: &Topology) -> Option<String> {
 
 /// Each cluster's vertex as the area-weighted blend of its faces' corners.
 fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
-    // The corners of each cluster's faces, by cluster (counting sort, face order kept);
-    // each cluster's vertices in order of first appearance, weights summed per vertex.
-    let mut start = vec![0usize; n + 1];
-    labels.iter().for_each(|&c| start[c as usize + 1] += 3);
+    // Each cluster's faces, ascending (counting sort).
+    let mut start = vec![0u32; n + 1];
+    labels.iter().for_each(|&c| start[c as usize + 1] += 1);
     for c in 0..n {
         start[c + 1] += start[c];
     }
     let mut at = start.clone();
-    let mut entries: Vec<(u32, f64)> = vec![(0, 0.0); 3 * labels.len()];
+    let mut order = vec![0u32; labels.len()];
     for (f, &c) in labels.iter().enumerate() {
-        let w = mesh.face_area(f) / 3.0 + f64::MIN_POSITIVE;
-        for &v in &mesh.faces[f] {
-            entries[at[c as usize]] = (v, w);
-            at[c as usize] += 1;
-        }
+        order[at[c as usize] as usize] = f as u32;
+        at[c as usize] += 1;
     }
-    let mut slot = vec![u32::MAX; mesh.n_vertices()];
+    drop(at);
+    // Per cluster, in parallel (runs of clusters, each with its own table of where a
+    // vertex sits in the blend): its faces' corners in order of first appearance, the
+    // weights summed per vertex.
+    let run = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let blends: Vec<Vec<(u32, f64)>> = (0..n.div_ceil(run))
+        .into_par_iter()
+        .map(|k| {
+            let mut slot = vec![u32::MAX; mesh.n_vertices()];
+            (k * run..n.min((k + 1) * run))
+                .map(|c| {
+                    let mut blend: Vec<(u32, f64)> = Vec::new();
+                    for &f in &order[start[c] as usize..start[c + 1] as usize] {
+                        let w = mesh.face_area(f as usize) / 3.0 + f64::MIN_POSITIVE;
+                        for &v in &mesh.faces[f as usize] {
+                            match slot[v as usize] {
+                                u32::MAX => {
+                                    slot[v as usize] = blend.len() as u32;
+                                    blend.push((v, w));
+                                }
+                                i => blend[i as usize].1 += w,
+                            }
+                        }
+                    }
+                    for &(v, _) in &blend {
+                        slot[v as usize] = u32::MAX;
+                    }
+                    blend
+                })
+                .collect::<Vec<_>>()
+        })
+        .flatten_iter()
+        .collect();
     // Each vertex is a source of every cluster around it: of one inside a cluster, of
-    // two or three on a border (room never used is never touched).
-    let mut o = VertexOrigins::with_capacities(n, 2 * mesh.n_vertices() + 3 * n);
-    for c in 0..n {
-        let corners = &entries[start[c]..start[c + 1]];
-        let mut blend: Vec<(u32, f64)> = Vec::new();
-        for &(v, w) in corners {
-            match slot[v as usize] {
-                u32::MAX => {
-                    slot[v as usize] = blend.len() as u32;
-                    blend.push((v, w));
-                }
-                i => blend[i as usize].1 += w,
-            }
-        }
-        for &(v, _) in &blend {
-            slot[v as usize] = u32::MAX;
-        }
-        o.push_blend(blend);
-    }
+    // two or three on a border.
+    let total = blends.iter().map(Vec::len).sum();
+    let mut o = VertexOrigins::with_capacities(n, total);
+    blends.into_iter().for_each(|b| o.push_blend(b));
     o
 }
 

@@ -8,8 +8,10 @@
 
 use super::*;
 
-/// Meshes with at least this many vertices sweep in parts (smaller ones in one piece).
-pub(crate) const PARTS_MIN: usize = 1 << 14;
+/// Meshes with at least this many vertices sweep in parts (smaller ones in one piece; the
+/// bunny at 5000 vertices: a sweep 60 → 40 ms on two threads, 15 % of its vertices on the
+/// parts' borders).
+pub(crate) const PARTS_MIN: usize = 1 << 11;
 /// Number of parts: 2³ cells of a median split along the widest axis, three levels deep.
 pub(crate) const PARTS: usize = 8;
 
