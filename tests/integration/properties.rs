@@ -165,10 +165,10 @@ fn two_components_at_nine_percent_keep_their_genera() {
 #[test]
 fn coarsening_is_deterministic_across_runs_and_thread_counts() {
     // The torus is small; the sphere has enough faces (81,920) for the parallel sweeps of
-    // the CVT clustering.
+    // the CVT clustering, and its target enough vertices (2¹¹ or more) for `relax`'s.
     let cases = [
         (shape(1, 7), 300),
-        (coarsen_shapes::icosphere(1.0, 6).unwrap(), 2000),
+        (coarsen_shapes::icosphere(1.0, 6).unwrap(), 2500),
     ];
     for (input, target) in &cases {
         for name in COARSENERS {
