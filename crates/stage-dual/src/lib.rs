@@ -433,9 +433,10 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
     }
     drop(at);
     // Per cluster, in parallel (runs of clusters, each with its own table of where a
-    // vertex sits in the blend): its faces' corners in order of first appearance, the
-    // weights summed per vertex.
-    let run = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+    // vertex sits in the blend, a word per vertex of the mesh: at most 16 of them): its
+    // faces' corners in order of first appearance, the weights summed per vertex.
+    let runs = (4 * rayon::current_num_threads()).clamp(1, 16);
+    let run = n.div_ceil(runs).max(1);
     let blends: Vec<Vec<(u32, f64)>> = (0..n.div_ceil(run))
         .into_par_iter()
         .map(|k| {
