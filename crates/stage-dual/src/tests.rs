@@ -511,3 +511,40 @@ fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
     build::relax(&mut None, &sphere, &topo, &mut fresh_labels, n, &start, 3);
     assert_eq!(labels, fresh_labels);
 }
+
+/// Each cluster's vertex origins are its faces' corners in order of first appearance (faces
+/// ascending), each weighted by the summed thirds of its faces' areas, normalised — the
+/// same bits on one thread as on the pool.
+#[test]
+fn vertex_origins_blend_each_clusters_corners_by_area() {
+    let sphere = icosphere(1.0, 3).unwrap();
+    let n = 50;
+    // Scattered clusters, so that runs of clusters and their faces interleave.
+    let labels: Vec<u32> = (0..sphere.n_faces() as u32).map(|f| (f * 7) % n).collect();
+    let got = vertex_origins(&sphere, &labels, n as usize);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| vertex_origins(&sphere, &labels, n as usize));
+    for c in 0..n {
+        let mut want: Vec<(u32, f64)> = Vec::new();
+        for f in (0..sphere.n_faces()).filter(|&f| labels[f] == c) {
+            let w = sphere.face_area(f) / 3.0 + f64::MIN_POSITIVE;
+            for v in sphere.faces[f] {
+                match want.iter_mut().find(|e| e.0 == v) {
+                    Some(e) => e.1 += w,
+                    None => want.push((v, w)),
+                }
+            }
+        }
+        let total: f64 = want.iter().map(|e| e.1).sum();
+        want.iter_mut().for_each(|e| e.1 /= total);
+        assert_eq!(got.sources(c as usize), &want[..], "cluster {c}");
+        assert_eq!(
+            one.sources(c as usize),
+            &want[..],
+            "cluster {c}, one thread"
+        );
+    }
+}
