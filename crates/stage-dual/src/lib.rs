@@ -78,7 +78,7 @@ use coarsen_spatial::{Bvh, closest_point_on_segment};
 use coarsen_stage::{
     AttrKind, AttrRef, Context, Contract, Domain, Mesh, Needs, Params, Stage, StageError, params,
 };
-use coarsen_stage_cvt::{CLUSTER, cluster_centroids};
+use coarsen_stage_cvt::{CLUSTER, cluster_centroids, faces_by_cluster};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -419,19 +419,8 @@ fn short_boundary_loop(topo: &Topology) -> Option<String> {
 
 /// Each cluster's vertex as the area-weighted blend of its faces' corners.
 fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
-    // Each cluster's faces, ascending (counting sort).
-    let mut start = vec![0u32; n + 1];
-    labels.iter().for_each(|&c| start[c as usize + 1] += 1);
-    for c in 0..n {
-        start[c + 1] += start[c];
-    }
-    let mut at = start.clone();
-    let mut order = vec![0u32; labels.len()];
-    for (f, &c) in labels.iter().enumerate() {
-        order[at[c as usize] as usize] = f as u32;
-        at[c as usize] += 1;
-    }
-    drop(at);
+    // Each cluster's faces, ascending.
+    let (start, order) = faces_by_cluster(labels, n);
     // Per cluster, in parallel (runs of clusters, each with its own table of where a
     // vertex sits in the blend, a word per vertex of the mesh: at most 16 of them): its
     // faces' corners in order of first appearance, the weights summed per vertex.
@@ -444,7 +433,7 @@ fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
             (k * run..n.min((k + 1) * run))
                 .map(|c| {
                     let mut blend: Vec<(u32, f64)> = Vec::new();
-                    for &f in &order[start[c] as usize..start[c + 1] as usize] {
+                    for &f in &order[start[c]..start[c + 1]] {
                         let w = mesh.face_area(f as usize) / 3.0 + f64::MIN_POSITIVE;
                         for &v in &mesh.faces[f as usize] {
                             match slot[v as usize] {
