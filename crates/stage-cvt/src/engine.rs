@@ -939,12 +939,12 @@ pub fn faces_by_cluster(labels: &[u32], n: usize) -> (Vec<usize>, Vec<u32>) {
 }
 
 /// The mass centroid of each cluster in the mesh's own coordinates (area-weighted face
-/// centroids), for callers that place a point per cluster.
-pub fn cluster_centroids(mesh: &Mesh, labels: &[u32], n: usize) -> Vec<DVec3> {
+/// centroids), for callers that place a point per cluster; the clusters' faces as
+/// [`faces_by_cluster`] gives them.
+pub fn cluster_centroids(mesh: &Mesh, start: &[usize], members: &[u32]) -> Vec<DVec3> {
     // The clusters in parallel, each summed in face order: the same sums as one pass
     // over the faces.
-    let (start, members) = faces_by_cluster(labels, n);
-    (0..n)
+    (0..start.len().saturating_sub(1))
         .into_par_iter()
         .map(|c| {
             let (mut s, mut w, mut p, mut k) = (DVec3::ZERO, 0.0f64, DVec3::ZERO, 0.0f64);

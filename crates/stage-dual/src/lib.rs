@@ -194,7 +194,9 @@ pub fn dual(
             &own
         }
     };
-    let centroids = cluster_centroids(mesh, labels, n);
+    // Each cluster's faces, ascending: for the centroids and the vertex origins.
+    let (start, members) = faces_by_cluster(labels, n);
+    let centroids = cluster_centroids(mesh, &start, &members);
     let (mut positions, boundary_clusters, quadric_fallbacks) =
         place(mesh, topo, labels, &centroids, placement, facing.bvh());
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
@@ -340,7 +342,7 @@ pub fn dual(
             (0..n).for_each(|_| o.push_unknown());
             o
         }
-        false => vertex_origins(mesh, labels, n),
+        false => vertex_origins(mesh, &start, &members),
     };
     let mut fo = FaceOrigins::with_capacity(faces.len());
     faces.iter().for_each(|_| fo.push_unknown());
@@ -417,10 +419,10 @@ fn short_boundary_loop(topo: &Topology) -> Option<String> {
     })
 }
 
-/// Each cluster's vertex as the area-weighted blend of its faces' corners.
-fn vertex_origins(mesh: &Mesh, labels: &[u32], n: usize) -> VertexOrigins {
-    // Each cluster's faces, ascending.
-    let (start, order) = faces_by_cluster(labels, n);
+/// Each cluster's vertex as the area-weighted blend of its faces' corners (the clusters'
+/// faces as [`faces_by_cluster`] gives them).
+fn vertex_origins(mesh: &Mesh, start: &[usize], order: &[u32]) -> VertexOrigins {
+    let n = start.len().saturating_sub(1);
     // Per cluster, in parallel (runs of clusters, each with its own table of where a
     // vertex sits in the blend, a word per vertex of the mesh: at most 16 of them): its
     // faces' corners in order of first appearance, the weights summed per vertex.

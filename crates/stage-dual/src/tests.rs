@@ -521,12 +521,13 @@ fn vertex_origins_blend_each_clusters_corners_by_area() {
     let n = 50;
     // Scattered clusters, so that runs of clusters and their faces interleave.
     let labels: Vec<u32> = (0..sphere.n_faces() as u32).map(|f| (f * 7) % n).collect();
-    let got = vertex_origins(&sphere, &labels, n as usize);
+    let (start, members) = coarsen_stage_cvt::faces_by_cluster(&labels, n as usize);
+    let got = vertex_origins(&sphere, &start, &members);
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .unwrap()
-        .install(|| vertex_origins(&sphere, &labels, n as usize));
+        .install(|| vertex_origins(&sphere, &start, &members));
     for c in 0..n {
         let mut want: Vec<(u32, f64)> = Vec::new();
         for f in (0..sphere.n_faces()).filter(|&f| labels[f] == c) {
