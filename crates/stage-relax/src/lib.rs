@@ -837,7 +837,7 @@ mod tests {
         assert!(ids.iter().all(|&i| i < n_faces));
     }
 
-    /// `fit` and the bound give the same bytes on any thread count.
+    /// A mesh big enough to sweep in parts gives the same bytes on one thread and three.
     #[test]
     fn a_big_mesh_sweeps_in_parts_alike_for_any_thread_count() {
         // 2562 vertices: above PARTS_MIN, so the sweeps run in parts.
@@ -908,6 +908,7 @@ mod tests {
         assert_eq!(Surface::new(&closed).project_boundary(DVec3::X), None);
     }
 
+    /// `fit` and the bound give the same bytes on any thread count.
     #[test]
     fn fitting_is_deterministic_across_thread_counts() {
         let original = bumped_grid(64, 0.0625);
