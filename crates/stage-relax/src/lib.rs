@@ -55,7 +55,8 @@
 //!
 //! The report gives `facing_away` (faces facing away before and after mending, when it
 //! ran), `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep),
-//! `rebalanced` (split/collapse pairs), `fitted` (fidelity edits, when `fit` is on) and
+//! `rebalanced` (split/collapse pairs), `fitted` and `fit_given_up` (fidelity edits, and
+//! input points no edit could bring nearer, when `fit` is on) and
 //! `min_angle_before` / `min_angle_after` in degrees.
 
 use coarsen_geom::{DVec3, triangle};
@@ -141,6 +142,8 @@ pub struct Relaxed {
     pub rebalanced: usize,
     /// Fidelity edits made (split/collapse pairs at far input points, and pulls).
     pub fitted: usize,
+    /// Input points `fit` gave up on: no edit within its limits brought them nearer.
+    pub fit_given_up: usize,
     /// Smallest angle of the mesh before, in degrees.
     pub min_angle_before: f64,
     /// Smallest angle of the mesh after, in degrees.
@@ -282,7 +285,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     if params.fit > 0
         && let Some(sf) = surface_on
     {
-        out.fitted = fit(
+        (out.fitted, out.fit_given_up) = fit(
             mesh,
             sf,
             params.fit,
@@ -390,6 +393,7 @@ impl Stage for Relax {
         cx.report.figure("rebalanced", r.rebalanced);
         if self.0.fit > 0 {
             cx.report.figure("fitted", r.fitted);
+            cx.report.figure("fit_given_up", r.fit_given_up);
         }
         if let Some(f) = r.facing_away {
             cx.report.figure("facing_away", f);
@@ -812,6 +816,48 @@ mod tests {
             to_top(&free)
         );
         assert!(to_top(&bound) <= tol, "{} > {tol}", to_top(&bound));
+    }
+
+    /// On a mesh far too coarse for its bound `fit` stops once [`fit::FIT_MAX_FAILS`] far
+    /// points in a row got no edit, instead of trying the input's points one by one (each
+    /// given up in turn: fails when the points given up are many more).
+    #[test]
+    fn fitting_stops_early_on_a_mesh_far_too_coarse_for_its_bound() {
+        let rippled = |n: u32| {
+            let mut m = coarsen_shapes::plane_grid(n, n, 1.0).unwrap();
+            for p in &mut m.positions {
+                p.z = 0.02 * (40.0 * p.x).sin() * (40.0 * p.y).sin();
+            }
+            m
+        };
+        let original = rippled(128);
+        let surface = Surface::new(&original);
+        let mut m = rippled(2);
+        let params = RelaxParams {
+            fit: 300,
+            sweeps: 0,
+            max_dev_pct: 0.01,
+            ..RelaxParams::default()
+        };
+        let tol = 1e-4 * original.bbox().diagonal();
+        let bvh = Bvh::build(&m.positions, &m.faces);
+        let far = original
+            .positions
+            .iter()
+            .filter(|&&p| bvh.closest_point(p).unwrap().distance() > tol)
+            .count();
+        assert!(
+            far > 4 * fit::FIT_MAX_FAILS,
+            "{far}: the case shows nothing"
+        );
+        let r = relax(&mut m, Some(&surface), &params);
+        assert!(
+            r.fit_given_up <= 2 * fit::FIT_MAX_FAILS,
+            "{} points given up, {} edits",
+            r.fit_given_up,
+            r.fitted
+        );
+        assert_eq!(m.n_vertices(), 9);
     }
 
     /// Attributes follow `fit`'s edits: one value per vertex and per face, each face label
