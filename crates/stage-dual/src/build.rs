@@ -901,11 +901,18 @@ fn merge_down(
     }
     let mut into: Vec<u32> = (0..m as u32).collect();
     let mut count = m;
+    // Pairs refused since their last push: only a merge next to them can make them valid,
+    // and only they need pushing again then (the others' entries stay current).
+    let mut refused: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
     while count > n {
         let Some(std::cmp::Reverse((_, a, b, va, vb))) = heap.pop() else {
             break;
         };
-        if va != version[a as usize] || vb != version[b as usize] || !dual.can_collapse(a, b) {
+        if va != version[a as usize] || vb != version[b as usize] {
+            continue;
+        }
+        if !dual.can_collapse(a, b) {
+            refused.insert((a, b));
             continue;
         }
         dual.collapse(a, b);
@@ -924,14 +931,19 @@ fn merge_down(
         into[b as usize] = a;
         area[a as usize] += area[b as usize];
         count -= 1;
-        // The link of every edge at a or its neighbours may have changed: queue them again.
-        let ring = dual.neighbors(a);
-        for &v in ring.iter().chain([a].iter()) {
-            version[v as usize] += 1;
+        // The pairs at `a` have a new cost (and those at `b` are gone); the link of every
+        // pair at a neighbour of `a` may have changed: those refused are queued again.
+        version[a as usize] += 1;
+        version[b as usize] += 1;
+        for &w in &touch[a as usize] {
+            refused.remove(&(a.min(w), a.max(w)));
+            push(&mut heap, &version, &area, a, w);
         }
-        for &v in ring.iter().chain([a].iter()) {
+        for v in dual.neighbors(a) {
             for &w in &touch[v as usize] {
-                push(&mut heap, &version, &area, v, w);
+                if w != a && refused.remove(&(v.min(w), v.max(w))) {
+                    push(&mut heap, &version, &area, v, w);
+                }
             }
         }
     }
@@ -943,4 +955,154 @@ fn merge_down(
         *l = c;
     }
     compact(labels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`merge_down`] as first written: after each merge every pair at the merged cluster
+    /// or a neighbour of it is queued again (the reference its parked refusals must match).
+    fn merge_down_requeuing_all(
+        mesh: &Mesh,
+        topo: &Topology,
+        labels: &mut [u32],
+        m: usize,
+        faces: Vec<[u32; 3]>,
+        n: usize,
+    ) -> usize {
+        let mut area = vec![0.0f64; m];
+        labels
+            .iter()
+            .enumerate()
+            .for_each(|(f, &c)| area[c as usize] += mesh.face_area(f));
+        let mut dual = DualMesh::new(faces, m);
+        let mut version = vec![0u32; m];
+        let mut heap = std::collections::BinaryHeap::new();
+        let push = |heap: &mut std::collections::BinaryHeap<_>,
+                    version: &[u32],
+                    area: &[f64],
+                    a: u32,
+                    b: u32| {
+            let (a, b) = (a.min(b), a.max(b));
+            let cost = area[a as usize] + area[b as usize];
+            heap.push(std::cmp::Reverse((
+                cost.to_bits(),
+                a,
+                b,
+                version[a as usize],
+                version[b as usize],
+            )));
+        };
+        let mut touch: Vec<Vec<u32>> = vec![Vec::new(); m];
+        for e in 0..topo.n_edges() as u32 {
+            if let [f, g] = *topo.edge_faces(e) {
+                let (a, b) = (labels[f as usize], labels[g as usize]);
+                if a != b {
+                    touch[a as usize].push(b);
+                    touch[b as usize].push(a);
+                }
+            }
+        }
+        touch.iter_mut().for_each(|t| {
+            t.sort_unstable();
+            t.dedup();
+        });
+        for a in 0..m as u32 {
+            for &b in &touch[a as usize] {
+                if a < b {
+                    push(&mut heap, &version, &area, a, b);
+                }
+            }
+        }
+        let mut into: Vec<u32> = (0..m as u32).collect();
+        let mut count = m;
+        while count > n {
+            let Some(std::cmp::Reverse((_, a, b, va, vb))) = heap.pop() else {
+                break;
+            };
+            if va != version[a as usize] || vb != version[b as usize] || !dual.can_collapse(a, b) {
+                continue;
+            }
+            dual.collapse(a, b);
+            for x in std::mem::take(&mut touch[b as usize]) {
+                let t = &mut touch[x as usize];
+                t.retain(|&y| y != b);
+                if x != a {
+                    t.push(a);
+                    t.sort_unstable();
+                    t.dedup();
+                    touch[a as usize].push(x);
+                }
+            }
+            touch[a as usize].sort_unstable();
+            touch[a as usize].dedup();
+            into[b as usize] = a;
+            area[a as usize] += area[b as usize];
+            count -= 1;
+            let ring = dual.neighbors(a);
+            for &v in ring.iter().chain([a].iter()) {
+                version[v as usize] += 1;
+            }
+            for &v in ring.iter().chain([a].iter()) {
+                for &w in &touch[v as usize] {
+                    push(&mut heap, &version, &area, v, w);
+                }
+            }
+        }
+        for l in labels.iter_mut() {
+            let mut c = *l;
+            while into[c as usize] != c {
+                c = into[c as usize];
+            }
+            *l = c;
+        }
+        compact(labels)
+    }
+
+    /// Merging single faces down gives the clusters of the reference, which queues every
+    /// pair around a merge again: on tori (merges refused where they would change the
+    /// genus), grids and strips (and their boundaries), spheres and the beetle as the runner
+    /// repairs it (when the shared meshes are there), down to several counts.
+    #[test]
+    fn parked_refusals_merge_down_as_requeuing_every_pair_does() {
+        let beetle = coarsen_testdata::cleaned("beetle.obj").map(|m| {
+            let m = coarsen_mesh::hygiene::drop_two_sided_faces(m).0;
+            let m = coarsen_mesh::hygiene::cut_non_manifold_edges(m).0;
+            let m = coarsen_mesh::hygiene::split_non_manifold_vertices(m).0;
+            let topo = Topology::build(&m);
+            coarsen_mesh::hygiene::split_small_pieces(m, &topo).0
+        });
+        let meshes = [
+            coarsen_shapes::torus(1.0, 0.3, 24, 12).unwrap(),
+            coarsen_shapes::plane_grid(12, 12, 1.0).unwrap(),
+            coarsen_shapes::plane_grid(40, 2, 1.0).unwrap(),
+            coarsen_shapes::plane_grid(30, 1, 1.0).unwrap(),
+            coarsen_shapes::icosphere(1.0, 2).unwrap(),
+            coarsen_shapes::torus(1.0, 0.3, 30, 3).unwrap(),
+            coarsen_shapes::torus(1.0, 0.5, 8, 6).unwrap(),
+            coarsen_shapes::bumpy_sphere(1.0, 2, 0.2, 3.0).unwrap(),
+        ];
+        for mesh in meshes.iter().chain(beetle.as_ref()) {
+            let topo = Topology::build(mesh);
+            let summary = topo.summary(mesh);
+            let expect = (
+                summary.n_components,
+                summary.n_boundary_loops,
+                summary.genus_total,
+            );
+            let nf = mesh.n_faces();
+            let singles: Vec<u32> = (0..nf as u32).collect();
+            let d = diagnose(mesh, &topo, &singles, nf, expect);
+            assert!(!d.problems.any(), "{:?}", d.problems);
+            for n in [
+                3, 4, 5, 6, 7, 8, 9, 10, 12, 16, 20, 30, 40, 60, 100, 380, 1000, 3000,
+            ] {
+                let (mut a, mut b) = (singles.clone(), singles.clone());
+                let ka = merge_down(mesh, &topo, &mut a, nf, d.faces.clone(), n);
+                let kb = merge_down_requeuing_all(mesh, &topo, &mut b, nf, d.faces.clone(), n);
+                assert_eq!((ka, &a), (kb, &b), "{nf} faces down to {n}");
+            }
+        }
+    }
 }
