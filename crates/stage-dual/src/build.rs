@@ -860,7 +860,8 @@ fn merge_down(
     let mut dual = DualMesh::new(faces, m);
     let mut version = vec![0u32; m];
     let mut heap = std::collections::BinaryHeap::new();
-    // Min-heap on (summed area, a, b); ties by label, so the order is deterministic.
+    // Min-heap on (summed area, a, b, versions); ties by label, so the order is
+    // deterministic.
     let push = |heap: &mut std::collections::BinaryHeap<_>,
                 version: &[u32],
                 area: &[f64],
@@ -892,20 +893,35 @@ fn merge_down(
         t.sort_unstable();
         t.dedup();
     });
+    // The first pairs as one run sorted dearest first (popped from its end), the pairs
+    // queued later on the heap: the same order as one heap, with far fewer sift steps.
+    let mut run: Vec<(u64, u32, u32, u32, u32)> = Vec::new();
     for a in 0..m as u32 {
         for &b in &touch[a as usize] {
             if a < b {
-                push(&mut heap, &version, &area, a, b);
+                let cost = area[a as usize] + area[b as usize];
+                run.push((cost.to_bits(), a, b, 0, 0));
             }
         }
     }
+    run.sort_unstable_by(|x, y| y.cmp(x));
     let mut into: Vec<u32> = (0..m as u32).collect();
     let mut count = m;
     // Pairs refused since their last push: only a merge next to them can make them valid,
     // and only they need pushing again then (the others' entries stay current).
     let mut refused: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
     while count > n {
-        let Some(std::cmp::Reverse((_, a, b, va, vb))) = heap.pop() else {
+        let from_run = match (run.last(), heap.peek()) {
+            (Some(r), Some(std::cmp::Reverse(h))) => r <= h,
+            (Some(_), None) => true,
+            (None, _) => false,
+        };
+        let next = if from_run {
+            run.pop()
+        } else {
+            heap.pop().map(|std::cmp::Reverse(h)| h)
+        };
+        let Some((_, a, b, va, vb)) = next else {
             break;
         };
         if va != version[a as usize] || vb != version[b as usize] {
