@@ -840,6 +840,103 @@ fn rebuild_by_merging(
     Ok(d.faces)
 }
 
+/// A queued pair of clusters: (summed area's bits, a, b, a's version, b's version), a < b.
+type Pair = (u64, u32, u32, u32, u32);
+
+/// What [`merge_down`] works on: the dual, each cluster's area, the clusters sharing an
+/// input edge with each (only those may merge: two clusters meeting at a vertex only are
+/// joined by a dual edge too, but their union would be pinched), where each merged one
+/// went, and version stamps for the queue's lazy invalidation.
+struct Merging {
+    dual: DualMesh,
+    area: Vec<f64>,
+    touch: Vec<Vec<u32>>,
+    into: Vec<u32>,
+    version: Vec<u32>,
+}
+
+impl Merging {
+    /// The clusters of `labels` (`0..m`) with their dual `faces`.
+    fn new(mesh: &Mesh, topo: &Topology, labels: &[u32], m: usize, faces: Vec<[u32; 3]>) -> Self {
+        let mut area = vec![0.0f64; m];
+        labels
+            .iter()
+            .enumerate()
+            .for_each(|(f, &c)| area[c as usize] += mesh.face_area(f));
+        let mut touch: Vec<Vec<u32>> = vec![Vec::new(); m];
+        for e in 0..topo.n_edges() as u32 {
+            if let [f, g] = *topo.edge_faces(e) {
+                let (a, b) = (labels[f as usize], labels[g as usize]);
+                if a != b {
+                    touch[a as usize].push(b);
+                    touch[b as usize].push(a);
+                }
+            }
+        }
+        touch.iter_mut().for_each(|t| {
+            t.sort_unstable();
+            t.dedup();
+        });
+        Merging {
+            dual: DualMesh::new(faces, m),
+            area,
+            touch,
+            into: (0..m as u32).collect(),
+            version: vec![0; m],
+        }
+    }
+
+    /// The queue entry of the pair `a`, `b` now.
+    fn pair(&self, a: u32, b: u32) -> Pair {
+        let (a, b) = (a.min(b), a.max(b));
+        let cost = self.area[a as usize] + self.area[b as usize];
+        (
+            cost.to_bits(),
+            a,
+            b,
+            self.version[a as usize],
+            self.version[b as usize],
+        )
+    }
+
+    /// Whether the entry still names the pair as it is (neither cluster changed since).
+    fn current(&self, p: &Pair) -> bool {
+        p.3 == self.version[p.1 as usize] && p.4 == self.version[p.2 as usize]
+    }
+
+    /// Merges cluster `b` into `a` (a valid dual edge collapse).
+    fn merge(&mut self, a: u32, b: u32) {
+        self.dual.collapse(a, b);
+        let touch = &mut self.touch;
+        for x in std::mem::take(&mut touch[b as usize]) {
+            let t = &mut touch[x as usize];
+            t.retain(|&y| y != b);
+            if x != a {
+                t.push(a);
+                t.sort_unstable();
+                t.dedup();
+                touch[a as usize].push(x);
+            }
+        }
+        touch[a as usize].sort_unstable();
+        touch[a as usize].dedup();
+        self.into[b as usize] = a;
+        self.area[a as usize] += self.area[b as usize];
+    }
+
+    /// Relabels `labels` by the merges, to `0..k`; returns k.
+    fn relabel(&self, labels: &mut [u32]) -> usize {
+        for l in labels.iter_mut() {
+            let mut c = *l;
+            while self.into[c as usize] != c {
+                c = self.into[c as usize];
+            }
+            *l = c;
+        }
+        compact(labels)
+    }
+}
+
 /// Merges the clusters of `labels` (`0..m`, whose dual `faces` is valid), the pair of
 /// smallest summed area first, each merge a dual edge collapse that keeps the dual a
 /// manifold of the same topology, until `n` remain or no merge is valid; relabels to
@@ -852,60 +949,21 @@ fn merge_down(
     faces: Vec<[u32; 3]>,
     n: usize,
 ) -> usize {
-    let mut area = vec![0.0f64; m];
-    labels
-        .iter()
-        .enumerate()
-        .for_each(|(f, &c)| area[c as usize] += mesh.face_area(f));
-    let mut dual = DualMesh::new(faces, m);
-    let mut version = vec![0u32; m];
-    let mut heap = std::collections::BinaryHeap::new();
-    // Min-heap on (summed area, a, b, versions); ties by label, so the order is
-    // deterministic.
-    let push = |heap: &mut std::collections::BinaryHeap<_>,
-                version: &[u32],
-                area: &[f64],
-                a: u32,
-                b: u32| {
-        let (a, b) = (a.min(b), a.max(b));
-        let cost = area[a as usize] + area[b as usize];
-        heap.push(std::cmp::Reverse((
-            cost.to_bits(),
-            a,
-            b,
-            version[a as usize],
-            version[b as usize],
-        )));
-    };
-    // Clusters sharing an input edge: only those may merge (two clusters meeting at a
-    // vertex only are joined by a dual edge too, but their union would be pinched).
-    let mut touch: Vec<Vec<u32>> = vec![Vec::new(); m];
-    for e in 0..topo.n_edges() as u32 {
-        if let [f, g] = *topo.edge_faces(e) {
-            let (a, b) = (labels[f as usize], labels[g as usize]);
-            if a != b {
-                touch[a as usize].push(b);
-                touch[b as usize].push(a);
-            }
-        }
-    }
-    touch.iter_mut().for_each(|t| {
-        t.sort_unstable();
-        t.dedup();
-    });
-    // The first pairs as one run sorted dearest first (popped from its end), the pairs
-    // queued later on the heap: the same order as one heap, with far fewer sift steps.
-    let mut run: Vec<(u64, u32, u32, u32, u32)> = Vec::new();
-    for a in 0..m as u32 {
-        for &b in &touch[a as usize] {
-            if a < b {
-                let cost = area[a as usize] + area[b as usize];
-                run.push((cost.to_bits(), a, b, 0, 0));
-            }
-        }
-    }
+    let mut g = Merging::new(mesh, topo, labels, m, faces);
+    // Pairs by (summed area, a, b); ties by label, so the order is deterministic. The
+    // first pairs as one run sorted dearest first (popped from its end), the pairs queued
+    // later on a min-heap: the same order as one heap, with far fewer sift steps.
+    let mut run: Vec<Pair> = (0..m as u32)
+        .flat_map(|a| {
+            let g = &g;
+            g.touch[a as usize]
+                .iter()
+                .filter(move |&&b| a < b)
+                .map(move |&b| g.pair(a, b))
+        })
+        .collect();
     run.sort_unstable_by(|x, y| y.cmp(x));
-    let mut into: Vec<u32> = (0..m as u32).collect();
+    let mut heap = std::collections::BinaryHeap::new();
     let mut count = m;
     // Pairs refused since their last push: only a merge next to them can make them valid,
     // and only they need pushing again then (the others' entries stay current).
@@ -921,64 +979,45 @@ fn merge_down(
         } else {
             heap.pop().map(|std::cmp::Reverse(h)| h)
         };
-        let Some((_, a, b, va, vb)) = next else {
+        let Some(p) = next else {
             break;
         };
-        if va != version[a as usize] || vb != version[b as usize] {
+        let (a, b) = (p.1, p.2);
+        if !g.current(&p) {
             continue;
         }
-        if !dual.can_collapse(a, b) {
+        if !g.dual.can_collapse(a, b) {
             refused.insert((a, b));
             continue;
         }
-        dual.collapse(a, b);
-        for x in std::mem::take(&mut touch[b as usize]) {
-            let t = &mut touch[x as usize];
-            t.retain(|&y| y != b);
-            if x != a {
-                t.push(a);
-                t.sort_unstable();
-                t.dedup();
-                touch[a as usize].push(x);
-            }
-        }
-        touch[a as usize].sort_unstable();
-        touch[a as usize].dedup();
-        into[b as usize] = a;
-        area[a as usize] += area[b as usize];
+        g.merge(a, b);
         count -= 1;
         // The pairs at `a` have a new cost (and those at `b` are gone); the link of every
         // pair at a neighbour of `a` may have changed: those refused are queued again.
-        version[a as usize] += 1;
-        version[b as usize] += 1;
-        for &w in &touch[a as usize] {
+        g.version[a as usize] += 1;
+        g.version[b as usize] += 1;
+        for &w in &g.touch[a as usize] {
             refused.remove(&(a.min(w), a.max(w)));
-            push(&mut heap, &version, &area, a, w);
+            heap.push(std::cmp::Reverse(g.pair(a, w)));
         }
-        for v in dual.neighbors(a) {
-            for &w in &touch[v as usize] {
+        for v in g.dual.neighbors(a) {
+            for &w in &g.touch[v as usize] {
                 if w != a && refused.remove(&(v.min(w), v.max(w))) {
-                    push(&mut heap, &version, &area, v, w);
+                    heap.push(std::cmp::Reverse(g.pair(v, w)));
                 }
             }
         }
     }
-    for l in labels.iter_mut() {
-        let mut c = *l;
-        while into[c as usize] != c {
-            c = into[c as usize];
-        }
-        *l = c;
-    }
-    compact(labels)
+    g.relabel(labels)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// [`merge_down`] as first written: after each merge every pair at the merged cluster
-    /// or a neighbour of it is queued again (the reference its parked refusals must match).
+    /// [`merge_down`] as first written: one heap, and after each merge every pair at the
+    /// merged cluster or a neighbour of it queued again (the reference its parked refusals
+    /// must match).
     fn merge_down_requeuing_all(
         mesh: &Mesh,
         topo: &Topology,
@@ -987,93 +1026,37 @@ mod tests {
         faces: Vec<[u32; 3]>,
         n: usize,
     ) -> usize {
-        let mut area = vec![0.0f64; m];
-        labels
-            .iter()
-            .enumerate()
-            .for_each(|(f, &c)| area[c as usize] += mesh.face_area(f));
-        let mut dual = DualMesh::new(faces, m);
-        let mut version = vec![0u32; m];
+        let mut g = Merging::new(mesh, topo, labels, m, faces);
         let mut heap = std::collections::BinaryHeap::new();
-        let push = |heap: &mut std::collections::BinaryHeap<_>,
-                    version: &[u32],
-                    area: &[f64],
-                    a: u32,
-                    b: u32| {
-            let (a, b) = (a.min(b), a.max(b));
-            let cost = area[a as usize] + area[b as usize];
-            heap.push(std::cmp::Reverse((
-                cost.to_bits(),
-                a,
-                b,
-                version[a as usize],
-                version[b as usize],
-            )));
-        };
-        let mut touch: Vec<Vec<u32>> = vec![Vec::new(); m];
-        for e in 0..topo.n_edges() as u32 {
-            if let [f, g] = *topo.edge_faces(e) {
-                let (a, b) = (labels[f as usize], labels[g as usize]);
-                if a != b {
-                    touch[a as usize].push(b);
-                    touch[b as usize].push(a);
-                }
-            }
-        }
-        touch.iter_mut().for_each(|t| {
-            t.sort_unstable();
-            t.dedup();
-        });
         for a in 0..m as u32 {
-            for &b in &touch[a as usize] {
+            for &b in &g.touch[a as usize] {
                 if a < b {
-                    push(&mut heap, &version, &area, a, b);
+                    heap.push(std::cmp::Reverse(g.pair(a, b)));
                 }
             }
         }
-        let mut into: Vec<u32> = (0..m as u32).collect();
         let mut count = m;
         while count > n {
-            let Some(std::cmp::Reverse((_, a, b, va, vb))) = heap.pop() else {
+            let Some(std::cmp::Reverse(p)) = heap.pop() else {
                 break;
             };
-            if va != version[a as usize] || vb != version[b as usize] || !dual.can_collapse(a, b) {
+            if !g.current(&p) || !g.dual.can_collapse(p.1, p.2) {
                 continue;
             }
-            dual.collapse(a, b);
-            for x in std::mem::take(&mut touch[b as usize]) {
-                let t = &mut touch[x as usize];
-                t.retain(|&y| y != b);
-                if x != a {
-                    t.push(a);
-                    t.sort_unstable();
-                    t.dedup();
-                    touch[a as usize].push(x);
-                }
-            }
-            touch[a as usize].sort_unstable();
-            touch[a as usize].dedup();
-            into[b as usize] = a;
-            area[a as usize] += area[b as usize];
+            let a = p.1;
+            g.merge(a, p.2);
             count -= 1;
-            let ring = dual.neighbors(a);
+            let ring = g.dual.neighbors(a);
             for &v in ring.iter().chain([a].iter()) {
-                version[v as usize] += 1;
+                g.version[v as usize] += 1;
             }
             for &v in ring.iter().chain([a].iter()) {
-                for &w in &touch[v as usize] {
-                    push(&mut heap, &version, &area, v, w);
+                for &w in &g.touch[v as usize] {
+                    heap.push(std::cmp::Reverse(g.pair(v, w)));
                 }
             }
         }
-        for l in labels.iter_mut() {
-            let mut c = *l;
-            while into[c as usize] != c {
-                c = into[c as usize];
-            }
-            *l = c;
-        }
-        compact(labels)
+        g.relabel(labels)
     }
 
     /// Merging single faces down gives the clusters of the reference, which queues every
