@@ -1062,9 +1062,12 @@ mod tests {
     /// Merging single faces down gives the clusters of the reference, which queues every
     /// pair around a merge again: on tori (merges refused where they would change the
     /// genus), grids and strips (and their boundaries), spheres and the beetle as the runner
-    /// repairs it (when the shared meshes are there), down to several counts.
+    /// repairs it (when the shared meshes are there), down to several counts. It fails when
+    /// a merged cluster's pairs are not queued again; on these inputs no refused pair is
+    /// lifted by a later merge, so queuing refused pairs again is not exercised here (the
+    /// beetle's post-process at 3000 vertices needs it: its output changes without it).
     #[test]
-    fn parked_refusals_merge_down_as_requeuing_every_pair_does() {
+    fn merging_down_gives_the_clusters_of_requeuing_every_pair() {
         let beetle = coarsen_testdata::cleaned("beetle.obj").map(|m| {
             let m = coarsen_mesh::hygiene::drop_two_sided_faces(m).0;
             let m = coarsen_mesh::hygiene::cut_non_manifold_edges(m).0;
