@@ -45,6 +45,10 @@ pub struct DualStats {
     pub repair_rounds: usize,
     /// Problems found in the first diagnosis, by kind.
     pub first_problems: Problems,
+    /// Splitting every cluster along the loops with problems did not converge, so the
+    /// repair started again from the first clustering splitting only the clusters to blame
+    /// (`repairs` counts the splits since).
+    pub restarted: bool,
     /// Splitting could not repair the clustering, so its clusters to blame were rebuilt
     /// from single faces merged back to the count (the fallback for thin parts).
     pub rebuilt: bool,
@@ -118,6 +122,16 @@ struct AroundRange {
     faces: Vec<[u32; 3]>,
 }
 
+/// Which clusters a boundary loop's problem blames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum LoopMarking {
+    /// Every cluster along the loop (splitting them all adds clusters along it).
+    WholeLoop,
+    /// Only the clusters met twice (along the loop or on two loops); every cluster along
+    /// the loop when fewer than three meet it.
+    Offenders,
+}
+
 /// Checks the clustering and builds the dual faces.
 pub(crate) fn diagnose(
     mesh: &Mesh,
@@ -125,6 +139,7 @@ pub(crate) fn diagnose(
     labels: &[u32],
     n: usize,
     expect: (usize, usize, Option<i64>),
+    marking: LoopMarking,
 ) -> Diagnosis {
     let mut p = Problems::default();
     let mut bad = vec![false; n];
@@ -259,7 +274,9 @@ pub(crate) fn diagnose(
         }
         if flag {
             p.boundary += 1;
-            seq.iter().for_each(|&c| bad[c as usize] = true);
+            if seq.len() < 3 || marking == LoopMarking::WholeLoop {
+                seq.iter().for_each(|&c| bad[c as usize] = true);
+            }
         }
     }
     if !p.any() {
@@ -532,6 +549,14 @@ pub(crate) fn relax<'m>(
     labels.extend_from_slice(c.labels());
 }
 
+/// Rounds that split every cluster along a boundary loop with a problem before the repair
+/// starts again from the first clustering splitting only the clusters to blame. Splitting
+/// the whole loop converges within a few rounds where few big clusters crowd a hole (the
+/// bunny's base); where many loops lie close together (the beetle's windows after the
+/// post-process's subdivisions) it adds clusters along every loop round after round
+/// without converging.
+const WHOLE_LOOP_ROUNDS: u32 = 8;
+
 /// The repair loop: diagnose, repair, relax, until the dual is valid or `max_rounds`.
 pub(crate) fn repaired_dual(
     mesh: &Mesh,
@@ -554,13 +579,29 @@ pub(crate) fn repaired_dual(
     };
     let mut stats = DualStats::default();
     let mut clusterer = None;
+    // The clustering as it came, kept for a restart with the other marking.
+    let mut original = None;
+    let mut marking = LoopMarking::WholeLoop;
     for round in 0..=max_rounds {
-        let d = diagnose(mesh, topo, labels, n, expect);
+        let mut d = diagnose(mesh, topo, labels, n, expect, marking);
         if round == 0 {
             stats.first_problems = d.problems;
         }
         if !d.problems.any() {
             return Ok((d.faces, stats));
+        }
+        if round == 0 {
+            original = Some(labels.clone());
+        }
+        if round == WHOLE_LOOP_ROUNDS
+            && round < max_rounds
+            && let Some(first) = original.take()
+        {
+            *labels = first;
+            marking = LoopMarking::Offenders;
+            stats.restarted = true;
+            stats.repairs = 0;
+            d = diagnose(mesh, topo, labels, n, expect, marking);
         }
         // Splitting cannot help any more: rebuild the clusters to blame from single faces.
         let stuck = round == max_rounds || d.bad.is_empty();
@@ -767,7 +808,7 @@ fn rebuild_by_merging(
 ) -> Result<Vec<[u32; 3]>, DualError> {
     let nf = mesh.n_faces();
     let mut m = explode(labels, n, bad);
-    let mut d = diagnose(mesh, topo, labels, m, expect);
+    let mut d = diagnose(mesh, topo, labels, m, expect, LoopMarking::WholeLoop);
     for _ in 0..4 {
         if !d.problems.any() {
             break;
@@ -784,7 +825,7 @@ fn rebuild_by_merging(
             break;
         }
         m = explode(labels, m, &big);
-        d = diagnose(mesh, topo, labels, m, expect);
+        d = diagnose(mesh, topo, labels, m, expect, LoopMarking::WholeLoop);
     }
     if d.problems.any() {
         labels
@@ -792,7 +833,7 @@ fn rebuild_by_merging(
             .enumerate()
             .for_each(|(f, l)| *l = f as u32);
         m = nf;
-        d = diagnose(mesh, topo, labels, m, expect);
+        d = diagnose(mesh, topo, labels, m, expect, LoopMarking::WholeLoop);
         if d.problems.any() {
             // Merging clusters never adds one along a boundary loop nor undoes a problem
             // of single faces: no clustering of this mesh has a valid dual.
@@ -806,7 +847,7 @@ fn rebuild_by_merging(
     if count > n && m < nf {
         // Stuck: one more try from one cluster per face, which may merge further.
         let mut singles: Vec<u32> = (0..nf as u32).collect();
-        let d = diagnose(mesh, topo, &singles, nf, expect);
+        let d = diagnose(mesh, topo, &singles, nf, expect, LoopMarking::WholeLoop);
         if !d.problems.any() {
             let reached = merge_down(mesh, topo, &mut singles, nf, d.faces, n);
             if reached <= count {
@@ -829,7 +870,7 @@ fn rebuild_by_merging(
     }
     let k = count;
     debug_assert_eq!(k, n);
-    let d = diagnose(mesh, topo, labels, k, expect);
+    let d = diagnose(mesh, topo, labels, k, expect, LoopMarking::WholeLoop);
     if d.problems.any() {
         return Err(DualError::Unrepaired(format!(
             "{:?} after merging single-face clusters (clusters {:?}…)",
@@ -1095,7 +1136,7 @@ mod tests {
             );
             let nf = mesh.n_faces();
             let singles: Vec<u32> = (0..nf as u32).collect();
-            let d = diagnose(mesh, &topo, &singles, nf, expect);
+            let d = diagnose(mesh, &topo, &singles, nf, expect, LoopMarking::WholeLoop);
             assert!(!d.problems.any(), "{:?}", d.problems);
             for n in [
                 3, 4, 5, 6, 7, 8, 9, 10, 12, 16, 20, 30, 40, 60, 100, 380, 1000, 3000,

@@ -19,6 +19,10 @@
 //! kept exact by **merging** the smallest interior cluster far from every problem into its
 //! smallest neighbour; a few constrained minimisation passes (`relax_passes`) then smooth
 //! the touched clusters, and the diagnosis runs again, at most `max_repair_rounds` times.
+//! A boundary loop's problem (a cluster meeting it twice, or meeting two loops) first
+//! blames every cluster along the loop, which adds clusters along it; if that has not
+//! converged after eight rounds (many loops close together), the repair starts again from
+//! the first clustering blaming only the clusters met twice.
 //! When splitting cannot help — on a strip or ribbon one or two faces wide every compact
 //! cluster touches the boundary on both sides, and halves of it do too — the clusters to
 //! blame are **rebuilt**: broken into single faces (every cluster, if that is not enough),
@@ -61,8 +65,9 @@
 //! cluster's vertices; face attributes do not survive.
 //!
 //! The report gives `vertices`, `faces`, `placement`, `repairs` (clusters split),
-//! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `rebuilt` (the
-//! fallback above ran), `boundary_clusters`
+//! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `restarted` (the
+//! repair started again blaming only the clusters met twice), `rebuilt` (the fallback
+//! above ran), `boundary_clusters`
 //! `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate or
 //! flipped output triangle — e.g. three closest vertices in a row, or a boundary cluster between two
 //! others on a straight boundary — moved to their projected centroid, unsnapped).
@@ -721,6 +726,7 @@ impl Stage for DualStage {
         r.figure("boundary_clusters", d.boundary_clusters);
         r.figure("quadric_fallbacks", d.quadric_fallbacks);
         r.figure("degenerate_fixes", d.degenerate_fixes);
+        r.figure("restarted", d.stats.restarted);
         r.figure("rebuilt", d.stats.rebuilt);
         if d.stats.rebuilt {
             r.warn(
@@ -729,8 +735,13 @@ impl Stage for DualStage {
                     .to_string(),
             );
         } else if d.stats.repairs > 0 {
+            let restart = if d.stats.restarted {
+                " (started again after splitting whole boundary loops did not converge)"
+            } else {
+                ""
+            };
             r.warn(format!(
-                "the clustering was repaired: {} clusters split (each paid for by a merge elsewhere) in {} rounds",
+                "the clustering was repaired: {} clusters split (each paid for by a merge elsewhere) in {} rounds{restart}",
                 d.stats.repairs, d.stats.repair_rounds
             ));
         }

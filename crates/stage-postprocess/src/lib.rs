@@ -290,6 +290,7 @@ impl Stage for Postprocess {
         cx.report.figure("moves_per_pass", &log.moves);
         cx.report.figure("energy_per_pass", &log.energy);
         cx.report.figure("repairs", dual.stats.repairs);
+        cx.report.figure("restarted", dual.stats.restarted);
         cx.report.figure("projected_vertices", projected);
         Ok(out)
     }
