@@ -894,6 +894,11 @@ struct Merging {
     touch: Vec<Vec<u32>>,
     into: Vec<u32>,
     version: Vec<u32>,
+    /// Each face's cluster when merging started (`into` leads on from there).
+    start: Vec<u32>,
+    /// Each cluster's border: the input vertices where it meets another cluster or the
+    /// input boundary, ascending.
+    border: Vec<Vec<u32>>,
 }
 
 impl Merging {
@@ -918,13 +923,87 @@ impl Merging {
             t.sort_unstable();
             t.dedup();
         });
+        let mut border: Vec<Vec<u32>> = vec![Vec::new(); m];
+        let mut around = Vec::new();
+        for v in 0..topo.n_vertices() as u32 {
+            around.clear();
+            around.extend(topo.vertex_faces(v).iter().map(|&f| labels[f as usize]));
+            around.sort_unstable();
+            around.dedup();
+            if around.len() > 1 || topo.is_boundary_vertex(v) {
+                around.iter().for_each(|&c| border[c as usize].push(v));
+            }
+        }
         Merging {
             dual: DualMesh::new(faces, m),
             area,
             touch,
             into: (0..m as u32).collect(),
             version: vec![0; m],
+            start: labels.to_vec(),
+            border,
         }
+    }
+
+    /// The cluster that face `f` is in now.
+    fn cluster_of(&mut self, f: u32) -> u32 {
+        let mut c = self.start[f as usize];
+        while self.into[c as usize] != c {
+            let up = self.into[self.into[c as usize] as usize];
+            self.into[c as usize] = up;
+            c = up;
+        }
+        c
+    }
+
+    /// The input vertices on the borders of both `a` and `b`.
+    fn shared_border(&self, a: u32, b: u32) -> Vec<u32> {
+        let (x, y) = (&self.border[a as usize], &self.border[b as usize]);
+        let (mut i, mut j, mut out) = (0, 0, Vec::new());
+        while i < x.len() && j < y.len() {
+            match x[i].cmp(&y[j]) {
+                std::cmp::Ordering::Less => i += 1,
+                std::cmp::Ordering::Greater => j += 1,
+                std::cmp::Ordering::Equal => {
+                    out.push(x[i]);
+                    i += 1;
+                    j += 1;
+                }
+            }
+        }
+        out
+    }
+
+    /// Whether `a` and `b` may merge: a valid collapse of the dual's edge, and the two
+    /// clusters meet along one path of input edges and nowhere else, so that their union
+    /// is a disc met once around every vertex (the dual does not see two clusters that
+    /// also touch at a corner of a vertex where five or more meet: its fan is split into
+    /// triangles without an edge between them).
+    fn can_merge(&mut self, topo: &Topology, a: u32, b: u32) -> bool {
+        if !self.dual.can_collapse(a, b) {
+            return false;
+        }
+        // Vertices minus edges of the clusters' common border: 1 for one path.
+        let shared = self.shared_border(a, b);
+        let mut twice_edges = 0;
+        for &v in &shared {
+            for &f in topo.vertex_faces(v) {
+                if self.cluster_of(f) != a {
+                    continue;
+                }
+                for e in topo.face_edges(f) {
+                    if !topo.edge(e).contains(&v) {
+                        continue;
+                    }
+                    for &g in topo.edge_faces(e) {
+                        if g != f && self.cluster_of(g) == b {
+                            twice_edges += 1;
+                        }
+                    }
+                }
+            }
+        }
+        2 * shared.len() == twice_edges + 2
     }
 
     /// The queue entry of the pair `a`, `b` now.
@@ -945,8 +1024,9 @@ impl Merging {
         p.3 == self.version[p.1 as usize] && p.4 == self.version[p.2 as usize]
     }
 
-    /// Merges cluster `b` into `a` (a valid dual edge collapse).
-    fn merge(&mut self, a: u32, b: u32) {
+    /// Merges cluster `b` into `a` (checked by [`Merging::can_merge`]).
+    fn merge(&mut self, topo: &Topology, a: u32, b: u32) {
+        let shared = self.shared_border(a, b);
         self.dual.collapse(a, b);
         let touch = &mut self.touch;
         for x in std::mem::take(&mut touch[b as usize]) {
@@ -963,6 +1043,47 @@ impl Merging {
         touch[a as usize].dedup();
         self.into[b as usize] = a;
         self.area[a as usize] += self.area[b as usize];
+        // The border of the union: both borders but the shared vertices now inside it.
+        let from_b = std::mem::take(&mut self.border[b as usize]);
+        let inside: Vec<u32> = shared
+            .into_iter()
+            .filter(|&v| {
+                !topo.is_boundary_vertex(v)
+                    && topo
+                        .vertex_faces(v)
+                        .iter()
+                        .all(|&f| self.cluster_of(f) == a)
+            })
+            .collect();
+        let from_a = std::mem::take(&mut self.border[a as usize]);
+        let mut union = Vec::with_capacity(from_a.len() + from_b.len());
+        let (mut i, mut j) = (0, 0);
+        while i < from_a.len() || j < from_b.len() {
+            let v = match (from_a.get(i), from_b.get(j)) {
+                (Some(&x), Some(&y)) if x == y => {
+                    i += 1;
+                    j += 1;
+                    x
+                }
+                (Some(&x), Some(&y)) if x < y => {
+                    i += 1;
+                    x
+                }
+                (Some(&x), None) => {
+                    i += 1;
+                    x
+                }
+                (_, Some(&y)) => {
+                    j += 1;
+                    y
+                }
+                (None, None) => unreachable!(),
+            };
+            if inside.binary_search(&v).is_err() {
+                union.push(v);
+            }
+        }
+        self.border[a as usize] = union;
     }
 
     /// Relabels `labels` by the merges, to `0..k`; returns k.
@@ -1027,11 +1148,11 @@ fn merge_down(
         if !g.current(&p) {
             continue;
         }
-        if !g.dual.can_collapse(a, b) {
+        if !g.can_merge(topo, a, b) {
             refused.insert((a, b));
             continue;
         }
-        g.merge(a, b);
+        g.merge(topo, a, b);
         count -= 1;
         // The pairs at `a` have a new cost (and those at `b` are gone); the link of every
         // pair at a neighbour of `a` may have changed: those refused are queued again.
@@ -1081,11 +1202,11 @@ mod tests {
             let Some(std::cmp::Reverse(p)) = heap.pop() else {
                 break;
             };
-            if !g.current(&p) || !g.dual.can_collapse(p.1, p.2) {
+            if !g.current(&p) || !g.can_merge(topo, p.1, p.2) {
                 continue;
             }
             let a = p.1;
-            g.merge(a, p.2);
+            g.merge(topo, a, p.2);
             count -= 1;
             let ring = g.dual.neighbors(a);
             for &v in ring.iter().chain([a].iter()) {
@@ -1125,6 +1246,9 @@ mod tests {
             coarsen_shapes::torus(1.0, 0.3, 30, 3).unwrap(),
             coarsen_shapes::torus(1.0, 0.5, 8, 6).unwrap(),
             coarsen_shapes::bumpy_sphere(1.0, 2, 0.2, 3.0).unwrap(),
+            coarsen_shapes::disk_with_holes(6, 2, 10.0).unwrap(),
+            coarsen_shapes::disk_with_holes(12, 3, 10.0).unwrap(),
+            coarsen_shapes::disk_with_holes(6, 4, 10.0).unwrap(),
         ];
         // The beetle split 1-to-4 twice: many boundary loops close together, as in the
         // post-process's finer levels.
@@ -1156,7 +1280,74 @@ mod tests {
                 let ka = merge_down(mesh, &topo, &mut a, nf, d.faces.clone(), n);
                 let kb = merge_down_requeuing_all(mesh, &topo, &mut b, nf, d.faces.clone(), n);
                 assert_eq!((ka, &a), (kb, &b), "{nf} faces down to {n}");
+                let d = diagnose(mesh, &topo, &a, ka, expect, LoopMarking::WholeLoop);
+                assert!(
+                    !d.problems.any(),
+                    "{nf} faces down to {n}: {:?}",
+                    d.problems
+                );
             }
         }
+    }
+
+    /// Random merges that [`Merging::can_merge`] allows keep every cluster a disc met once
+    /// around each vertex: irregular clusters meet at corners of vertices where five or
+    /// more clusters meet, which the dual's link condition alone lets through.
+    #[test]
+    fn random_allowed_merges_keep_every_cluster_a_disc() {
+        let meshes = [
+            coarsen_shapes::plane_grid(10, 10, 1.0).unwrap(),
+            coarsen_shapes::icosphere(1.0, 2).unwrap(),
+            coarsen_shapes::torus(1.0, 0.4, 16, 10).unwrap(),
+            coarsen_shapes::disk_with_holes(4, 3, 10.0).unwrap(),
+        ];
+        let mut broken_without = 0;
+        for mesh in &meshes {
+            let topo = Topology::build(mesh);
+            let summary = topo.summary(mesh);
+            let expect = (
+                summary.n_components,
+                summary.n_boundary_loops,
+                summary.genus_total,
+            );
+            let nf = mesh.n_faces();
+            for seed in 0..12 {
+                let mut rng = coarsen_stage_cvt::SplitMix64::new(seed);
+                let labels: Vec<u32> = (0..nf as u32).collect();
+                let d = diagnose(mesh, &topo, &labels, nf, expect, LoopMarking::WholeLoop);
+                let mut g = Merging::new(mesh, &topo, &labels, nf, d.faces);
+                let mut alive: Vec<u32> = (0..nf as u32).collect();
+                let mut misses = 0;
+                while alive.len() > 8 && misses < 200 {
+                    let a = alive[(rng.next_u64() % alive.len() as u64) as usize];
+                    let t = &g.touch[a as usize];
+                    if t.is_empty() {
+                        misses += 1;
+                        continue;
+                    }
+                    let b = t[(rng.next_u64() % t.len() as u64) as usize];
+                    if !g.can_merge(&topo, a, b) {
+                        broken_without += usize::from(g.dual.can_collapse(a, b));
+                        misses += 1;
+                        continue;
+                    }
+                    misses = 0;
+                    g.merge(&topo, a, b);
+                    alive.retain(|&c| c != b);
+                    let mut now = labels.clone();
+                    let k = g.relabel(&mut now);
+                    let d = diagnose(mesh, &topo, &now, k, expect, LoopMarking::WholeLoop);
+                    assert!(
+                        !d.problems.any(),
+                        "{nf} faces, seed {seed}, {k} clusters: {:?}",
+                        d.problems
+                    );
+                }
+            }
+        }
+        assert!(
+            broken_without > 0,
+            "no merge was refused for meeting at a corner"
+        );
     }
 }
