@@ -1058,7 +1058,7 @@ impl Merging {
         let from_a = std::mem::take(&mut self.border[a as usize]);
         let mut union = Vec::with_capacity(from_a.len() + from_b.len());
         let (mut i, mut j) = (0, 0);
-        while i < from_a.len() || j < from_b.len() {
+        loop {
             let v = match (from_a.get(i), from_b.get(j)) {
                 (Some(&x), Some(&y)) if x == y => {
                     i += 1;
@@ -1077,7 +1077,7 @@ impl Merging {
                     j += 1;
                     y
                 }
-                (None, None) => unreachable!(),
+                (None, None) => break,
             };
             if inside.binary_search(&v).is_err() {
                 union.push(v);
