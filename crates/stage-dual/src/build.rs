@@ -557,6 +557,16 @@ pub(crate) fn relax<'m>(
 /// without converging.
 const WHOLE_LOOP_ROUNDS: u32 = 8;
 
+/// The input's components, boundary loops and genus, which a valid dual keeps.
+fn topology_of(mesh: &Mesh, topo: &Topology) -> (usize, usize, Option<i64>) {
+    let summary = topo.summary(mesh);
+    (
+        summary.n_components,
+        summary.n_boundary_loops,
+        summary.genus_total,
+    )
+}
+
 /// The repair loop: diagnose, repair, relax, until the dual is valid or `max_rounds`.
 pub(crate) fn repaired_dual(
     mesh: &Mesh,
@@ -566,12 +576,7 @@ pub(crate) fn repaired_dual(
     max_rounds: u32,
     relax_passes: u32,
 ) -> Result<(Vec<[u32; 3]>, DualStats), DualError> {
-    let summary = topo.summary(mesh);
-    let expect = (
-        summary.n_components,
-        summary.n_boundary_loops,
-        summary.genus_total,
-    );
+    let expect = topology_of(mesh, topo);
     // The face across each edge, built only when a repair needs it.
     let table: std::cell::OnceCell<Vec<[u32; 3]>> = std::cell::OnceCell::new();
     let nbr = |f: u32, i: usize| {
@@ -1258,12 +1263,7 @@ mod tests {
         });
         for mesh in meshes.iter().chain(beetle.as_ref()).chain(fine.as_ref()) {
             let topo = Topology::build(mesh);
-            let summary = topo.summary(mesh);
-            let expect = (
-                summary.n_components,
-                summary.n_boundary_loops,
-                summary.genus_total,
-            );
+            let expect = topology_of(mesh, &topo);
             let nf = mesh.n_faces();
             let singles: Vec<u32> = (0..nf as u32).collect();
             let d = diagnose(mesh, &topo, &singles, nf, expect, LoopMarking::WholeLoop);
@@ -1304,12 +1304,7 @@ mod tests {
         let mut refused_at_corners = 0;
         for mesh in &meshes {
             let topo = Topology::build(mesh);
-            let summary = topo.summary(mesh);
-            let expect = (
-                summary.n_components,
-                summary.n_boundary_loops,
-                summary.genus_total,
-            );
+            let expect = topology_of(mesh, &topo);
             let nf = mesh.n_faces();
             for seed in 0..12 {
                 let mut rng = coarsen_stage_cvt::SplitMix64::new(seed);
