@@ -736,7 +736,8 @@ impl Stage for DualStage {
             );
         } else if d.stats.repairs > 0 {
             let restart = if d.stats.restarted {
-                " (started again after splitting whole boundary loops did not converge)"
+                ", started again from the clustering as it came after splitting whole boundary \
+                 loops had not converged (the splits counted since)"
             } else {
                 ""
             };
