@@ -802,7 +802,8 @@ impl DualMesh {
 /// faces wide, where every compact cluster touches the boundary on both sides): the
 /// clusters to blame are broken into single faces — all of them when that is not enough —
 /// and clusters are then merged back, smallest pair first, as collapses of the dual's
-/// edges that keep it a manifold of the input's topology, until `n` remain.
+/// edges that keep it a manifold of the input's topology and the clusters discs, until
+/// `n` remain.
 fn rebuild_by_merging(
     mesh: &Mesh,
     topo: &Topology,
@@ -1105,9 +1106,9 @@ impl Merging {
 }
 
 /// Merges the clusters of `labels` (`0..m`, whose dual `faces` is valid), the pair of
-/// smallest summed area first, each merge a dual edge collapse that keeps the dual a
-/// manifold of the same topology, until `n` remain or no merge is valid; relabels to
-/// `0..k` and returns k.
+/// smallest summed area first, each merge one that [`Merging::can_merge`] allows (the dual
+/// stays a manifold of the same topology, the clusters discs), until `n` remain or no
+/// merge is valid; relabels to `0..k` and returns k.
 fn merge_down(
     mesh: &Mesh,
     topo: &Topology,
