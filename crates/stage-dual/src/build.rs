@@ -1092,14 +1092,11 @@ impl Merging {
         self.border[a as usize] = union;
     }
 
-    /// Relabels `labels` by the merges, to `0..k`; returns k.
-    fn relabel(&self, labels: &mut [u32]) -> usize {
-        for l in labels.iter_mut() {
-            let mut c = *l;
-            while self.into[c as usize] != c {
-                c = self.into[c as usize];
-            }
-            *l = c;
+    /// Writes each face's cluster after the merges into `labels`, renumbered `0..k`;
+    /// returns k.
+    fn relabel(&mut self, labels: &mut [u32]) -> usize {
+        for (f, l) in labels.iter_mut().enumerate() {
+            *l = self.cluster_of(f as u32);
         }
         compact(labels)
     }
