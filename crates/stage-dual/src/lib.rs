@@ -29,11 +29,12 @@
 //! then merged back, the pair of smallest summed area first, as collapses of the dual's
 //! edges that pass the link condition (so the dual stays a manifold of the input's
 //! topology) between clusters that meet along one path of input edges and nowhere else
-//! (so the merged cluster is a disc), until the count is exact. If no valid merge is left above the count, the
-//! stage fails with a parameter error naming the smallest count it reached; if problems
-//! remain it fails too: it never emits a broken mesh nor adds a vertex. A mesh with a
-//! boundary loop along fewer than three faces (e.g. a component of two triangles) has no
-//! valid dual under any clustering and is refused up front, as an input error.
+//! (so the merged cluster is a disc), until the count is exact. If no valid merge is left
+//! above the count, the stage fails with a parameter error naming the smallest count it
+//! reached; if problems remain it fails too: it never emits a broken mesh nor adds a
+//! vertex. A mesh with a boundary loop along fewer than three faces (e.g. a component of
+//! two triangles) has no valid dual under any clustering and is refused up front, as an
+//! input error.
 //!
 //! # Boundaries
 //!
