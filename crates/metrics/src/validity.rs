@@ -199,6 +199,9 @@ pub struct SurfaceIndex {
     /// The boundary edges (edges of one face), in the adjacency's edge order.
     boundary_edges: Vec<[u32; 2]>,
     bvh: Bvh,
+    /// The boundary edges as degenerate triangles `[a, b, b]` (their nearest point is the
+    /// segment's), indexed; `None` without a boundary.
+    boundary_bvh: Option<Bvh>,
 }
 
 impl SurfaceIndex {
@@ -217,13 +220,16 @@ impl SurfaceIndex {
             vertex_faces.extend_from_slice(topo.vertex_faces(v));
             vertex_face_offsets.push(vertex_faces.len() as u32);
         }
+        let boundary_edges: Vec<[u32; 2]> = (0..topo.n_edges() as u32)
+            .filter(|&e| topo.is_boundary_edge(e))
+            .map(|e| topo.edge(e))
+            .collect();
+        let segments: Vec<[u32; 3]> = boundary_edges.iter().map(|&[a, b]| [a, b, b]).collect();
         SurfaceIndex {
             vertex_face_offsets,
             vertex_faces,
-            boundary_edges: (0..topo.n_edges() as u32)
-                .filter(|&e| topo.is_boundary_edge(e))
-                .map(|e| topo.edge(e))
-                .collect(),
+            boundary_bvh: (!segments.is_empty()).then(|| Bvh::build(&input.positions, &segments)),
+            boundary_edges,
             bvh: Bvh::build(&input.positions, &input.faces),
         }
     }
@@ -288,6 +294,17 @@ impl<'a> Facing<'a> {
     /// The input's boundary edges (edges of one face), in the order of its adjacency's edges.
     pub fn boundary_edges(&self) -> &[[u32; 2]] {
         &self.index.boundary_edges
+    }
+
+    /// The index of the input's boundary edges; `None` when it has none.
+    pub fn boundary_bvh(&self) -> Option<&Bvh> {
+        self.index.boundary_bvh.as_ref()
+    }
+
+    /// The nearest point of the input's boundary edges to `p`; `None` without a boundary
+    /// (or for a point that is not finite).
+    pub fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
+        self.boundary_bvh()?.closest_point(p).map(|h| h.point)
     }
 
     /// True when triangle `abc` would count as flipped against the input.

@@ -182,9 +182,6 @@ fn fan_shape(
 pub struct Surface<'a> {
     mesh: &'a Mesh,
     facing: Facing<'a>,
-    /// The input's boundary edges as degenerate triangles `[a, b, b]` (their nearest point
-    /// is the segment's), indexed; `None` without a boundary.
-    boundary: Option<Bvh>,
 }
 
 impl<'a> Surface<'a> {
@@ -195,17 +192,9 @@ impl<'a> Surface<'a> {
 
     /// `mesh` with its index built earlier by [`SurfaceIndex::new`] from the same mesh.
     pub fn with_index(mesh: &'a Mesh, index: Arc<SurfaceIndex>) -> Self {
-        let facing = Facing::with_index(mesh, index);
-        let segments: Vec<[u32; 3]> = facing
-            .boundary_edges()
-            .iter()
-            .map(|&[a, b]| [a, b, b])
-            .collect();
-        let boundary = (!segments.is_empty()).then(|| Bvh::build(&mesh.positions, &segments));
         Surface {
             mesh,
-            facing,
-            boundary,
+            facing: Facing::with_index(mesh, index),
         }
     }
 
@@ -216,7 +205,7 @@ impl<'a> Surface<'a> {
 
     /// The nearest point of the boundary edges.
     fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
-        self.boundary.as_ref()?.closest_point(p).map(|h| h.point)
+        self.facing.project_boundary(p)
     }
 
     /// True when the triangle `abc` does not face away from the input (the metrics'
