@@ -1,7 +1,8 @@
 //! The `postprocess` stage (paper 1, "Post-process"): the coarse mesh M_c is uniformly
 //! subdivided 1-to-4 `times` times, clustered again into n = |V(M_c)| regions with the CVT
 //! clusterer, triangulated with the dual again, and — with `project` — every vertex is pulled
-//! onto the nearest point of the run's input surface, so the resampling does not drift from
+//! onto the nearest point of the run's input surface (a vertex of the output's boundary
+//! onto the nearest point of the input's boundary), so the resampling does not drift from
 //! the original. It reuses the `subdivide`/refine split, `cluster.cvt` and `dual` crates; it
 //! copies none of them.
 //!
@@ -32,7 +33,8 @@ params! {
         pub max_passes: u32 = 200,
         /// Where each cluster's vertex goes: "closest-vertex", "centroid", "projected" or "quadric".
         pub placement: Placement = Placement::Projected,
-        /// Pull every output vertex onto the nearest point of the run's input surface.
+        /// Pull every output vertex onto the nearest point of the run's input surface (its
+        /// boundary for boundary vertices).
         pub project: bool = true,
         /// Stop the finest level's re-clustering after a pass that lowers the energy by less
         /// than this fraction (coarser levels: a tenth of it).
@@ -228,22 +230,37 @@ impl Stage for Postprocess {
         };
         drop(topo);
         let mut out = dual.mesh;
-        // 4. Pull onto the input surface; a vertex whose move would turn one of its faces
+        // 4. Pull onto the input surface, the vertices of the output's boundary onto the
+        // input's boundary (the dual put them on the subdivided coarse boundary, whose edges
+        // cut across the input's bays); a vertex whose move would turn one of its faces
         // over, flatten it or make it face away from the input goes back where the dual put
         // it (a few rounds, as undoing one move can expose a neighbour's).
         let mut projected = 0usize;
         if let Some(facing) = &facing {
             let before = out.clone();
+            let on_boundary: Vec<bool> = match Topology::try_build(&out) {
+                Ok(t) => (0..out.n_vertices() as u32)
+                    .map(|v| t.is_boundary_vertex(v))
+                    .collect(),
+                Err(e) => return Err(StageError::Internal(format!("`{}`: {e}", Self::KIND))),
+            };
             let mut moved: Vec<bool> = out
                 .positions
                 .par_iter_mut()
-                .map(|pos| match facing.bvh().closest_point(*pos) {
-                    Some(hit) => {
-                        let m = hit.point != *pos;
-                        *pos = hit.point;
-                        m
+                .zip(&on_boundary)
+                .map(|(pos, &b)| {
+                    let to = match b {
+                        true => facing.project_boundary(*pos),
+                        false => facing.bvh().closest_point(*pos).map(|h| h.point),
+                    };
+                    match to {
+                        Some(q) => {
+                            let m = q != *pos;
+                            *pos = q;
+                            m
+                        }
+                        None => false,
                     }
-                    None => false,
                 })
                 .collect();
             let diag2 = cx.original.bbox().diagonal().powi(2);
@@ -370,6 +387,77 @@ mod tests {
             min_angle(&coarse)
         );
         assert!(report.get("projected_vertices").is_some());
+    }
+
+    /// A flat unit disk: a centre and `rings` rings of `segments` vertices each.
+    fn disk(rings: u32, segments: u32) -> Mesh {
+        let mut positions = vec![coarsen_mesh::DVec3::ZERO];
+        for k in 1..=rings {
+            let r = f64::from(k) / f64::from(rings);
+            for i in 0..segments {
+                let a = std::f64::consts::TAU * f64::from(i) / f64::from(segments);
+                positions.push(coarsen_mesh::DVec3::new(r * a.cos(), r * a.sin(), 0.0));
+            }
+        }
+        let id = |k: u32, i: u32| {
+            if k == 0 {
+                0
+            } else {
+                1 + (k - 1) * segments + i % segments
+            }
+        };
+        let mut faces = Vec::new();
+        for i in 0..segments {
+            faces.push([0, id(1, i), id(1, i + 1)]);
+        }
+        for k in 1..rings {
+            for i in 0..segments {
+                faces.push([id(k, i), id(k + 1, i), id(k + 1, i + 1)]);
+                faces.push([id(k, i), id(k + 1, i + 1), id(k, i + 1)]);
+            }
+        }
+        Mesh::new(positions, faces)
+    }
+
+    #[test]
+    fn boundary_vertices_end_on_the_input_boundary() {
+        // The coarse disk's rim is a 12-gon whose edges cut inside the input's 120-gon:
+        // the dual puts the rim's vertices on the subdivided 12-gon, where the nearest
+        // point of the (flat) input surface is the point itself.
+        let original = disk(20, 120);
+        let coarse = disk(4, 12);
+        let mut report = StageReport::default();
+        let out = Postprocess::new(PostprocessParams::default())
+            .run(coarse.clone(), &mut Context::new(&original, &mut report))
+            .unwrap();
+        assert_eq!(out.n_vertices(), coarse.n_vertices());
+        let topo = Topology::build(&out);
+        let rim: Vec<u32> = (0..out.n_vertices() as u32)
+            .filter(|&v| topo.is_boundary_vertex(v))
+            .collect();
+        assert!(rim.len() >= 3, "{} boundary vertices", rim.len());
+        let segments: Vec<[coarsen_mesh::DVec3; 2]> = (0..120)
+            .map(|i| {
+                [
+                    original.positions[2281 + i],
+                    original.positions[2281 + (i + 1) % 120],
+                ]
+            })
+            .collect();
+        for v in rim {
+            let p = out.positions[v as usize];
+            let d = segments
+                .iter()
+                .map(|&[a, b]| {
+                    let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                    (a + t * (b - a) - p).length()
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                d < 1e-12,
+                "boundary vertex {v} at {p} is {d} from the input boundary"
+            );
+        }
     }
 
     fn coarsen_geom_min_angle(
