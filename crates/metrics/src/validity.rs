@@ -6,7 +6,7 @@ use crate::prepare::{Prepared, map_chunks};
 use coarsen_geom::triangle;
 use coarsen_mesh::topology::TopologySummary;
 use coarsen_mesh::{DVec3, Mesh, Topology};
-use coarsen_spatial::Bvh;
+use coarsen_spatial::{Bvh, closest_point_on_segment};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -202,6 +202,8 @@ pub struct SurfaceIndex {
     /// The boundary edges as degenerate triangles `[a, b, b]` (their nearest point is the
     /// segment's), indexed; `None` without a boundary.
     boundary_bvh: Option<Bvh>,
+    /// `(vertex, boundary edge)` for both ends of every boundary edge, by vertex.
+    boundary_ends: Vec<(u32, u32)>,
 }
 
 impl SurfaceIndex {
@@ -225,13 +227,27 @@ impl SurfaceIndex {
             .map(|e| topo.edge(e))
             .collect();
         let segments: Vec<[u32; 3]> = boundary_edges.iter().map(|&[a, b]| [a, b, b]).collect();
+        let mut boundary_ends: Vec<(u32, u32)> = (0..boundary_edges.len() as u32)
+            .flat_map(|e| boundary_edges[e as usize].map(|v| (v, e)))
+            .collect();
+        boundary_ends.sort_unstable();
         SurfaceIndex {
+            boundary_ends,
             vertex_face_offsets,
             vertex_faces,
             boundary_bvh: (!segments.is_empty()).then(|| Bvh::build(&input.positions, &segments)),
             boundary_edges,
             bvh: Bvh::build(&input.positions, &input.faces),
         }
+    }
+
+    /// The boundary edges at vertex `v`.
+    fn boundary_edges_at(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
+        let from = self.boundary_ends.partition_point(|&(w, _)| w < v);
+        self.boundary_ends[from..]
+            .iter()
+            .take_while(move |&&(w, _)| w == v)
+            .map(|&(_, e)| e)
     }
 
     /// The faces around vertex `v`.
@@ -305,6 +321,55 @@ impl<'a> Facing<'a> {
     /// (or for a point that is not finite).
     pub fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
         self.boundary_bvh()?.closest_point(p).map(|h| h.point)
+    }
+
+    /// The nearest point to `target` of the input's boundary within `reach` along it (arc
+    /// length) of the boundary point nearest `from`: a projection that follows the loop
+    /// `from` is on, where [`Facing::project_boundary`] may land on another loop or across
+    /// a bay of this one. `None` without a boundary (or for points that are not finite).
+    pub fn project_boundary_along(&self, from: DVec3, target: DVec3, reach: f64) -> Option<DVec3> {
+        /// Most boundary edges one projection looks at.
+        const MOST_EDGES: usize = 4096;
+        if !target.is_finite() {
+            return None;
+        }
+        let start = self.boundary_bvh()?.closest_point(from)?;
+        let index = &self.index;
+        let position = |v: u32| self.mesh.positions[v as usize];
+        let nearest_on = |e: u32| {
+            let [a, b] = index.boundary_edges[e as usize].map(position);
+            closest_point_on_segment(target, a, b).0
+        };
+        let mut best = nearest_on(start.face);
+        let mut best_d2 = best.distance_squared(target);
+        // Walk out from the start's edge through both its ends, each vertex reached with the
+        // arc length from the start.
+        let mut seen = vec![start.face];
+        let [a, b] = index.boundary_edges[start.face as usize];
+        let mut front = vec![
+            (a, start.point.distance(position(a))),
+            (b, start.point.distance(position(b))),
+        ];
+        while let Some((v, arc)) = front.pop() {
+            if arc > reach || seen.len() >= MOST_EDGES {
+                continue;
+            }
+            for e in index.boundary_edges_at(v) {
+                if seen.contains(&e) {
+                    continue;
+                }
+                seen.push(e);
+                let q = nearest_on(e);
+                let d2 = q.distance_squared(target);
+                if d2 < best_d2 {
+                    (best, best_d2) = (q, d2);
+                }
+                let [x, y] = index.boundary_edges[e as usize];
+                let w = if x == v { y } else { x };
+                front.push((w, arc + position(v).distance(position(w))));
+            }
+        }
+        Some(best)
     }
 
     /// True when triangle `abc` would count as flipped against the input.
@@ -422,6 +487,55 @@ mod tests {
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
         output.faces[0].swap(1, 2);
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(1));
+    }
+
+    /// A flat annulus between circles of radius 1 and 2 (32 segments each): a point at
+    /// radius 1.4 is nearer the inner loop, but projected along the boundary from the outer
+    /// loop it stays on the outer one, within the reach asked for.
+    #[test]
+    fn projection_along_the_boundary_stays_on_the_loop_it_starts_from() {
+        let n = 32u32;
+        let at = |r: f64, i: u32| {
+            let a = std::f64::consts::TAU * f64::from(i) / f64::from(n);
+            DVec3::new(r * a.cos(), r * a.sin(), 0.0)
+        };
+        let positions: Vec<DVec3> = (0..n)
+            .map(|i| at(1.0, i))
+            .chain((0..n).map(|i| at(2.0, i)))
+            .collect();
+        let faces: Vec<[u32; 3]> = (0..n)
+            .flat_map(|i| {
+                let j = (i + 1) % n;
+                [[i, n + i, n + j], [i, n + j, j]]
+            })
+            .collect();
+        let m = Mesh::new(positions, faces);
+        let facing = Facing::new(&m);
+        let target = 1.4 * DVec3::new(0.3f64.cos(), 0.3f64.sin(), 0.0);
+        let inner = facing.project_boundary(target).unwrap();
+        assert!(inner.length() < 1.0 + 1e-12, "{inner}");
+        let outer = facing
+            .project_boundary_along(DVec3::new(2.0, 0.0, 0.0), target, 1.0)
+            .unwrap();
+        assert!(outer.length() > 1.99, "{outer}");
+        assert!((outer.y.atan2(outer.x) - 0.3).abs() < 0.01, "{outer}");
+        // Within a reach of 0.1 only the two edges at the start are looked at.
+        let near = facing
+            .project_boundary_along(DVec3::new(2.0, 0.0, 0.0), target, 0.1)
+            .unwrap();
+        assert!(
+            near.length() > 1.99 && near.y.atan2(near.x) <= std::f64::consts::TAU / 32.0 + 1e-12,
+            "{near}"
+        );
+        assert_eq!(
+            facing.project_boundary_along(DVec3::ZERO, DVec3::NAN, 1.0),
+            None
+        );
+        let closed = icosphere(1);
+        assert_eq!(
+            Facing::new(&closed).project_boundary_along(DVec3::X, DVec3::X, 1.0),
+            None
+        );
     }
 
     /// The surface index keeps the faces around each vertex and the boundary edges, not

@@ -270,7 +270,7 @@ pub(crate) fn pull(
             let old = pos(w);
             let half = old.lerp(p, 0.5);
             let half = if on_boundary {
-                surface.project_boundary(half)
+                surface.project_boundary_along(old, half, BOUNDARY_REACH * old.distance(p))
             } else {
                 surface.project(half)
             };
@@ -480,7 +480,7 @@ pub(crate) fn fit(
                 let mid = mesh.positions[c as usize].lerp(mesh.positions[dd as usize], 0.5);
                 let half = p.lerp(mid, 0.5);
                 let half = if on_boundary {
-                    surface.project_boundary(half)
+                    surface.project_boundary_along(p, half, BOUNDARY_REACH * p.distance(mid))
                 } else {
                     surface.project(half)
                 };

@@ -6,8 +6,10 @@
 //! (`step`, half and a quarter of the way), then onto the nearest point of the run's input
 //! surface when `project` is on; a boundary vertex towards the middle (or the thirds) of
 //! the segment between its two boundary neighbours, then onto the nearest point of the
-//! input's boundary edges. The best move is kept only when the smallest angle of the vertex's faces grows,
-//! none of them turns by more than `max_turn_deg`, and (when projecting) none faces away
+//! input's boundary edges along the loop it is on (within twice its two edges' length of
+//! where it is, so that it neither jumps to another loop nor across a bay of its own). The
+//! best move is kept only when the smallest angle of the vertex's faces grows, none of
+//! them turns by more than `max_turn_deg`, and (when projecting) none faces away
 //! from the input normal nearest its centroid — so the mesh's minimum angle never drops, no
 //! face flips, and every vertex stays on the input surface. Meshes of 2¹¹ vertices or more
 //! sweep in eight fixed spatial parts at once, the vertices on the borders between parts
@@ -178,6 +180,11 @@ fn fan_shape(
     Some((worst, sum))
 }
 
+/// How far along the input's boundary (in multiples of the output edges involved) a
+/// boundary vertex's new place is looked for: far enough for a ragged hole, whose boundary
+/// is longer than the output's chords, and no farther, so that it stays on its loop.
+pub(crate) const BOUNDARY_REACH: f64 = 2.0;
+
 /// The surface vertices are kept on: the input mesh, its face index and its boundary edges.
 pub struct Surface<'a> {
     mesh: &'a Mesh,
@@ -204,8 +211,15 @@ impl<'a> Surface<'a> {
     }
 
     /// The nearest point of the boundary edges.
+    #[cfg(test)]
     fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
         self.facing.project_boundary(p)
+    }
+
+    /// The nearest point to `target` of the boundary edges along the loop of the boundary
+    /// point nearest `from`, within `reach` of it (arc length).
+    fn project_boundary_along(&self, from: DVec3, target: DVec3, reach: f64) -> Option<DVec3> {
+        self.facing.project_boundary_along(from, target, reach)
     }
 
     /// True when the triangle `abc` does not face away from the input (the metrics'

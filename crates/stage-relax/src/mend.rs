@@ -88,7 +88,11 @@ pub(crate) fn mend(
             if topo.is_boundary_vertex(v) {
                 for &w in &ends[v as usize] {
                     for t in [0.25, 0.5] {
-                        cands.extend(surface.project_boundary(p.lerp(pos(w), t)));
+                        cands.extend(surface.project_boundary_along(
+                            p,
+                            p.lerp(pos(w), t),
+                            BOUNDARY_REACH * p.distance(pos(w)),
+                        ));
                     }
                 }
             } else {

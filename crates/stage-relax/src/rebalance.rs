@@ -330,7 +330,11 @@ pub(crate) fn plan_collapse(
         }
         let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
         let at = match surface {
-            Some(s) => s.project_boundary(mid)?,
+            Some(s) => s.project_boundary_along(
+                mesh.positions[a as usize],
+                mid,
+                BOUNDARY_REACH * mesh.positions[a as usize].distance(mesh.positions[b as usize]),
+            )?,
             None => mid,
         };
         (a.min(b), a.max(b), at)

@@ -135,7 +135,13 @@ impl Sweep<'_> {
             for (c, s) in cands.iter_mut().zip([0.5, 1.0 / 3.0, 2.0 / 3.0]) {
                 let target = p + params.step * (u.lerp(w, s) - p);
                 *c = match onto {
-                    Some(sf) => sf.project_boundary(target).unwrap_or(DVec3::NAN),
+                    Some(sf) => sf
+                        .project_boundary_along(
+                            p,
+                            target,
+                            BOUNDARY_REACH * (u.distance(p) + w.distance(p)),
+                        )
+                        .unwrap_or(DVec3::NAN),
                     None => target,
                 };
             }
