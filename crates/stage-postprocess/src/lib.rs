@@ -2,14 +2,14 @@
 //! subdivided 1-to-4 `times` times, clustered again into n = |V(M_c)| regions with the CVT
 //! clusterer, triangulated with the dual again, and — with `project` — every vertex is pulled
 //! onto the nearest point of the run's input surface (a vertex of the output's boundary
-//! onto the nearest point of the input's boundary), so the resampling does not drift from
-//! the original. It reuses the `subdivide`/refine split, `cluster.cvt` and `dual` crates; it
+//! onto the input's boundary, along the loop of the nearest coarse boundary vertex), so the
+//! resampling does not drift from the original. It reuses the `subdivide`/refine split, `cluster.cvt` and `dual` crates; it
 //! copies none of them.
 //!
 //! When the finest clustering has no valid dual that its repairs can reach, the coarse mesh
 //! is returned as it came, with a warning and the report figure `kept_coarse`.
 
-use coarsen_mesh::{Topology, sanity};
+use coarsen_mesh::{DVec3, Topology, sanity};
 use coarsen_stage::{
     AttrValues, Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError,
     params,
@@ -107,6 +107,14 @@ impl Stage for Postprocess {
         // (the first from the coarse mesh's, which the runner's manifold check built).
         let mut level_topo: Option<Topology> = None;
         let coarse_topo = cx.topology(&coarse).ok();
+        // The coarse mesh's boundary vertices lie on the input's boundary (the dual before
+        // put them there): the projection of the output's boundary starts from them.
+        let coarse_rim: Vec<u32> = match &coarse_topo {
+            Some(t) => (0..coarse.n_vertices() as u32)
+                .filter(|&v| t.is_boundary_vertex(v))
+                .collect(),
+            None => Vec::new(),
+        };
         let mut derived = None;
         for _ in 0..p.times.max(1) {
             if done < p.times {
@@ -238,6 +246,18 @@ impl Stage for Postprocess {
         let mut projected = 0usize;
         if let Some(facing) = &facing {
             let before = out.clone();
+            let rim_index = (!coarse_rim.is_empty()).then(|| {
+                let points: Vec<[u32; 3]> = coarse_rim.iter().map(|&v| [v, v, v]).collect();
+                coarsen_spatial::Bvh::build(&coarse.positions, &points)
+            });
+            // Onto the input's boundary along the loop of the nearest coarse boundary vertex
+            // (the nearest point of the whole boundary may lie on another loop or across a
+            // bay of this one).
+            let onto_rim = |p: DVec3| {
+                let from = rim_index.as_ref()?.closest_point(p)?;
+                let reach = 4.0 * from.distance();
+                facing.project_boundary_along(from.point, p, reach)
+            };
             let on_boundary: Vec<bool> = match Topology::try_build(&out) {
                 Ok(t) => (0..out.n_vertices() as u32)
                     .map(|v| t.is_boundary_vertex(v))
@@ -250,7 +270,7 @@ impl Stage for Postprocess {
                 .zip(&on_boundary)
                 .map(|(pos, &b)| {
                     let to = match b {
-                        true => facing.project_boundary(*pos),
+                        true => onto_rim(*pos),
                         false => facing.bvh().closest_point(*pos).map(|h| h.point),
                     };
                     match to {
