@@ -343,22 +343,23 @@ impl<'a> Facing<'a> {
         let mut best = nearest_on(start.face);
         let mut best_d2 = best.distance_squared(target);
         // Walk out from the start's edge through both its ends, each vertex reached with the
-        // arc length from the start.
-        let mut seen = vec![start.face];
+        // arc length from the start and the edge it was reached by (a loop shorter than the
+        // reach is walked round again: the same points, which change nothing).
         let [a, b] = index.boundary_edges[start.face as usize];
         let mut front = vec![
-            (a, start.point.distance(position(a))),
-            (b, start.point.distance(position(b))),
+            (a, start.point.distance(position(a)), start.face),
+            (b, start.point.distance(position(b)), start.face),
         ];
-        while let Some((v, arc)) = front.pop() {
-            if arc > reach || seen.len() >= MOST_EDGES {
+        let mut looked = 1;
+        while let Some((v, arc, by)) = front.pop() {
+            if arc > reach {
                 continue;
             }
             for e in index.boundary_edges_at(v) {
-                if seen.contains(&e) {
+                if e == by || looked >= MOST_EDGES {
                     continue;
                 }
-                seen.push(e);
+                looked += 1;
                 let q = nearest_on(e);
                 let d2 = q.distance_squared(target);
                 if d2 < best_d2 {
@@ -366,7 +367,7 @@ impl<'a> Facing<'a> {
                 }
                 let [x, y] = index.boundary_edges[e as usize];
                 let w = if x == v { y } else { x };
-                front.push((w, arc + position(v).distance(position(w))));
+                front.push((w, arc + position(v).distance(position(w)), e));
             }
         }
         Some(best)

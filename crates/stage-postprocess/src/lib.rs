@@ -3,8 +3,8 @@
 //! clusterer, triangulated with the dual again, and — with `project` — every vertex is pulled
 //! onto the nearest point of the run's input surface (a vertex of the output's boundary
 //! onto the input's boundary, along the loop of the nearest coarse boundary vertex), so the
-//! resampling does not drift from the original. It reuses the `subdivide`/refine split, `cluster.cvt` and `dual` crates; it
-//! copies none of them.
+//! resampling does not drift from the original. It reuses the `subdivide`/refine split,
+//! `cluster.cvt` and `dual` crates; it copies none of them.
 //!
 //! When the finest clustering has no valid dual that its repairs can reach, the coarse mesh
 //! is returned as it came, with a warning and the report figure `kept_coarse`.
