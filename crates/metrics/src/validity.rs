@@ -199,10 +199,13 @@ pub struct SurfaceIndex {
     /// The boundary edges (edges of one face), in the adjacency's edge order.
     boundary_edges: Vec<[u32; 2]>,
     bvh: Bvh,
-    /// The boundary edges as degenerate triangles `[a, b, b]` (their nearest point is the
-    /// segment's), indexed; `None` without a boundary.
+    /// The rim the boundary projections follow: the boundary edges and the edges of three
+    /// or more faces (where a run's repairs cut the surface apart, making boundary).
+    rim_edges: Vec<[u32; 2]>,
+    /// The rim edges as degenerate triangles `[a, b, b]` (their nearest point is the
+    /// segment's), indexed; `None` without a rim.
     boundary_bvh: Option<Bvh>,
-    /// `(vertex, boundary edge)` for both ends of every boundary edge, by vertex.
+    /// `(vertex, rim edge)` for both ends of every rim edge, by vertex.
     boundary_ends: Vec<(u32, u32)>,
 }
 
@@ -226,9 +229,13 @@ impl SurfaceIndex {
             .filter(|&e| topo.is_boundary_edge(e))
             .map(|e| topo.edge(e))
             .collect();
-        let segments: Vec<[u32; 3]> = boundary_edges.iter().map(|&[a, b]| [a, b, b]).collect();
-        let mut boundary_ends: Vec<(u32, u32)> = (0..boundary_edges.len() as u32)
-            .flat_map(|e| boundary_edges[e as usize].map(|v| (v, e)))
+        let rim_edges: Vec<[u32; 2]> = (0..topo.n_edges() as u32)
+            .filter(|&e| topo.is_boundary_edge(e) || topo.edge_faces(e).len() >= 3)
+            .map(|e| topo.edge(e))
+            .collect();
+        let segments: Vec<[u32; 3]> = rim_edges.iter().map(|&[a, b]| [a, b, b]).collect();
+        let mut boundary_ends: Vec<(u32, u32)> = (0..rim_edges.len() as u32)
+            .flat_map(|e| rim_edges[e as usize].map(|v| (v, e)))
             .collect();
         boundary_ends.sort_unstable();
         SurfaceIndex {
@@ -237,11 +244,12 @@ impl SurfaceIndex {
             vertex_faces,
             boundary_bvh: (!segments.is_empty()).then(|| Bvh::build(&input.positions, &segments)),
             boundary_edges,
+            rim_edges,
             bvh: Bvh::build(&input.positions, &input.faces),
         }
     }
 
-    /// The boundary edges at vertex `v`.
+    /// The rim edges at vertex `v`.
     fn boundary_edges_at(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
         let from = self.boundary_ends.partition_point(|&(w, _)| w < v);
         self.boundary_ends[from..]
@@ -312,21 +320,24 @@ impl<'a> Facing<'a> {
         &self.index.boundary_edges
     }
 
-    /// The index of the input's boundary edges; `None` when it has none.
+    /// The index of the input's boundary edges and edges of three or more faces; `None`
+    /// when it has none.
     pub fn boundary_bvh(&self) -> Option<&Bvh> {
         self.index.boundary_bvh.as_ref()
     }
 
-    /// The nearest point of the input's boundary edges to `p`; `None` without a boundary
-    /// (or for a point that is not finite).
+    /// The nearest point of the input's boundary edges (and edges of three or more faces,
+    /// which a run's repairs cut apart) to `p`; `None` without any (or for a point that is
+    /// not finite).
     pub fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
         self.boundary_bvh()?.closest_point(p).map(|h| h.point)
     }
 
-    /// The nearest point to `target` of the input's boundary within `reach` along it (arc
-    /// length) of the boundary point nearest `from`: a projection that follows the loop
-    /// `from` is on, where [`Facing::project_boundary`] may land on another loop or across
-    /// a bay of this one. `None` without a boundary (or for points that are not finite).
+    /// The nearest point to `target` of the input's boundary (as [`Facing::project_boundary`]
+    /// sees it) within `reach` along it (arc length) of the boundary point nearest `from`: a
+    /// projection that follows the loop `from` is on, where [`Facing::project_boundary`] may
+    /// land on another loop or across a bay of this one. `None` without a boundary (or for
+    /// points that are not finite).
     pub fn project_boundary_along(&self, from: DVec3, target: DVec3, reach: f64) -> Option<DVec3> {
         /// Most boundary edges one projection looks at.
         const MOST_EDGES: usize = 4096;
@@ -337,7 +348,7 @@ impl<'a> Facing<'a> {
         let index = &self.index;
         let position = |v: u32| self.mesh.positions[v as usize];
         let nearest_on = |e: u32| {
-            let [a, b] = index.boundary_edges[e as usize].map(position);
+            let [a, b] = index.rim_edges[e as usize].map(position);
             closest_point_on_segment(target, a, b).0
         };
         let mut best = nearest_on(start.face);
@@ -345,7 +356,7 @@ impl<'a> Facing<'a> {
         // Walk out from the start's edge through both its ends, each vertex reached with the
         // arc length from the start and the edge it was reached by (a loop shorter than the
         // reach is walked round again: the same points, which change nothing).
-        let [a, b] = index.boundary_edges[start.face as usize];
+        let [a, b] = index.rim_edges[start.face as usize];
         let mut front = vec![
             (a, start.point.distance(position(a)), start.face),
             (b, start.point.distance(position(b)), start.face),
@@ -365,7 +376,7 @@ impl<'a> Facing<'a> {
                 if d2 < best_d2 {
                     (best, best_d2) = (q, d2);
                 }
-                let [x, y] = index.boundary_edges[e as usize];
+                let [x, y] = index.rim_edges[e as usize];
                 let w = if x == v { y } else { x };
                 front.push((w, arc + position(v).distance(position(w)), e));
             }
@@ -536,6 +547,29 @@ mod tests {
         assert_eq!(
             Facing::new(&closed).project_boundary_along(DVec3::X, DVec3::X, 1.0),
             None
+        );
+    }
+
+    /// Three triangles on one edge (a fin): a run's repairs cut that edge apart, making
+    /// boundary of it, so the boundary projections see it as boundary too.
+    #[test]
+    fn edges_of_three_faces_count_as_boundary_for_the_projections() {
+        let m = Mesh::new(
+            vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(4.0, 0.0, 0.0),
+                DVec3::new(2.0, 3.0, 0.0),
+                DVec3::new(2.0, -3.0, 0.0),
+                DVec3::new(2.0, 0.0, 3.0),
+            ],
+            vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+        );
+        let facing = Facing::new(&m);
+        let p = DVec3::new(2.0, 0.4, 0.4);
+        assert_eq!(facing.project_boundary(p), Some(DVec3::new(2.0, 0.0, 0.0)));
+        assert_eq!(
+            facing.project_boundary_along(DVec3::ZERO, p, 10.0),
+            Some(DVec3::new(2.0, 0.0, 0.0))
         );
     }
 
