@@ -43,7 +43,10 @@
 //! an output boundary edge. Along each input boundary loop the clusters touching it (at
 //! least three, each once) thus become an output boundary loop in the same order. Their
 //! vertices are put on the input boundary, at the middle (by arc length) of the cluster's
-//! run of boundary edges, so they are spread evenly along it.
+//! run of boundary edges, so they are spread evenly along it. When the stage's input is not
+//! the run's and its boundary has left the run's input's (after a simplifier, whose
+//! boundary edges are chords of the input's), the stage then moves them onto the run's
+//! input boundary ([`pull_onto_input`], each move undone where it would spoil a face).
 //!
 //! # Placement (`placement`)
 //!
@@ -69,12 +72,15 @@
 //! The report gives `vertices`, `faces`, `placement`, `repairs` (clusters split),
 //! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `restarted` (the
 //! repair started again blaming only the clusters met twice), `rebuilt` (the fallback
-//! above ran), `boundary_clusters`
-//! `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate or
+//! above ran), `boundary_clusters`, `boundary_pulled` (boundary vertices moved onto the
+//! run's input boundary), `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate or
 //! flipped output triangle — e.g. three closest vertices in a row, or a boundary cluster between two
 //! others on a straight boundary — moved to their projected centroid, unsnapped).
 
 mod build;
+mod pull;
+
+pub use pull::{Pull, pull_onto_input};
 
 pub use build::{DualError, DualStats, Problems};
 
@@ -718,7 +724,43 @@ impl Stage for DualStage {
             },
             e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
         })?;
+        // Beyond the dual's own input: when its boundary has left the run's input's (after
+        // a simplifier, whose boundary edges are chords of the input's), the boundary
+        // vertices go onto the input's own boundary, from the dual input's boundary
+        // vertices. A boundary on the input's (a refinement's or a subdivision's) is left to
+        // the dual, which may have kept a vertex inside on purpose (a flat triangle).
+        let mut d = d;
+        let mut pulled = 0;
+        if let Some(facing) = &facing {
+            let rim: Vec<DVec3> = (0..mesh.n_vertices() as u32)
+                .filter(|&v| topo.is_boundary_vertex(v))
+                .map(|v| mesh.positions[v as usize])
+                .collect();
+            let tol = 1e-9 * cx.original.bbox().diagonal();
+            let off = rim.par_iter().any(|&p| {
+                facing
+                    .project_boundary(p)
+                    .is_some_and(|q| q.distance(p) > tol)
+            });
+            if off {
+                let out_topo = Topology::try_build(&d.mesh)
+                    .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
+                let diag2 = cx.original.bbox().diagonal().powi(2);
+                let pull = Pull {
+                    rim: &rim,
+                    interior: false,
+                    min_move: 1e-12 * diag2.sqrt(),
+                };
+                match pull_onto_input(&mut d.mesh, &out_topo, facing, pull, diag2) {
+                    Some(n) => pulled = n,
+                    None => cx.report.warn(
+                        "moving the boundary vertices onto the input's boundary would degenerate faces: they stay on the clustered mesh's boundary",
+                    ),
+                }
+            }
+        }
         let r = &mut *cx.report;
+        r.figure("boundary_pulled", pulled);
         r.figure("vertices", d.mesh.n_vertices());
         r.figure("faces", d.mesh.n_faces());
         r.figure("placement", p.placement);

@@ -9,13 +9,13 @@
 //! When the finest clustering has no valid dual that its repairs can reach, the coarse mesh
 //! is returned as it came, with a warning and the report figure `kept_coarse`.
 
-use coarsen_mesh::{DVec3, Topology, sanity};
+use coarsen_mesh::{DVec3, Topology};
 use coarsen_stage::{
     AttrValues, Context, Contract, Domain, Mesh, Needs, ParamIssue, Params, Stage, StageError,
     params,
 };
 use coarsen_stage_cvt::{CvtParams, EnergyKind, Start};
-use coarsen_stage_dual::Placement;
+use coarsen_stage_dual::{Placement, Pull, pull_onto_input};
 use rayon::prelude::*;
 
 params! {
@@ -239,84 +239,28 @@ impl Stage for Postprocess {
         drop(topo);
         let mut out = dual.mesh;
         // 4. Pull onto the input surface, the vertices of the output's boundary onto the
-        // input's boundary (the dual put them on the subdivided coarse boundary, whose edges
-        // cut across the input's bays); a vertex whose move would turn one of its faces
-        // over, flatten it or make it face away from the input goes back where the dual put
-        // it (a few rounds, as undoing one move can expose a neighbour's).
+        // input's boundary from the coarse boundary vertices, which lie on it (the dual put
+        // them on the subdivided coarse boundary, whose edges cut across the input's bays);
+        // moves that would spoil a face are undone.
         let mut projected = 0usize;
         if let Some(facing) = &facing {
-            let before = out.clone();
-            let rim_index = (!coarse_rim.is_empty()).then(|| {
-                let points: Vec<[u32; 3]> = coarse_rim.iter().map(|&v| [v, v, v]).collect();
-                coarsen_spatial::Bvh::build(&coarse.positions, &points)
-            });
-            // Onto the input's boundary along the loop of the nearest coarse boundary vertex
-            // (the nearest point of the whole boundary may lie on another loop or across a
-            // bay of this one).
-            let onto_rim = |p: DVec3| {
-                let from = rim_index.as_ref()?.closest_point(p)?;
-                let reach = 4.0 * from.distance();
-                facing.project_boundary_along(from.point, p, reach)
-            };
-            let on_boundary: Vec<bool> = match Topology::try_build(&out) {
-                Ok(t) => (0..out.n_vertices() as u32)
-                    .map(|v| t.is_boundary_vertex(v))
-                    .collect(),
-                Err(e) => return Err(StageError::Internal(format!("`{}`: {e}", Self::KIND))),
-            };
-            let mut moved: Vec<bool> = out
-                .positions
-                .par_iter_mut()
-                .zip(&on_boundary)
-                .map(|(pos, &b)| {
-                    let to = match b {
-                        true => onto_rim(*pos),
-                        false => facing.bvh().closest_point(*pos).map(|h| h.point),
-                    };
-                    match to {
-                        Some(q) => {
-                            let m = q != *pos;
-                            *pos = q;
-                            m
-                        }
-                        None => false,
-                    }
-                })
+            let topo = Topology::try_build(&out)
+                .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
+            let rim: Vec<DVec3> = coarse_rim
+                .iter()
+                .map(|&v| coarse.positions[v as usize])
                 .collect();
+            let pull = Pull {
+                rim: &rim,
+                interior: true,
+                min_move: 0.0,
+            };
             let diag2 = cx.original.bbox().diagonal().powi(2);
-            // Faces to look at: all at first, then those with a vertex just sent back (the
-            // others are as they were).
-            let mut look = vec![true; out.n_vertices()];
-            for _ in 0..8 {
-                let undo: Vec<u32> = (0..out.n_faces())
-                    .into_par_iter()
-                    .filter(|&f| out.faces[f].iter().any(|&v| look[v as usize]))
-                    .filter(|&f| {
-                        let [a, b, c] = out.corners(f);
-                        out.face_normal(f).dot(before.face_normal(f)) <= 0.0
-                            || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
-                            || facing.faces_away(a, b, c)
-                    })
-                    .flat_map_iter(|f| out.faces[f])
-                    .filter(|&v| moved[v as usize])
-                    .collect();
-                if undo.is_empty() {
-                    break;
-                }
-                look.iter_mut().for_each(|l| *l = false);
-                for v in undo {
-                    out.positions[v as usize] = before.positions[v as usize];
-                    moved[v as usize] = false;
-                    look[v as usize] = true;
-                }
-            }
-            projected = moved.iter().filter(|&&m| m).count();
-            if sanity::sanity_check(&out).is_err() {
-                cx.report.warn(
+            match pull_onto_input(&mut out, &topo, facing, pull, diag2) {
+                Some(n) => projected = n,
+                None => cx.report.warn(
                     "projection onto the input would degenerate faces: vertices left where the dual put them",
-                );
-                out = before;
-                projected = 0;
+                ),
             }
         }
         cx.report.figure("subdivisions", done);

@@ -1,0 +1,94 @@
+//! Pulling a dual's vertices onto the run's input: the interior onto its surface, the
+//! boundary onto its boundary, each move undone where it would spoil a face.
+
+use super::*;
+
+/// Which vertices [`pull_onto_input`] moves, and how far a move must be to count.
+#[derive(Clone, Copy, Debug)]
+pub struct Pull<'a> {
+    /// Points on the input's boundary to start each boundary vertex's projection from
+    /// (the nearest of them names the loop); boundary vertices stay when empty.
+    pub rim: &'a [DVec3],
+    /// Move the interior vertices too (onto the nearest point of the input surface).
+    pub interior: bool,
+    /// A vertex moves only when its new place is farther than this from where it is.
+    pub min_move: f64,
+}
+
+/// Pulls the vertices of `mesh` that `pull` names onto the input `facing` indexes: interior
+/// vertices onto the nearest point of its surface, boundary vertices onto its boundary,
+/// along the loop of the nearest `rim` point (the nearest point of the whole boundary may
+/// lie on another loop or across a bay of this one). A vertex whose move would turn one of
+/// its faces over, flatten it (area at most 10⁻¹² of `diag2`, the input's squared
+/// diagonal) or make it face away from the input goes back (a few rounds, as undoing one
+/// move can expose a neighbour's). Returns how many vertices moved, or `None`, leaving the
+/// mesh as it came, when the moves would leave a mesh that fails the sanity check.
+pub fn pull_onto_input(
+    mesh: &mut Mesh,
+    topo: &Topology,
+    facing: &Facing<'_>,
+    pull: Pull<'_>,
+    diag2: f64,
+) -> Option<usize> {
+    let before = mesh.clone();
+    let rim_index = (!pull.rim.is_empty()).then(|| {
+        let points: Vec<[u32; 3]> = (0..pull.rim.len() as u32).map(|i| [i, i, i]).collect();
+        Bvh::build(pull.rim, &points)
+    });
+    let onto_rim = |p: DVec3| {
+        let from = rim_index.as_ref()?.closest_point(p)?;
+        facing.project_boundary_along(from.point, p, 4.0 * from.distance())
+    };
+    let mut moved: Vec<bool> = mesh
+        .positions
+        .par_iter_mut()
+        .enumerate()
+        .map(|(v, pos)| {
+            let to = match topo.is_boundary_vertex(v as u32) {
+                true => onto_rim(*pos),
+                false if pull.interior => facing.bvh().closest_point(*pos).map(|h| h.point),
+                false => None,
+            };
+            match to {
+                Some(q)
+                    if q != *pos && (pull.min_move == 0.0 || q.distance(*pos) > pull.min_move) =>
+                {
+                    *pos = q;
+                    true
+                }
+                _ => false,
+            }
+        })
+        .collect();
+    // Faces to look at: all at first, then those with a vertex just sent back (the others
+    // are as they were).
+    let mut look = vec![true; mesh.n_vertices()];
+    for _ in 0..8 {
+        let undo: Vec<u32> = (0..mesh.n_faces())
+            .into_par_iter()
+            .filter(|&f| mesh.faces[f].iter().any(|&v| look[v as usize]))
+            .filter(|&f| {
+                let [a, b, c] = mesh.corners(f);
+                mesh.face_normal(f).dot(before.face_normal(f)) <= 0.0
+                    || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
+                    || facing.faces_away(a, b, c)
+            })
+            .flat_map_iter(|f| mesh.faces[f])
+            .filter(|&v| moved[v as usize])
+            .collect();
+        if undo.is_empty() {
+            break;
+        }
+        look.iter_mut().for_each(|l| *l = false);
+        for v in undo {
+            mesh.positions[v as usize] = before.positions[v as usize];
+            moved[v as usize] = false;
+            look[v as usize] = true;
+        }
+    }
+    if coarsen_mesh::sanity::sanity_check(mesh).is_err() {
+        *mesh = before;
+        return None;
+    }
+    Some(moved.iter().filter(|&&m| m).count())
+}
