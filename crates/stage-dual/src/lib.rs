@@ -73,9 +73,10 @@
 //! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `restarted` (the
 //! repair started again blaming only the clusters met twice), `rebuilt` (the fallback
 //! above ran), `boundary_clusters`, `boundary_pulled` (boundary vertices moved onto the
-//! run's input boundary), `quadric_fallbacks` and `degenerate_fixes` (vertices of a would-be degenerate or
-//! flipped output triangle — e.g. three closest vertices in a row, or a boundary cluster between two
-//! others on a straight boundary — moved to their projected centroid, unsnapped).
+//! run's input boundary), `quadric_fallbacks` and `degenerate_fixes` (vertices of a
+//! would-be degenerate or flipped output triangle — e.g. three closest vertices in a row, or
+//! a boundary cluster between two others on a straight boundary — moved to their projected
+//! centroid, unsnapped).
 
 mod build;
 mod pull;

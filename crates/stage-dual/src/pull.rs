@@ -6,8 +6,9 @@ use super::*;
 /// Which vertices [`pull_onto_input`] moves, and how far a move must be to count.
 #[derive(Clone, Copy, Debug)]
 pub struct Pull<'a> {
-    /// Points on the input's boundary to start each boundary vertex's projection from
-    /// (the nearest of them names the loop); boundary vertices stay when empty.
+    /// Points on or near the input's boundary to start each boundary vertex's projection
+    /// from (the nearest of them names the loop, through its own nearest boundary point);
+    /// boundary vertices stay when empty.
     pub rim: &'a [DVec3],
     /// Move the interior vertices too (onto the nearest point of the input surface).
     pub interior: bool,
