@@ -325,8 +325,9 @@ fn boundary_vertices_stay_on_the_bunny_holes() {
             let d = rims
                 .iter()
                 .map(|&[a, b]| {
-                    let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
-                    (a + t * (b - a) - p).length()
+                    coarsen_spatial::closest_point_on_segment(p, a, b)
+                        .0
+                        .distance(p)
                 })
                 .fold(f64::INFINITY, f64::min);
             assert!(
