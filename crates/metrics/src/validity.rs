@@ -204,9 +204,9 @@ pub struct SurfaceIndex {
     rim_edges: Vec<[u32; 2]>,
     /// The rim edges as degenerate triangles `[a, b, b]` (their nearest point is the
     /// segment's), indexed; `None` without a rim.
-    boundary_bvh: Option<Bvh>,
+    rim_bvh: Option<Bvh>,
     /// `(vertex, rim edge)` for both ends of every rim edge, by vertex.
-    boundary_ends: Vec<(u32, u32)>,
+    rim_ends: Vec<(u32, u32)>,
 }
 
 impl SurfaceIndex {
@@ -234,15 +234,15 @@ impl SurfaceIndex {
             .map(|e| topo.edge(e))
             .collect();
         let segments: Vec<[u32; 3]> = rim_edges.iter().map(|&[a, b]| [a, b, b]).collect();
-        let mut boundary_ends: Vec<(u32, u32)> = (0..rim_edges.len() as u32)
+        let mut rim_ends: Vec<(u32, u32)> = (0..rim_edges.len() as u32)
             .flat_map(|e| rim_edges[e as usize].map(|v| (v, e)))
             .collect();
-        boundary_ends.sort_unstable();
+        rim_ends.sort_unstable();
         SurfaceIndex {
-            boundary_ends,
+            rim_ends,
             vertex_face_offsets,
             vertex_faces,
-            boundary_bvh: (!segments.is_empty()).then(|| Bvh::build(&input.positions, &segments)),
+            rim_bvh: (!segments.is_empty()).then(|| Bvh::build(&input.positions, &segments)),
             boundary_edges,
             rim_edges,
             bvh: Bvh::build(&input.positions, &input.faces),
@@ -250,9 +250,9 @@ impl SurfaceIndex {
     }
 
     /// The rim edges at vertex `v`.
-    fn boundary_edges_at(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
-        let from = self.boundary_ends.partition_point(|&(w, _)| w < v);
-        self.boundary_ends[from..]
+    fn rim_edges_at(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
+        let from = self.rim_ends.partition_point(|&(w, _)| w < v);
+        self.rim_ends[from..]
             .iter()
             .take_while(move |&&(w, _)| w == v)
             .map(|&(_, e)| e)
@@ -320,17 +320,17 @@ impl<'a> Facing<'a> {
         &self.index.boundary_edges
     }
 
-    /// The index of the input's boundary edges and edges of three or more faces; `None`
-    /// when it has none.
-    pub fn boundary_bvh(&self) -> Option<&Bvh> {
-        self.index.boundary_bvh.as_ref()
+    /// The index of the input's rim: its boundary edges and edges of three or more faces;
+    /// `None` when it has none.
+    fn rim_bvh(&self) -> Option<&Bvh> {
+        self.index.rim_bvh.as_ref()
     }
 
     /// The nearest point of the input's boundary edges (and edges of three or more faces,
     /// which a run's repairs cut apart) to `p`; `None` without any (or for a point that is
     /// not finite).
     pub fn project_boundary(&self, p: DVec3) -> Option<DVec3> {
-        self.boundary_bvh()?.closest_point(p).map(|h| h.point)
+        self.rim_bvh()?.closest_point(p).map(|h| h.point)
     }
 
     /// The nearest point to `target` of the input's boundary (as [`Facing::project_boundary`]
@@ -344,7 +344,7 @@ impl<'a> Facing<'a> {
         if !target.is_finite() {
             return None;
         }
-        let start = self.boundary_bvh()?.closest_point(from)?;
+        let start = self.rim_bvh()?.closest_point(from)?;
         let index = &self.index;
         let position = |v: u32| self.mesh.positions[v as usize];
         let nearest_on = |e: u32| {
@@ -366,7 +366,7 @@ impl<'a> Facing<'a> {
             if arc > reach {
                 continue;
             }
-            for e in index.boundary_edges_at(v) {
+            for e in index.rim_edges_at(v) {
                 if e == by || looked >= MOST_EDGES {
                     continue;
                 }

@@ -737,7 +737,8 @@ impl Stage for DualStage {
                 .filter(|&v| topo.is_boundary_vertex(v))
                 .map(|v| mesh.positions[v as usize])
                 .collect();
-            let tol = 1e-9 * cx.original.bbox().diagonal();
+            let diag = cx.original.bbox().diagonal();
+            let tol = 1e-9 * diag;
             let off = rim.par_iter().any(|&p| {
                 facing
                     .project_boundary(p)
@@ -746,13 +747,12 @@ impl Stage for DualStage {
             if off {
                 let out_topo = Topology::try_build(&d.mesh)
                     .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
-                let diag2 = cx.original.bbox().diagonal().powi(2);
                 let pull = Pull {
                     rim: &rim,
                     interior: false,
-                    min_move: 1e-12 * diag2.sqrt(),
+                    min_move: 1e-12 * diag,
                 };
-                match pull_onto_input(&mut d.mesh, &out_topo, facing, pull, diag2) {
+                match pull_onto_input(&mut d.mesh, &out_topo, facing, pull, diag * diag) {
                     Some(n) => pulled = n,
                     None => cx.report.warn(
                         "moving the boundary vertices onto the input's boundary would degenerate faces: they stay on the clustered mesh's boundary",

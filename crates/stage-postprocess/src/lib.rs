@@ -109,9 +109,10 @@ impl Stage for Postprocess {
         let coarse_topo = cx.topology(&coarse).ok();
         // The coarse mesh's boundary vertices lie on the input's boundary (the dual before
         // put them there): the projection of the output's boundary starts from them.
-        let coarse_rim: Vec<u32> = match &coarse_topo {
+        let coarse_rim: Vec<DVec3> = match &coarse_topo {
             Some(t) => (0..coarse.n_vertices() as u32)
                 .filter(|&v| t.is_boundary_vertex(v))
+                .map(|v| coarse.positions[v as usize])
                 .collect(),
             None => Vec::new(),
         };
@@ -246,12 +247,8 @@ impl Stage for Postprocess {
         if let Some(facing) = &facing {
             let topo = Topology::try_build(&out)
                 .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
-            let rim: Vec<DVec3> = coarse_rim
-                .iter()
-                .map(|&v| coarse.positions[v as usize])
-                .collect();
             let pull = Pull {
-                rim: &rim,
+                rim: &coarse_rim,
                 interior: true,
                 min_move: 0.0,
             };
