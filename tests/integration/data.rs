@@ -289,12 +289,6 @@ fn boundary_vertices_stay_on_the_bunny_holes() {
     let Some(input) = coarsen_testdata::cleaned("stanford-bunny.obj") else {
         return;
     };
-    let topo_in = Topology::build(&input);
-    let rims: Vec<[coarsen_mesh::DVec3; 2]> = (0..topo_in.n_edges() as u32)
-        .filter(|&e| topo_in.is_boundary_edge(e))
-        .map(|e| topo_in.edge(e).map(|v| input.positions[v as usize]))
-        .collect();
-    let tol = 1e-9 * input.bbox().diagonal();
     let tmp = tempfile::tempdir().unwrap();
     let file = dir.join("stanford-bunny.obj");
     for (name, pipeline, n) in [
@@ -318,31 +312,45 @@ fn boundary_vertices_stay_on_the_bunny_holes() {
         let m = read_mesh(&out);
         let s = oriented_manifold(&m, name);
         assert_eq!(s.n_boundary_loops, 5, "{name}");
-        let topo = Topology::build(&m);
-        let mut on_rim = 0;
-        for v in (0..m.n_vertices() as u32).filter(|&v| topo.is_boundary_vertex(v)) {
-            let p = m.positions[v as usize];
-            let d = rims
-                .iter()
-                .map(|&[a, b]| {
-                    coarsen_spatial::closest_point_on_segment(p, a, b)
-                        .0
-                        .distance(p)
-                })
-                .fold(f64::INFINITY, f64::min);
-            assert!(
-                d <= tol,
-                "{name}: boundary vertex {v} at {p} is {d} from the input boundary"
-            );
-            on_rim += 1;
-        }
+        let (off, on_rim) = off_the_boundary(&input, &m);
+        assert_eq!(off, 0, "{name}: boundary vertices off the input boundary");
         assert!(on_rim >= 15, "{name}: {on_rim} boundary vertices");
     }
+}
+
+/// How many of `output`'s boundary vertices lie farther than 10⁻⁹ of the diagonal from
+/// `input`'s boundary edges, and how many boundary vertices it has.
+fn off_the_boundary(input: &coarsen_mesh::Mesh, output: &coarsen_mesh::Mesh) -> (usize, usize) {
+    let topo_in = Topology::build(input);
+    let rims: Vec<[coarsen_mesh::DVec3; 2]> = (0..topo_in.n_edges() as u32)
+        .filter(|&e| topo_in.is_boundary_edge(e))
+        .map(|e| topo_in.edge(e).map(|v| input.positions[v as usize]))
+        .collect();
+    let tol = 1e-9 * input.bbox().diagonal();
+    let topo = Topology::build(output);
+    let boundary: Vec<u32> = (0..output.n_vertices() as u32)
+        .filter(|&v| topo.is_boundary_vertex(v))
+        .collect();
+    let off = boundary
+        .iter()
+        .filter(|&&v| {
+            let p = output.positions[v as usize];
+            rims.iter().all(|&[a, b]| {
+                coarsen_spatial::closest_point_on_segment(p, a, b)
+                    .0
+                    .distance(p)
+                    > tol
+            })
+        })
+        .count();
+    (off, boundary.len())
 }
 
 /// The cow's ears and tail and the teapot's rims are thinner than a cluster: a coarse face
 /// there can lie nearer the opposite sheet and face away from the input (18 and 31 such
 /// faces through adaptive-cvt before the post-process's dual learnt to turn them round).
+/// Turning them round moves the teapot's boundary vertices off its boundary only where no
+/// point of their boundary edges will do (81 of 682 before they tried those, 55 since).
 #[test]
 fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
     let Some(dir) = shared_data() else { return };
@@ -368,6 +376,14 @@ fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
         let m = run_cli(EXE, &["metrics", "--json", input, out]);
         let j: serde_json::Value = serde_json::from_str(&stdout(&m)).unwrap();
         assert_eq!(j["validity"]["n_flipped"], 0, "{file}");
+        if file == "teapot.obj" {
+            let input = coarsen_testdata::cleaned(file).expect("the teapot");
+            let (off, all) = off_the_boundary(&input, &read_mesh(std::path::Path::new(out)));
+            assert!(
+                100 * off <= 9 * all,
+                "{off} of {all} boundary vertices off the boundary"
+            );
+        }
     }
 }
 

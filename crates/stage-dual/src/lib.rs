@@ -47,6 +47,9 @@
 //! the run's and its boundary has left the run's input's (after a simplifier, whose
 //! boundary edges are chords of the input's), the stage then moves them onto the run's
 //! input boundary ([`pull_onto_input`], each move undone where it would spoil a face).
+//! With `fix_facing`, a boundary vertex of a flat triangle or of one facing away first tries
+//! the ends and middles of its cluster's boundary edges, and leaves the boundary only when
+//! each of them leaves one of its triangles flat or facing away.
 //!
 //! # Placement (`placement`)
 //!
@@ -239,7 +242,19 @@ pub fn dual(
         v.dedup();
         v
     };
-    let bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
+    // With `fix_facing`, clusters on the input boundary (whose vertices the placement put
+    // on it) stay out of this first move: they try points of their boundary edges first
+    // below, and leave the boundary only when none of those will do.
+    let mut rim = vec![false; n];
+    if fix_facing {
+        for e in 0..topo.n_edges() as u32 {
+            if let &[f] = topo.edge_faces(e) {
+                rim[labels[f as usize] as usize] = true;
+            }
+        }
+    }
+    let mut bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
+    bad.retain(|&c| !rim[c as usize]);
     if !bad.is_empty() {
         // Unsnapped: a boundary cluster between two others on a straight boundary would
         // otherwise give a flat triangle; its vertex then stays just inside the boundary.
@@ -278,6 +293,16 @@ pub fn dual(
                 members[c as usize].push(f as u32);
             }
         }
+        // The boundary edges of the involved clusters kept on the boundary above.
+        let mut edges_of: Vec<Vec<[DVec3; 2]>> = vec![Vec::new(); n];
+        for e in 0..topo.n_edges() as u32 {
+            if let &[f] = topo.edge_faces(e) {
+                let c = labels[f as usize] as usize;
+                if involved[c] && rim[c] {
+                    edges_of[c].push(topo.edge(e).map(|v| mesh.positions[v as usize]));
+                }
+            }
+        }
         let mut around: Vec<Vec<usize>> = vec![Vec::new(); n];
         for (i, f) in faces.iter().enumerate() {
             f.iter()
@@ -295,11 +320,54 @@ pub fn dual(
                     )
                 })
             };
+            // The smallest angle of the triangles around c.
+            let smallest_angle = |positions: &[DVec3]| {
+                around[c as usize]
+                    .iter()
+                    .map(|&i| {
+                        let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
+                        coarsen_geom::triangle::min_angle(a, b, cc)
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
             let here = positions[c as usize];
             let now = score(&positions);
             if now.0 == 0 && now.1 == 0 {
                 continue;
             }
+            // A cluster kept on the boundary first tries the ends and middles of its
+            // boundary edges (nearest first): of those that leave none of its triangles
+            // flat or facing away, the one with the largest smallest angle.
+            let mut on_rim: Vec<(f64, u64, DVec3)> = edges_of[c as usize]
+                .iter()
+                .enumerate()
+                .flat_map(|(i, &[a, b])| {
+                    [a, a.lerp(b, 0.5), b]
+                        .into_iter()
+                        .enumerate()
+                        .map(move |(k, p)| {
+                            (p.distance_squared(here), (i as u64) << 2 | k as u64, p)
+                        })
+                })
+                .collect();
+            on_rim.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let mut kept = None;
+            for (_, _, p) in on_rim {
+                positions[c as usize] = p;
+                if score(&positions) != (0, 0) {
+                    continue;
+                }
+                let shape = smallest_angle(&positions);
+                if kept.is_none_or(|(_, w)| shape > w) {
+                    kept = Some((p, shape));
+                }
+            }
+            if let Some((p, _)) = kept {
+                positions[c as usize] = p;
+                moved += 1;
+                continue;
+            }
+            positions[c as usize] = here;
             // Each face's centroid, and the points halfway from it to the face's corners
             // (the centroids alone are in a row too under a fan of faces on a straight line).
             let mut cand: Vec<(f64, u64, DVec3)> = members[c as usize]
@@ -325,13 +393,7 @@ pub fn dual(
                 }
                 // Flat triangles: the nearest of the fewest facing away (angles not looked at).
                 let shape = match now.0 {
-                    0 => around[c as usize]
-                        .iter()
-                        .map(|&i| {
-                            let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
-                            coarsen_geom::triangle::min_angle(a, b, cc)
-                        })
-                        .fold(f64::INFINITY, f64::min),
+                    0 => smallest_angle(&positions),
                     _ => 0.0,
                 };
                 if best.is_none_or(|(b, _, w)| sc.1 < b.1 || (sc.1 == b.1 && shape > w)) {
