@@ -350,7 +350,9 @@ fn off_the_boundary(input: &coarsen_mesh::Mesh, output: &coarsen_mesh::Mesh) -> 
 /// there can lie nearer the opposite sheet and face away from the input (18 and 31 such
 /// faces through adaptive-cvt before the post-process's dual learnt to turn them round).
 /// Turning them round moves the teapot's boundary vertices off its boundary only where no
-/// point of their boundary edges will do (81 of 682 before they tried those, 55 since).
+/// point of their boundary edges will do, and the post-process's pull onto the input sends
+/// back one vertex of a spoilt face at a time (81 of 682 inside before either, 55 with the
+/// first, 36 with both).
 #[test]
 fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
     let Some(dir) = shared_data() else { return };
@@ -380,7 +382,7 @@ fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
             let input = coarsen_testdata::cleaned(file).expect("the teapot");
             let (off, all) = off_the_boundary(&input, &read_mesh(std::path::Path::new(out)));
             assert!(
-                100 * off <= 9 * all,
+                100 * off <= 6 * all,
                 "{off} of {all} boundary vertices off the boundary"
             );
         }

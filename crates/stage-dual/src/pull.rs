@@ -21,9 +21,11 @@ pub struct Pull<'a> {
 /// along the loop of the nearest `rim` point (the nearest point of the whole boundary may
 /// lie on another loop or across a bay of this one). A vertex whose move would turn one of
 /// its faces over, flatten it (area at most 10⁻¹² of `diag2`, the input's squared
-/// diagonal) or make it face away from the input goes back (a few rounds, as undoing one
-/// move can expose a neighbour's). Returns how many vertices moved, or `None`, leaving the
-/// mesh as it came, when the moves would leave a mesh that fails the sanity check.
+/// diagonal) or make it face away from the input goes back: first the farthest moved
+/// vertex of each such face, round by round (undoing one move can fix its face, or expose
+/// a neighbour's), then all moved vertices of the faces still spoilt (a few rounds each).
+/// Returns how many vertices moved, or `None`, leaving the mesh as it came, when the moves
+/// would leave a mesh that fails the sanity check.
 pub fn pull_onto_input(
     mesh: &mut Mesh,
     topo: &Topology,
@@ -62,9 +64,12 @@ pub fn pull_onto_input(
         })
         .collect();
     // Faces to look at: all at first, then those with a vertex just sent back (the others
-    // are as they were).
+    // are as they were). For the first rounds a spoilt face sends back only the vertex of
+    // it that moved farthest (two boundary vertices of one face may each fit alone), the
+    // later ones every vertex of it that moved.
     let mut look = vec![true; mesh.n_vertices()];
-    for _ in 0..8 {
+    for round in 0..16 {
+        let one = round < 8;
         let undo: Vec<u32> = (0..mesh.n_faces())
             .into_par_iter()
             .filter(|&f| mesh.faces[f].iter().any(|&v| look[v as usize]))
@@ -74,8 +79,20 @@ pub fn pull_onto_input(
                     || coarsen_geom::triangle::area(a, b, c) <= 1e-12 * diag2
                     || facing.faces_away(a, b, c)
             })
-            .flat_map_iter(|f| mesh.faces[f])
-            .filter(|&v| moved[v as usize])
+            .flat_map_iter(|f| {
+                let mut vs: Vec<u32> = mesh.faces[f]
+                    .into_iter()
+                    .filter(|&v| moved[v as usize])
+                    .collect();
+                if one {
+                    let far = |v: u32| {
+                        mesh.positions[v as usize].distance_squared(before.positions[v as usize])
+                    };
+                    vs.sort_by(|&a, &b| far(b).total_cmp(&far(a)).then(a.cmp(&b)));
+                    vs.truncate(1);
+                }
+                vs
+            })
             .collect();
         if undo.is_empty() {
             break;
