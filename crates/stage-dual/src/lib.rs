@@ -214,8 +214,9 @@ pub fn dual(
     // Each cluster's faces, ascending: for the centroids and the vertex origins.
     let (start, members) = faces_by_cluster(labels, n);
     let centroids = cluster_centroids(mesh, &start, &members);
-    let (mut positions, boundary_clusters, quadric_fallbacks) =
+    let (mut positions, on_boundary, quadric_fallbacks) =
         place(mesh, topo, labels, &centroids, placement, facing.bvh());
+    let boundary_clusters = on_boundary.iter().filter(|&&b| b).count();
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
     // one facing away from the input surface nearest its centroid (closest-vertex placement
     // on a curved part), gets its clusters' vertices moved to the projected centroids, the
@@ -245,14 +246,10 @@ pub fn dual(
     // With `fix_facing`, clusters on the input boundary (whose vertices the placement put
     // on it) stay out of this first move: they try points of their boundary edges first
     // below, and leave the boundary only when none of those will do.
-    let mut rim = vec![false; n];
-    if fix_facing {
-        for e in 0..topo.n_edges() as u32 {
-            if let &[f] = topo.edge_faces(e) {
-                rim[labels[f as usize] as usize] = true;
-            }
-        }
-    }
+    let rim = match fix_facing {
+        true => on_boundary,
+        false => vec![false; n],
+    };
     let mut bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
     bad.retain(|&c| !rim[c as usize]);
     if !bad.is_empty() {
@@ -541,8 +538,8 @@ fn vertex_origins(mesh: &Mesh, start: &[usize], order: &[u32]) -> VertexOrigins 
 }
 
 /// Output positions from the clusters' `centroids`, projecting through `bvh` (the surface's
-/// index), boundary clusters snapped onto their boundary runs: `(positions, clusters on the
-/// boundary, quadric fall-backs)`.
+/// index), boundary clusters snapped onto their boundary runs: `(positions, per cluster
+/// whether it is on the boundary, quadric fall-backs)`.
 fn place(
     mesh: &Mesh,
     topo: &Topology,
@@ -550,7 +547,7 @@ fn place(
     centroids: &[DVec3],
     placement: Placement,
     bvh: &Bvh,
-) -> (Vec<DVec3>, usize, usize) {
+) -> (Vec<DVec3>, Vec<bool>, usize) {
     let n = centroids.len();
     let project = |p: DVec3| bvh.closest_point(p).map_or(p, |h| h.point);
     let mut fallbacks = 0;
@@ -648,11 +645,11 @@ fn place(
             best[c] = Some((0.0, p));
         }
     }
-    let mut on_boundary = 0;
+    let mut on_boundary = vec![false; n];
     for (c, b) in best.iter().enumerate() {
         if let Some((_, p)) = b {
             pos[c] = *p;
-            on_boundary += 1;
+            on_boundary[c] = true;
         }
     }
     (pos, on_boundary, fallbacks)
