@@ -389,6 +389,53 @@ fn thin_parts_leave_no_face_turned_away_after_adaptive_cvt() {
     }
 }
 
+/// The post-process's report counts the boundary vertices it leaves off the input's
+/// boundary (`boundary_left`): on the teapot, whose thin parts keep some inside, exactly
+/// those of its output that lie off it.
+#[test]
+fn postprocess_reports_the_boundary_vertices_it_leaves_inside() {
+    let Some(dir) = shared_data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let pipeline = tmp.path().join("no-relax.toml");
+    std::fs::write(
+        &pipeline,
+        "[pipeline]\nname = \"no-relax\"\n\
+         [[stage]]\nkind = \"curvature\"\n\
+         [[stage]]\nkind = \"refine.red-green\"\n\
+         [[stage]]\nkind = \"cluster.cvt\"\n\
+         [[stage]]\nkind = \"dual\"\nfix_facing = false\n\
+         [[stage]]\nkind = \"postprocess\"\n",
+    )
+    .unwrap();
+    let (out, report) = (tmp.path().join("out.ply"), tmp.path().join("report.json"));
+    let o = run_pipeline(
+        EXE,
+        pipeline.to_str().unwrap(),
+        &dir.join("teapot.obj"),
+        &out,
+        &[
+            "--vertices",
+            "1200",
+            "-q",
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let left = r["stages"][4]["figures"]["boundary_left"]
+        .as_u64()
+        .expect("the post-process reports boundary_left") as usize;
+    let input = coarsen_testdata::cleaned("teapot.obj").expect("the teapot");
+    let (off, all) = off_the_boundary(&input, &read_mesh(&out));
+    assert!(
+        off > 0,
+        "the teapot keeps some of its {all} boundary vertices inside"
+    );
+    assert_eq!(left, off, "{all} boundary vertices");
+}
+
 /// The beetle's fins stand on edges of its body (47 edges of three faces), and suzanne has
 /// a two-sided face standing on an edge: before the first stage they are cut off (the
 /// two-sided face made one-sided first, the pieces too small for a dual split), the body

@@ -76,7 +76,8 @@
 //! `repair_rounds`, `problems` (found by the first diagnosis, by kind), `restarted` (the
 //! repair started again blaming only the clusters met twice), `rebuilt` (the fallback
 //! above ran), `boundary_clusters`, `boundary_pulled` (boundary vertices moved onto the
-//! run's input boundary), `quadric_fallbacks` and `degenerate_fixes` (vertices of a
+//! run's input boundary), `boundary_left` (those left off it, where the move would spoil a
+//! face), `quadric_fallbacks` and `degenerate_fixes` (vertices of a
 //! would-be degenerate or flipped output triangle — e.g. three closest vertices in a row, or
 //! a boundary cluster between two others on a straight boundary — moved to their projected
 //! centroid, unsnapped).
@@ -84,7 +85,7 @@
 mod build;
 mod pull;
 
-pub use pull::{Pull, pull_onto_input};
+pub use pull::{Pull, Pulled, pull_onto_input};
 
 pub use build::{DualError, DualStats, Problems};
 
@@ -790,7 +791,7 @@ impl Stage for DualStage {
         // vertices. A boundary on the input's (a refinement's or a subdivision's) is left to
         // the dual, which may have kept a vertex inside on purpose (a flat triangle).
         let mut d = d;
-        let mut pulled = 0;
+        let mut pulled = Pulled::default();
         if let Some(facing) = &facing {
             let rim: Vec<DVec3> = (0..mesh.n_vertices() as u32)
                 .filter(|&v| topo.is_boundary_vertex(v))
@@ -812,7 +813,7 @@ impl Stage for DualStage {
                     min_move: 1e-12 * diag,
                 };
                 match pull_onto_input(&mut d.mesh, &out_topo, facing, pull, diag * diag) {
-                    Some(n) => pulled = n,
+                    Some(p) => pulled = p,
                     None => cx.report.warn(
                         "moving the boundary vertices onto the input's boundary would degenerate faces: they stay on the clustered mesh's boundary",
                     ),
@@ -820,7 +821,8 @@ impl Stage for DualStage {
             }
         }
         let r = &mut *cx.report;
-        r.figure("boundary_pulled", pulled);
+        r.figure("boundary_pulled", pulled.moved);
+        r.figure("boundary_left", pulled.boundary_left);
         r.figure("vertices", d.mesh.n_vertices());
         r.figure("faces", d.mesh.n_faces());
         r.figure("placement", p.placement);

@@ -16,6 +16,16 @@ pub struct Pull<'a> {
     pub min_move: f64,
 }
 
+/// What [`pull_onto_input`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Pulled {
+    /// Vertices moved.
+    pub moved: usize,
+    /// Boundary vertices left off the input's boundary (farther than 10⁻⁹ of its diagonal):
+    /// sent back where their move would spoil a face.
+    pub boundary_left: usize,
+}
+
 /// Pulls the vertices of `mesh` that `pull` names onto the input `facing` indexes: interior
 /// vertices onto the nearest point of its surface, boundary vertices onto its boundary,
 /// along the loop of the nearest `rim` point (the nearest point of the whole boundary may
@@ -24,15 +34,15 @@ pub struct Pull<'a> {
 /// diagonal) or make it face away from the input goes back: first the farthest moved
 /// vertex of each such face, round by round (undoing one move can fix its face, or expose
 /// a neighbour's), then all moved vertices of the faces still spoilt (a few rounds each).
-/// Returns how many vertices moved, or `None`, leaving the mesh as it came, when the moves
-/// would leave a mesh that fails the sanity check.
+/// Returns what moved and what was left, or `None`, leaving the mesh as it came, when the
+/// moves would leave a mesh that fails the sanity check.
 pub fn pull_onto_input(
     mesh: &mut Mesh,
     topo: &Topology,
     facing: &Facing<'_>,
     pull: Pull<'_>,
     diag2: f64,
-) -> Option<usize> {
+) -> Option<Pulled> {
     let before = mesh.clone();
     let rim_index = (!pull.rim.is_empty()).then(|| {
         let points: Vec<[u32; 3]> = (0..pull.rim.len() as u32).map(|i| [i, i, i]).collect();
@@ -63,6 +73,8 @@ pub fn pull_onto_input(
             }
         })
         .collect();
+    // The vertices sent on a move (some may be sent back below).
+    let wanted = moved.clone();
     // Faces to look at: all at first, then those with a vertex just sent back (the others
     // are as they were). For the first rounds a spoilt face sends back only the vertex of
     // it that moved farthest (two boundary vertices of one face may each fit alone), the
@@ -108,5 +120,16 @@ pub fn pull_onto_input(
         *mesh = before;
         return None;
     }
-    Some(moved.iter().filter(|&&m| m).count())
+    Some(Pulled {
+        moved: moved.iter().filter(|&&m| m).count(),
+        boundary_left: (0..mesh.n_vertices())
+            .filter(|&v| wanted[v] && !moved[v] && topo.is_boundary_vertex(v as u32))
+            .filter(|&v| {
+                let p = mesh.positions[v];
+                facing
+                    .project_boundary(p)
+                    .is_some_and(|q| q.distance_squared(p) > 1e-18 * diag2)
+            })
+            .count(),
+    })
 }

@@ -7,7 +7,10 @@
 //! `cluster.cvt` and `dual` crates; it copies none of them.
 //!
 //! When the finest clustering has no valid dual that its repairs can reach, the coarse mesh
-//! is returned as it came, with a warning and the report figure `kept_coarse`.
+//! is returned as it came, with a warning and the report figure `kept_coarse`. The report's
+//! `projected_vertices` counts the vertices the projection moved and `boundary_left` the
+//! boundary vertices it left off the input's boundary (where the move would spoil a face;
+//! a later `relax` may still move them onto it).
 
 use coarsen_mesh::{DVec3, Topology};
 use coarsen_stage::{
@@ -243,7 +246,7 @@ impl Stage for Postprocess {
         // input's boundary from the coarse boundary vertices, which lie on it (the dual put
         // them on the subdivided coarse boundary, whose edges cut across the input's bays);
         // moves that would spoil a face are undone.
-        let mut projected = 0usize;
+        let mut projected = coarsen_stage_dual::Pulled::default();
         if let Some(facing) = &facing {
             let topo = Topology::try_build(&out)
                 .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
@@ -254,7 +257,7 @@ impl Stage for Postprocess {
             };
             let diag2 = cx.original.bbox().diagonal().powi(2);
             match pull_onto_input(&mut out, &topo, facing, pull, diag2) {
-                Some(n) => projected = n,
+                Some(p) => projected = p,
                 None => cx.report.warn(
                     "projection onto the input would degenerate faces: vertices left where the dual put them",
                 ),
@@ -269,7 +272,8 @@ impl Stage for Postprocess {
         cx.report.figure("energy_per_pass", &log.energy);
         cx.report.figure("repairs", dual.stats.repairs);
         cx.report.figure("restarted", dual.stats.restarted);
-        cx.report.figure("projected_vertices", projected);
+        cx.report.figure("projected_vertices", projected.moved);
+        cx.report.figure("boundary_left", projected.boundary_left);
         Ok(out)
     }
 }
