@@ -247,12 +247,9 @@ pub fn dual(
     // With `fix_facing`, clusters on the input boundary (whose vertices the placement put
     // on it) stay out of this first move: they try points of their boundary edges first
     // below, and leave the boundary only when none of those will do.
-    let rim = match fix_facing {
-        true => on_boundary,
-        false => vec![false; n],
-    };
+    let rim = |c: usize| fix_facing && on_boundary[c];
     let mut bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
-    bad.retain(|&c| !rim[c as usize]);
+    bad.retain(|&c| !rim(c as usize));
     if !bad.is_empty() {
         // Unsnapped: a boundary cluster between two others on a straight boundary would
         // otherwise give a flat triangle; its vertex then stays just inside the boundary.
@@ -296,7 +293,7 @@ pub fn dual(
         for e in 0..topo.n_edges() as u32 {
             if let &[f] = topo.edge_faces(e) {
                 let c = labels[f as usize] as usize;
-                if involved[c] && rim[c] {
+                if involved[c] && rim(c) {
                     edges_of[c].push(topo.edge(e).map(|v| mesh.positions[v as usize]));
                 }
             }

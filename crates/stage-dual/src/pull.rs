@@ -73,8 +73,6 @@ pub fn pull_onto_input(
             }
         })
         .collect();
-    // The vertices sent on a move (some may be sent back below).
-    let wanted = moved.clone();
     // Faces to look at: all at first, then those with a vertex just sent back (the others
     // are as they were). For the first rounds a spoilt face sends back only the vertex of
     // it that moved farthest (two boundary vertices of one face may each fit alone), the
@@ -92,18 +90,18 @@ pub fn pull_onto_input(
                     || facing.faces_away(a, b, c)
             })
             .flat_map_iter(|f| {
-                let mut vs: Vec<u32> = mesh.faces[f]
-                    .into_iter()
-                    .filter(|&v| moved[v as usize])
-                    .collect();
-                if one {
-                    let far = |v: u32| {
-                        mesh.positions[v as usize].distance_squared(before.positions[v as usize])
-                    };
-                    vs.sort_by(|&a, &b| far(b).total_cmp(&far(a)).then(a.cmp(&b)));
-                    vs.truncate(1);
+                let movers = mesh.faces[f].into_iter().filter(|&v| moved[v as usize]);
+                let far = |v: u32| {
+                    mesh.positions[v as usize].distance_squared(before.positions[v as usize])
+                };
+                match one {
+                    // The farthest moved, the lowest index of equals.
+                    true => movers
+                        .max_by(|&a, &b| far(a).total_cmp(&far(b)).then(b.cmp(&a)))
+                        .into_iter()
+                        .collect::<Vec<_>>(),
+                    false => movers.collect(),
                 }
-                vs
             })
             .collect();
         if undo.is_empty() {
@@ -123,7 +121,7 @@ pub fn pull_onto_input(
     Some(Pulled {
         moved: moved.iter().filter(|&&m| m).count(),
         boundary_left: (0..mesh.n_vertices())
-            .filter(|&v| wanted[v] && !moved[v] && topo.is_boundary_vertex(v as u32))
+            .filter(|&v| rim_index.is_some() && !moved[v] && topo.is_boundary_vertex(v as u32))
             .filter(|&v| {
                 let p = mesh.positions[v];
                 facing
