@@ -111,8 +111,11 @@
 //!
 //! [`Goal::Vertices`] is met exactly whenever the checks allow it: each edge collapse
 //! removes exactly one vertex (a triangle collapse removes two, so it may end one below).
-//! [`Goal::Faces`] is met to within one face: an interior edge collapse removes two faces,
-//! a boundary one removes one. When the goal cannot be reached, [`Outcome::stop`] says why.
+//! [`Goal::Faces`] is met exactly where the mesh has a boundary, else to within one face:
+//! an interior edge collapse removes two faces, a boundary one removes one, so with one face
+//! left the run looks for a boundary edge it may collapse before taking an interior one (a
+//! closed mesh keeps an even face count; [`Outcome::below_face_goal`] says so). When the
+//! goal cannot be reached, [`Outcome::stop`] says why.
 //!
 //! # Progressive record
 //!
@@ -469,6 +472,27 @@ impl Outcome {
                 r.link, r.flip, r.degenerate, r.quality, r.facing, r.boundary, r.locked, r.model
             )),
         }
+    }
+
+    /// Why a run that met the face goal `goal` ended below it, if it did (`after`: the
+    /// mesh at the end): the last collapse took two faces where one was left.
+    pub fn below_face_goal(&self, goal: Goal, after: &Summary) -> Option<String> {
+        let Goal::Faces(n) = goal else {
+            return None;
+        };
+        if self.stop != StopReason::Reached || after.faces >= n {
+            return None;
+        }
+        let why = if after.boundary_edges == 0 {
+            "a closed mesh keeps an even number of faces (each edge collapse takes two)"
+        } else {
+            "no boundary edge could take the last face alone (an interior edge collapse takes two)"
+        };
+        Some(format!(
+            "{} faces, {} below the target's {n}: {why}",
+            after.faces,
+            n - after.faces
+        ))
     }
 }
 

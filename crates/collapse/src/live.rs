@@ -1021,11 +1021,25 @@ impl LiveMesh {
             held,
             may_close_up,
         } = run;
-        loop {
+        // The last face of a face goal: an interior edge collapse takes two faces and would
+        // end one below the goal, a boundary one exactly one. While one face is left, the
+        // candidates that take two and pass every check are set aside (in queue order) and
+        // a boundary edge is looked for; only when none can be collapsed is the first of
+        // them made (a closed mesh keeps an even face count: an odd goal is missed by one).
+        let mut aside: Vec<Entry> = Vec::new();
+        let mut settling = false;
+        let mut has_boundary: Option<bool> = None;
+        let stop = loop {
             if self.reached(opts.goal) {
                 break StopReason::Reached;
             }
-            let Some(e) = held.take().or_else(|| q.pop()) else {
+            let popped = held.take().or_else(|| q.pop());
+            let Some(e) = popped.or_else(|| {
+                (!aside.is_empty()).then(|| {
+                    settling = true;
+                    aside.remove(0)
+                })
+            }) else {
                 break StopReason::Exhausted;
             };
             // Stale: a vertex changed or went since the entry was queued; a fresh entry
@@ -1076,6 +1090,16 @@ impl LiveMesh {
                 q.park(e, NONE);
                 continue;
             }
+            if !settling
+                && unit == Unit::Edge
+                && matches!(opts.goal, Goal::Faces(n) if self.n_faces == n + 1)
+                && !self.is_boundary_edge(verts[0], verts[1])
+                && *has_boundary
+                    .get_or_insert_with(|| self.kind.par_iter().any(|&k| k == VertexKind::Boundary))
+            {
+                aside.push(e);
+                continue;
+            }
             let sve = self.sve(verts, plan.position);
             // A boundary vertex survives when there is one, so that kinds stay true.
             let kept = pinned
@@ -1117,7 +1141,15 @@ impl LiveMesh {
             if out.collapses.is_multiple_of(PROGRESS_EVERY) {
                 progress(out.collapses);
             }
+            settling = false;
+            for e in aside.drain(..) {
+                q.put_back(e);
+            }
+        };
+        for e in aside {
+            q.put_back(e);
         }
+        stop
     }
 
     /// Renumbers the live vertices and faces densely, in their order, with the queue and
@@ -2145,6 +2177,28 @@ mod tests {
         let (out, outcome) = qem(&mesh, Goal::Faces(301));
         assert_eq!(outcome.stop, StopReason::Reached);
         assert_eq!(out.n_faces(), 300);
+        let after = LiveMesh::new(&out).unwrap().summary();
+        let note = outcome.below_face_goal(Goal::Faces(301), &after).unwrap();
+        assert!(
+            note.contains("300 faces, 1 below") && note.contains("closed"),
+            "{note}"
+        );
+        assert_eq!(outcome.below_face_goal(Goal::Faces(300), &after), None);
+    }
+
+    #[test]
+    fn face_goal_is_met_exactly_where_a_boundary_edge_can_take_the_last_face() {
+        // 288 faces; the bump makes costs differ, so interior edges are often the cheapest
+        // when one face is left.
+        let mesh = grid(12, 12, bump);
+        for n in 100..=180 {
+            let (out, outcome) = qem(&mesh, Goal::Faces(n));
+            assert_eq!(outcome.stop, StopReason::Reached);
+            assert_eq!(out.n_faces(), n, "goal {n}");
+            let after = LiveMesh::new(&out).unwrap().summary();
+            assert_eq!(after.boundary_loops, 1);
+            assert_eq!(outcome.below_face_goal(Goal::Faces(n), &after), None);
+        }
     }
 
     #[test]

@@ -235,6 +235,11 @@ impl Queue {
         });
     }
 
+    /// Queues again an entry popped and set aside, in its old place in the order.
+    pub(crate) fn put_back(&mut self, e: Entry) {
+        self.heap.push(e);
+    }
+
     /// Takes `n` sequence numbers for the initial ranking, `base..base + n`, and returns
     /// `base`: entries queued later come after all of them.
     pub(crate) fn take_seqs(&mut self, n: u64) -> u64 {

@@ -18,8 +18,8 @@
 //! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
 //!
 //! The target comes from the run (`--vertices`, `--faces`, `--ratio` or the pipeline's):
-//! a vertex count is met exactly, a face count or ratio to within one face (an interior
-//! edge collapse removes two faces). The report gives `collapses`, `refused` (by reason),
+//! a vertex count is met exactly, a face count or ratio too where the mesh has a boundary
+//! (on a closed mesh, whose face count stays even, to within one face, with a warning). The report gives `collapses`, `refused` (by reason),
 //! `sve` (paper 2's squared-volume error, summed over the collapses), `max_cost`, the
 //! final `vertices` and `faces`, why the run `stop`ped, the `locked_vertices` and the
 //! `boundary_loops` before and after, the `parallel_collapses` (made in parts, see below),
@@ -207,6 +207,9 @@ impl Stage for SimplifyQem {
                 .map(|p| Box::new(p) as coarsen_stage::Handback);
         }
         report(cx.report, &target, p, &outcome, &before, &after);
+        if let Some(w) = outcome.below_face_goal(goal, &after) {
+            cx.report.warn(w);
+        }
         cx.report.figure("parallel_collapses", parallel);
         if p.facing_guard {
             cx.report.figure("facing_tests", guarded.tested);

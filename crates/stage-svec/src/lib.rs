@@ -67,7 +67,8 @@
 //! stage runs triangle collapses until one more collapse could overshoot the target, then
 //! finishes with at most a few edge collapses of the same error (Q̄ over the faces around
 //! the two vertices, same rules), so a vertex count is met exactly and a face count or
-//! ratio (of the run input's faces) to within one face. When every triangle is refused
+//! ratio (of the run input's faces) too where the mesh has a boundary (on a closed mesh,
+//! whose face count stays even, to within one face, with a warning). When every triangle is refused
 //! before that, edge collapses carry on to the target; the report counts both.
 //!
 //! | parameter | default | meaning |
@@ -294,6 +295,9 @@ impl Stage for SimplifySvec {
                 .map(|p| Box::new(p) as coarsen_stage::Handback);
         }
         report(cx.report, &target, p, &totals, &before, &after);
+        if let Some(w) = totals.outcome.below_face_goal(goal, &after) {
+            cx.report.warn(w);
+        }
         for w in carry.warnings() {
             cx.report.warn(w);
         }
