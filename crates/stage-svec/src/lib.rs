@@ -62,6 +62,14 @@
 //!
 //! The ω rule moves a boundary vertex along a boundary edge, so a corner of a boundary
 //! (where the boundary turns) may be cut: the paper's cost has no term that keeps it.
+//! `boundary_weight` (beyond the paper, off by default) adds one, as QEM's boundary planes
+//! do: for each boundary edge at a merged vertex, the plane through the edge perpendicular
+//! to its face, weighted by `boundary_weight` × that face's Wᵢ·(1/9)Sᵢ² (its own term with
+//! Nᵢ = 1), enters Q̄, so the cost prices a cut corner and ω keeps the end that holds it.
+//! With a weight of 1, Hausdorff distance at 70 % / 95 % of faces removed: the bunny 0.514
+//! → 0.118 % / 0.516 → 0.472 % (`sve` +0.5 % / +3.2 %), the teapot 4.12 → 0.58 % / 10.6
+//! → 3.8 %, the beetle at 70 % 3.20 → 1.99 %; suzanne at 70 % 7.22 → 7.84 % (its worst
+//! point is not on a boundary; P<30° 62.1 → 56.2 %).
 //!
 //! **Exact targets**: a triangle collapse removes two vertices and (inside) four faces. The
 //! stage runs triangle collapses until one more collapse could overshoot the target, then
@@ -76,6 +84,7 @@
 //! | `feature_sigma` | `2` | automatic feature threshold: mean + this many σ of K_t over the input |
 //! | `feature_threshold` | `0` (automatic) | absolute K_t threshold (unit-diagonal units, 1/length²) |
 //! | `volume_constraint` | `false` | weight the quadrics by φ (see above) |
+//! | `boundary_weight` | `0` | weight of the boundary-edge planes added to the cost (see above; 0 = the paper's cost) |
 //! | `max_error` | `0` (none) | stop before the first collapse costing more |
 //! | `min_quality` | `0` (off) | refuse collapses leaving a triangle below this quality and below its previous quality |
 //! | `target_scale` | `1` | stop at this multiple of the target's count, for a later stage to finish (`svec-then-cvt`) |
@@ -162,6 +171,10 @@ params! {
         /// Weight each face's quadric by φ (its squared volume at the unconstrained
         /// placement over the mean), paper 2's "SVEC" constraint as read in the docs.
         pub volume_constraint: bool = false,
+        /// Weight of a plane through each boundary edge, perpendicular to its face, in the
+        /// cost (relative to the face's own term with Nᵢ = 1), so that corners of a
+        /// boundary stay; 0 is the paper's cost, which has no such term.
+        pub boundary_weight: f64 = 0.0,
         /// Largest collapse cost allowed (mesh scaled to a unit diagonal); the run stops
         /// before the first collapse costing more. 0 means no limit.
         pub max_error: f64 = 0.0,
@@ -195,6 +208,13 @@ impl Params for SvecParams {
             f64::MAX,
         );
         check_range(&mut issues, "max_error", self.max_error, 0.0, f64::MAX);
+        check_range(
+            &mut issues,
+            "boundary_weight",
+            self.boundary_weight,
+            0.0,
+            f64::MAX,
+        );
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         check_range(&mut issues, "target_scale", self.target_scale, 1.0, 1e6);
         issues
@@ -320,6 +340,7 @@ fn simplify<G: FaceGuard + Send>(
         feature_threshold: (p.feature_threshold > 0.0).then_some(p.feature_threshold),
         feature_sigma: p.feature_sigma,
         volume_constraint: p.volume_constraint,
+        boundary_weight: p.boundary_weight,
     };
     // The parts and the joined mesh get models of their own.
     let mut model = if live.will_part(parts) {

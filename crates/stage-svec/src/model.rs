@@ -98,6 +98,10 @@ pub struct SvecOptions {
     pub feature_sigma: f64,
     /// Weight each face's quadric by φᵢ (see the crate docs) before placing and costing.
     pub volume_constraint: bool,
+    /// Weight of a plane through each boundary edge, perpendicular to its face, added to
+    /// the summed quadric (relative to the face's Wᵢ·(1/9)Sᵢ², as if its Nᵢ were 1);
+    /// 0 leaves the paper's cost (see the crate docs).
+    pub boundary_weight: f64,
 }
 
 impl Default for SvecOptions {
@@ -106,6 +110,7 @@ impl Default for SvecOptions {
             feature_threshold: None,
             feature_sigma: 2.0,
             volume_constraint: false,
+            boundary_weight: 0.0,
         }
     }
 }
@@ -530,7 +535,8 @@ impl SvecModel {
         }
     }
 
-    /// Σ Qᵢ (each weighted by `phi` when given) over the faces around `verts`.
+    /// Σ Qᵢ (each weighted by `phi` when given) over the faces around `verts`, with the
+    /// boundary planes of those faces when [`SvecOptions::boundary_weight`] is set.
     fn summed(&self, mesh: &LiveMesh, verts: &[Index], phi: Option<(DVec3, f64)>) -> Quadric {
         let mut q = Quadric::ZERO;
         match phi {
@@ -539,6 +545,35 @@ impl SvecModel {
                 q += self.face_quadric(f) * w;
             }),
             None => for_faces_around(mesh, verts, |f| q += self.face_quadric(f)),
+        }
+        if self.opts.boundary_weight > 0.0
+            && verts.iter().any(|&v| mesh.kind(v) != VertexKind::Interior)
+        {
+            for_faces_around(mesh, verts, |f| q += self.boundary_planes(mesh, f, verts));
+        }
+        q
+    }
+
+    /// The planes through face `f`'s boundary edges at `verts`, perpendicular to it, each
+    /// weighted by [`SvecOptions::boundary_weight`] times the face's Wᵢ·(1/9)Sᵢ².
+    fn boundary_planes(&self, mesh: &LiveMesh, f: Index, verts: &[Index]) -> Quadric {
+        let mut q = Quadric::ZERO;
+        let n = self.face[f as usize].normal;
+        if n == DVec3::ZERO {
+            return q;
+        }
+        let face = mesh.face(f);
+        for i in 0..3 {
+            let (u, v) = (face[i], face[(i + 1) % 3]);
+            if !(verts.contains(&u) || verts.contains(&v)) || !mesh.is_boundary_edge(u, v) {
+                continue;
+            }
+            let (pu, pv) = (mesh.position(u), mesh.position(v));
+            let m = (pv - pu).cross(n).normalize_or_zero();
+            if m != DVec3::ZERO {
+                let w = self.opts.boundary_weight * self.shape_plain[f as usize];
+                q += Quadric::from_plane(m, pu, w);
+            }
         }
         q
     }
@@ -912,5 +947,53 @@ mod tests {
         // Flat along the segment: the A_v-weighted point (equal areas: the middle).
         let p = model.on_segment(&live, &Quadric::ZERO, 0, 1);
         assert!((p - DVec3::new(2.0, 0.0, 0.0)).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn boundary_planes_keep_a_corner_of_the_boundary() {
+        // A flat 2 × 2 grid; vertex 0 is a corner, 0–1 a boundary edge, 4 the middle.
+        let positions = (0..9)
+            .map(|k| DVec3::new((k % 3) as f64, (k / 3) as f64, 0.0))
+            .collect();
+        let mut faces = Vec::new();
+        for j in 0..2 {
+            for i in 0..2 {
+                let at = |i: u32, j: u32| j * 3 + i;
+                faces.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                faces.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        let live = LiveMesh::new(&Mesh::new(positions, faces)).unwrap();
+        let merge = Merge {
+            vertices: &[0, 1, 4],
+            pinned: None,
+        };
+        let plan = |w: f64| {
+            let opts = SvecOptions {
+                boundary_weight: w,
+                ..SvecOptions::default()
+            };
+            SvecModel::new(&live, &opts).plan(&live, &merge).unwrap()
+        };
+        // The paper's cost is 0 on a flat mesh: the A_v-weighted point, off the corner.
+        let plain = plan(0.0);
+        assert_eq!(plain.cost, 0.0);
+        assert!(
+            plain.position.x > 0.1 && plain.position.y == 0.0,
+            "{}",
+            plain.position
+        );
+        // The plane through the boundary edge 3–0 (x = 0) prices the cut corner.
+        let kept = plan(1.0);
+        assert_eq!(kept.position, DVec3::ZERO);
+        assert_eq!(kept.cost, 0.0);
+        // Cutting the corner would have cost something.
+        let opts = SvecOptions {
+            boundary_weight: 1.0,
+            ..SvecOptions::default()
+        };
+        let model = SvecModel::new(&live, &opts);
+        let q = model.summed(&live, &[0, 1, 4], None);
+        assert!(q.eval(plain.position) > 0.0);
     }
 }

@@ -87,6 +87,7 @@ fn needs_a_target_and_checks_its_parameters() {
         feature_sigma: f64::NAN,
         feature_threshold: -1.0,
         volume_constraint: false,
+        boundary_weight: -1.0,
         max_error: -2.0,
         min_quality: 3.0,
         target_scale: 0.5,
@@ -100,6 +101,7 @@ fn needs_a_target_and_checks_its_parameters() {
             "feature_sigma",
             "feature_threshold",
             "max_error",
+            "boundary_weight",
             "min_quality",
             "target_scale"
         ]
