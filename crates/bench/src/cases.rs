@@ -57,7 +57,9 @@ impl TableId {
                  survive (section *Feature edges* below: 0.020 % of the diagonal at most, QEM 0.002 %). (3) Boundaries (§3.5): a triangle \
                  with two boundary vertices collapses onto the segment between them; on the bunny at 70 % collapse 10393 of 12174 put the \
                  rim vertex 31981 of a hole in the base onto its neighbour 31980 (ω = 1), cutting the rim where it turns by 0.51 % of the \
-                 diagonal, at a cost of 3.9e-24 — the row's Hausdorff distance. Lowering `feature_sigma` to 0 brings the cow at 95 % to \
+                 diagonal, at a cost of 3.9e-24 — the row's Hausdorff distance; the rows with `--set simplify.svec.boundary_weight=1` add, beyond \
+                 the paper, a plane through each boundary edge at the merged vertices to the cost (as QEM's boundary planes), which keeps such \
+                 corners. Lowering `feature_sigma` to 0 brings the cow at 95 % to \
                  4.3 % but does not help the bunny or the fandisk, so the default stays the paper's reading.\n\n\
                  Both stages refuse collapses that would turn a face away from the input surface nearest it (the metrics' flipped-face \
                  test, behind the engine's gate): the cow's 5–9 flipped faces are gone, at the price of 12–80 refused collapses on its thin \
