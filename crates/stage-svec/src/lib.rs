@@ -171,9 +171,10 @@ params! {
         /// Weight each face's quadric by φ (its squared volume at the unconstrained
         /// placement over the mean), paper 2's "SVEC" constraint as read in the docs.
         pub volume_constraint: bool = false,
-        /// Weight of a plane through each boundary edge, perpendicular to its face, in the
-        /// cost (relative to the face's own term with Nᵢ = 1), so that corners of a
-        /// boundary stay; 0 is the paper's cost, which has no such term.
+        /// Weight of a plane through each boundary edge at the merged vertices,
+        /// perpendicular to its face, in the cost (relative to the face's own term with
+        /// Nᵢ = 1), so that corners of a boundary stay; 0 is the paper's cost, which has
+        /// no such term.
         pub boundary_weight: f64 = 0.0,
         /// Largest collapse cost allowed (mesh scaled to a unit diagonal); the run stops
         /// before the first collapse costing more. 0 means no limit.
