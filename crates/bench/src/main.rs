@@ -257,6 +257,13 @@ fn feature_section(data: &Path) -> Result<String> {
 
 /// Runs the shipped `pipeline` on `input` to `target` with `--set`-style overrides `sets`
 /// (the sections beside the tables); the output and the run's report.
+/// `--set`-style overrides (`stage.param=value`) parsed.
+fn parse_sets(sets: &[&str]) -> Result<Vec<coarsen_pipeline::SetOverride>> {
+    sets.iter()
+        .map(|s| coarsen_pipeline::parse_set(s).map_err(|e| anyhow::anyhow!(e)))
+        .collect()
+}
+
 fn run_shipped(
     registry: &Registry,
     pipeline: &str,
@@ -268,10 +275,7 @@ fn run_shipped(
         .ok_or_else(|| anyhow::anyhow!("pipeline `{pipeline}` is not shipped"))?;
     let overrides = Overrides {
         target: Some(target),
-        sets: sets
-            .iter()
-            .map(|s| coarsen_pipeline::parse_set(s).map_err(|e| anyhow::anyhow!(e)))
-            .collect::<Result<_>>()?,
+        sets: parse_sets(sets)?,
     };
     let p = Pipeline::parse(text, pipeline, registry, &overrides)
         .map_err(|d| anyhow::anyhow!(d.to_string()))?;
@@ -299,12 +303,7 @@ fn run_case(
     let Some(text) = coarsen_builtin::pipeline(case.pipeline) else {
         return Outcome::Unavailable(format!("pipeline `{}` is not shipped yet", case.pipeline));
     };
-    let sets = match case
-        .sets
-        .iter()
-        .map(|s| coarsen_pipeline::parse_set(s))
-        .collect::<Result<Vec<_>, _>>()
-    {
+    let sets = match parse_sets(case.sets) {
         Ok(sets) => sets,
         Err(e) => return Outcome::Failed(e.to_string()),
     };

@@ -167,7 +167,7 @@ mod fixtures;
 pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, NoGuard, Reshape};
 pub use live::{LiveMesh, MAX_FACES, PartOptions, Parted, Summary, attributes_only};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
-pub use qem::{QemOptions, QuadricModel};
+pub use qem::{QemOptions, QuadricModel, edge_plane};
 
 use coarsen_geom::DVec3;
 

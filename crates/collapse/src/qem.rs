@@ -94,21 +94,25 @@ fn add_face_terms(
             continue;
         }
         let (pu, pv) = (mesh.position(u), mesh.position(v));
-        let e = pv - pu;
-        let m = e.cross(n).normalize_or_zero();
-        if m == DVec3::ZERO {
-            continue;
-        }
         let w = opts.boundary_weight
             * if opts.area_weighted {
-                e.length_squared()
+                (pv - pu).length_squared()
             } else {
                 1.0
             };
-        let q = Quadric::from_plane(m, pu, w);
-        add(u, q);
-        add(v, q);
+        if let Some(q) = edge_plane(pu, pv, n, w) {
+            add(u, q);
+            add(v, q);
+        }
     }
+}
+
+/// `weight` × the squared distance to the plane through the edge `pu`–`pv` perpendicular to
+/// its face (unit normal `n`): the constraint that keeps a boundary on its line. `None`
+/// when the edge is degenerate or parallel to `n`.
+pub fn edge_plane(pu: DVec3, pv: DVec3, n: DVec3, weight: f64) -> Option<Quadric> {
+    let m = (pv - pu).cross(n).normalize_or_zero();
+    (m != DVec3::ZERO).then(|| Quadric::from_plane(m, pu, weight))
 }
 
 impl QuadricModel {

@@ -14,7 +14,7 @@ mod file;
 mod report;
 mod run;
 
-pub use file::{Overrides, Pipeline, PipelineStage, parse_set};
+pub use file::{Overrides, Pipeline, PipelineStage, SetOverride, parse_set};
 pub use report::{RunReport, StageRecord};
 pub use run::{
     AfterStage, CUT_EDGES_NOTE, REORDER_MIN_FACES, RunError, RunOptions, SPLIT_FANS_NOTE,

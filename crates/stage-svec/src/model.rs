@@ -1,7 +1,7 @@
 //! Paper 2's constriction error as a [`CostModel`] of the collapse engine.
 
 use coarsen_collapse::{
-    CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind, keep_in_order,
+    CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind, edge_plane, keep_in_order,
 };
 use coarsen_geom::{DVec3, Quadric, triangle};
 use rayon::prelude::*;
@@ -568,11 +568,9 @@ impl SvecModel {
             if !(verts.contains(&u) || verts.contains(&v)) || !mesh.is_boundary_edge(u, v) {
                 continue;
             }
-            let (pu, pv) = (mesh.position(u), mesh.position(v));
-            let m = (pv - pu).cross(n).normalize_or_zero();
-            if m != DVec3::ZERO {
-                let w = self.opts.boundary_weight * self.shape_plain[f as usize];
-                q += Quadric::from_plane(m, pu, w);
+            let w = self.opts.boundary_weight * self.shape_plain[f as usize];
+            if let Some(plane) = edge_plane(mesh.position(u), mesh.position(v), n, w) {
+                q += plane;
             }
         }
         q
