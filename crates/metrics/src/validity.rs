@@ -384,6 +384,17 @@ impl<'a> Facing<'a> {
         Some(best)
     }
 
+    /// The nearest point to `p` of the input's faces that face the same side as `normal`
+    /// (a positive dot product): where a thin part's two sides lie close, the point on the
+    /// side a triangle of that normal belongs to. `None` when no face does (or for a point
+    /// that is not finite).
+    pub fn project_facing(&self, p: DVec3, normal: DVec3) -> Option<DVec3> {
+        self.index
+            .bvh
+            .closest_point_where(p, |f| face_cross(self.mesh, f).dot(normal) > 0.0)
+            .map(|h| h.point)
+    }
+
     /// True when triangle `abc` would count as flipped against the input.
     pub fn faces_away(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
         let normal = |f, bary| self.index.normal(self.mesh, f, bary);
@@ -472,6 +483,28 @@ mod tests {
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(0));
         output.faces[0].swap(1, 2);
         assert_eq!(validity(Some(&input), &output).unwrap().n_flipped, Some(1));
+    }
+
+    /// A thin sheet: two unit squares 0.01 apart, the upper facing up, the lower down. A
+    /// point just below the upper square's middle is nearer the lower one; projected for a
+    /// triangle facing up it lands on the upper square, for one facing down on the lower.
+    #[test]
+    fn projection_for_a_side_lands_on_the_faces_of_that_side() {
+        let square = |z: f64| {
+            [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)].map(|(x, y)| DVec3::new(x, y, z))
+        };
+        let positions: Vec<DVec3> = square(0.01).into_iter().chain(square(0.0)).collect();
+        let input = Mesh::new(positions, vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]]);
+        assert!(input.face_normal(0).z > 0.99 && input.face_normal(2).z < -0.99);
+        let facing = Facing::new(&input);
+        let p = DVec3::new(0.5, 0.4, 0.004);
+        assert_eq!(facing.bvh().closest_point(p).unwrap().point.z, 0.0);
+        let up = facing.project_facing(p, DVec3::Z).unwrap();
+        assert_eq!(up, DVec3::new(0.5, 0.4, 0.01));
+        let down = facing.project_facing(p, -DVec3::Z).unwrap();
+        assert_eq!(down, DVec3::new(0.5, 0.4, 0.0));
+        // No face of the sheet faces sideways.
+        assert!(facing.project_facing(p, DVec3::X).is_none());
     }
 
     /// A steep four-sided peak (apex at height 10 over a 2 × 2 base) and an output face

@@ -567,6 +567,26 @@ impl Bvh {
     /// The nearest point of the indexed surface to `p` if its squared distance is at most
     /// `max_distance_squared`, else `None`. A small bound makes the query faster.
     pub fn closest_point_within(&self, p: DVec3, max_distance_squared: f64) -> Option<Nearest> {
+        self.nearest_accepted(p, max_distance_squared, |_| true)
+    }
+
+    /// The nearest point to `p` of the indexed faces that `accept` takes (given a face's
+    /// index into the `faces` given to [`Bvh::build`]); `None` when it takes none, the
+    /// tree is empty or `p` is not finite. Faces are asked as the walk meets them, so a
+    /// query costs what [`Bvh::closest_point`] does when the nearest taken face is near.
+    pub fn closest_point_where(&self, p: DVec3, accept: impl Fn(u32) -> bool) -> Option<Nearest> {
+        self.nearest_accepted(p, f64::INFINITY, |i| accept(self.face_ids[i]))
+    }
+
+    /// The walk of [`Bvh::closest_point_within`] over the triangles `accept` takes (given
+    /// their position in leaf order).
+    #[inline(always)]
+    fn nearest_accepted(
+        &self,
+        p: DVec3,
+        max_distance_squared: f64,
+        accept: impl Fn(usize) -> bool,
+    ) -> Option<Nearest> {
         let root = self.root()?;
         if !p.is_finite() || max_distance_squared.is_nan() {
             return None;
@@ -593,6 +613,9 @@ impl Bvh {
                     .iter()
                     .enumerate()
                 {
+                    if !accept(first + i) {
+                        continue;
+                    }
                     let (q, w) = closest_point_on_triangle(p, *a, *b, *c);
                     let d2 = (p - q).length_squared();
                     if d2 < best_d2 || (best.is_none() && d2 <= best_d2) {
@@ -1013,6 +1036,29 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn closest_point_where_looks_at_the_accepted_faces_alone() {
+        let mut rng = Rng(17);
+        let (pos, faces) = random_mesh(&mut rng, 9, 30);
+        // Every third face, then none.
+        let taken = |f: u32| f % 3 == 1;
+        let kept: Vec<[u32; 3]> = (0..faces.len() as u32)
+            .filter(|&f| taken(f))
+            .map(|f| faces[f as usize])
+            .collect();
+        for bvh in both_builds(&pos, &faces) {
+            for _ in 0..300 {
+                let p = rng.vec(-1.0, 2.0);
+                let got = bvh.closest_point_where(p, taken).unwrap();
+                assert!(taken(got.face));
+                assert_eq!(got.distance_squared, brute_force(&pos, &kept, p), "at {p}");
+                // Taking every face is the plain query.
+                assert_eq!(bvh.closest_point_where(p, |_| true), bvh.closest_point(p));
+            }
+            assert!(bvh.closest_point_where(DVec3::ZERO, |_| false).is_none());
         }
     }
 

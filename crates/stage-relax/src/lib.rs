@@ -210,6 +210,11 @@ impl<'a> Surface<'a> {
         self.facing.bvh().closest_point(p).map(|h| h.point)
     }
 
+    /// The nearest point of the faces facing the side of `normal`.
+    fn project_facing(&self, p: DVec3, normal: DVec3) -> Option<DVec3> {
+        self.facing.project_facing(p, normal)
+    }
+
     /// The nearest point of the boundary edges.
     #[cfg(test)]
     fn project_boundary(&self, p: DVec3) -> Option<DVec3> {

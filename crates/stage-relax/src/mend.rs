@@ -107,6 +107,16 @@ pub(crate) fn mend(
                 }
                 let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
                 cands.extend(surface.project(mean));
+                // On a thin part the nearest side may be the wrong one: the nearest point
+                // of the side the fan faces.
+                let normal: DVec3 = fan
+                    .iter()
+                    .map(|&f| {
+                        let [a, b, c] = mesh.faces[f as usize].map(pos);
+                        triangle::cross(a, b, c)
+                    })
+                    .sum();
+                cands.extend(surface.project_facing(p, normal));
             }
             let least = now.1.min(floor);
             let best = cands
