@@ -378,6 +378,20 @@ pub fn dual(
                         })
                 })
                 .collect();
+            // And the nearest point of the surface's side the cluster faces: across a
+            // part thinner than a cluster, the side its triangles belong on.
+            if now.1 > 0 {
+                let normal: DVec3 = members[c as usize]
+                    .iter()
+                    .map(|&f| {
+                        let [a, b, cc] = mesh.corners(f as usize);
+                        coarsen_geom::triangle::cross(a, b, cc)
+                    })
+                    .sum();
+                if let Some(p) = facing.project_facing(centroids[c as usize], normal) {
+                    cand.push((p.distance_squared(here), u64::MAX, p));
+                }
+            }
             cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             let mut best: Option<((usize, usize), DVec3, f64)> = None;
             for (_, _, p) in cand {
