@@ -389,6 +389,10 @@ impl<'a> Facing<'a> {
     /// side a triangle of that normal belongs to. `None` when no face does (or for a point
     /// that is not finite).
     pub fn project_facing(&self, p: DVec3, normal: DVec3) -> Option<DVec3> {
+        // No side to face: every face would be refused, after a walk of the whole tree.
+        if normal == DVec3::ZERO || !normal.is_finite() {
+            return None;
+        }
         self.index
             .bvh
             .closest_point_where(p, |f| face_cross(self.mesh, f).dot(normal) > 0.0)
@@ -503,8 +507,10 @@ mod tests {
         assert_eq!(up, DVec3::new(0.5, 0.4, 0.01));
         let down = facing.project_facing(p, -DVec3::Z).unwrap();
         assert_eq!(down, DVec3::new(0.5, 0.4, 0.0));
-        // No face of the sheet faces sideways.
+        // No face of the sheet faces sideways; no normal faces no side.
         assert!(facing.project_facing(p, DVec3::X).is_none());
+        assert!(facing.project_facing(p, DVec3::ZERO).is_none());
+        assert!(facing.project_facing(p, DVec3::NAN).is_none());
     }
 
     /// A steep four-sided peak (apex at height 10 over a 2 × 2 base) and an output face
