@@ -145,6 +145,18 @@ impl Mesh {
         triangle::normal(a, b, c)
     }
 
+    /// The summed cross products of `faces` (twice their area-weighted normal; the side
+    /// they face together).
+    pub fn faces_cross(&self, faces: &[u32]) -> DVec3 {
+        faces
+            .iter()
+            .map(|&f| {
+                let [a, b, c] = self.corners(f as usize);
+                triangle::cross(a, b, c)
+            })
+            .sum()
+    }
+
     /// Centroid of face `f`.
     #[inline]
     pub fn face_centroid(&self, f: usize) -> DVec3 {
@@ -244,6 +256,21 @@ mod tests {
                 n_vertices: 4
             })
         );
+    }
+
+    #[test]
+    fn faces_cross_sums_twice_the_area_weighted_normals() {
+        // The unit square in z = 0 as two triangles, counter-clockwise seen from +z.
+        let square = Mesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        assert_eq!(square.faces_cross(&[0, 1]), DVec3::new(0.0, 0.0, 2.0));
+        assert_eq!(square.faces_cross(&[1]), DVec3::new(0.0, 0.0, 1.0));
+        assert_eq!(square.faces_cross(&[]), DVec3::ZERO);
+        // A closed surface faces no side.
+        let t = tetrahedron();
+        assert!(t.faces_cross(&[0, 1, 2, 3]).length() < 1e-15);
     }
 
     #[test]

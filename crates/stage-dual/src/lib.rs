@@ -381,13 +381,7 @@ pub fn dual(
             // And the nearest point of the surface's side the cluster faces: across a
             // part thinner than a cluster, the side its triangles belong on.
             if now.1 > 0 {
-                let normal: DVec3 = members[c as usize]
-                    .iter()
-                    .map(|&f| {
-                        let [a, b, cc] = mesh.corners(f as usize);
-                        coarsen_geom::triangle::cross(a, b, cc)
-                    })
-                    .sum();
+                let normal = mesh.faces_cross(&members[c as usize]);
                 if let Some(p) = facing.project_facing(centroids[c as usize], normal) {
                     cand.push((p.distance_squared(here), u64::MAX, p));
                 }

@@ -109,14 +109,7 @@ pub(crate) fn mend(
                 cands.extend(surface.project(mean));
                 // On a thin part the nearest side may be the wrong one: the nearest point
                 // of the side the fan faces.
-                let normal: DVec3 = fan
-                    .iter()
-                    .map(|&f| {
-                        let [a, b, c] = mesh.faces[f as usize].map(pos);
-                        triangle::cross(a, b, c)
-                    })
-                    .sum();
-                cands.extend(surface.project_facing(p, normal));
+                cands.extend(surface.project_facing(p, mesh.faces_cross(fan)));
             }
             let least = now.1.min(floor);
             let best = cands
