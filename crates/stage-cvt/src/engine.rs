@@ -154,6 +154,9 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     closed: Vec<bool>,
     /// Per layout face: its mass and centroid.
     face_sums: Vec<FacePoint>,
+    /// Per layout vertex: its position (the mesh's own when the layout is its order, else
+    /// normalised), for the fold guard's face normals.
+    pos: Cow<'a, [DVec3]>,
     /// The layout runs along the Morton curve (else it is the mesh's own order).
     curve: bool,
     /// The cluster of every mesh face (mesh numbering).
@@ -165,6 +168,8 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     tolerance: f64,
     /// See [`SLEEP_SHARE`].
     sleep_share: f64,
+    /// See [`Clusterer::set_fold_guard`].
+    fold_guard: bool,
     /// The mesh's adjacency.
     topo: &'a Topology,
 }
@@ -269,7 +274,15 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 }
             })
             .collect();
-        drop(pos);
+        // The fold guard's normals need only directions: the mesh's own positions serve
+        // when the layout is its order.
+        let pos = match own_tables {
+            true => {
+                drop(pos);
+                Cow::Borrowed(&mesh.positions[..])
+            }
+            false => Cow::Owned(pos),
+        };
         let (fan_off, fan) = match own_tables {
             true => {
                 let (off, fan) = topo.vertex_face_table();
@@ -304,12 +317,14 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             fan,
             closed,
             face_sums,
+            pos,
             curve,
             labels: vec![NONE; nf],
             sums: Vec::new(),
             terms: Vec::new(),
             tolerance: 0.0,
             sleep_share: SLEEP_SHARE,
+            fold_guard: false,
             topo,
         })
     }
@@ -318,6 +333,11 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// `tolerance` times its value (0, the default, stops only when nothing moves).
     pub fn set_tolerance(&mut self, tolerance: f64) {
         self.tolerance = tolerance;
+    }
+
+    /// Makes [`Clusterer::minimize`] refuse moves into clusters facing away from the face.
+    pub fn set_fold_guard(&mut self, on: bool) {
+        self.fold_guard = on;
     }
 
     /// Lets faces fall asleep after passes that changed fewer than `share` of the
@@ -641,6 +661,15 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             .collect();
         let mut sums: Vec<Sums> = order.iter().map(|&c| self.sums[c as usize]).collect();
         let mut terms: Vec<f64> = order.iter().map(|&c| self.terms[c as usize]).collect();
+        // Per cluster: its faces' area vectors summed, for the fold guard.
+        let guard = self.fold_guard;
+        let mut normals = vec![DVec3::ZERO; n];
+        if guard {
+            for (corners, l) in self.corners.iter().zip(&labels) {
+                let [a, b, c] = corners.map(|v| self.pos[v as usize]);
+                normals[l.load(Relaxed) as usize] += (b - a).cross(c - a);
+            }
+        }
         let mut last_mod = vec![0u32; n];
         let mut sleepers = vec![Vec::new(); n];
         let asleep = bitset();
@@ -658,6 +687,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 nbr: &self.nbr,
                 closed: &self.closed,
                 face_sums: &self.face_sums,
+                pos: guard.then_some(&self.pos[..]),
                 energy: self.energy,
                 labels: &labels,
                 cur: &cur,
@@ -673,6 +703,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 sweep::State {
                     sums: &mut sums,
                     terms: &mut terms,
+                    normals: &mut normals,
                     last_mod: &mut last_mod,
                     sleepers: &mut sleepers,
                 },

@@ -17,6 +17,7 @@
 //! | `seed` | `1` | seed of the SplitMix64 that picks the seed faces |
 //! | `max_passes` | `200` | most passes of the minimisation |
 //! | `tolerance` | `0` | stop after a pass lowering the energy by less than this fraction |
+//! | `fold_guard` | `false` | refuse moves into a cluster whose summed area vector points more than 90° away from the face's normal |
 //!
 //! 1. **Seeds**: every connected component gets one seed face, the rest are shared in
 //!    proportion to the components' masses; within a component the faces are ordered along
@@ -34,7 +35,11 @@
 //!    move is refused when it would empty the donor cluster, split it or pinch it (paper
 //!    1's "cluster separation detection": the donor's faces must form at most one arc
 //!    around each corner of the moved face), or when the receiving cluster would close a
-//!    loop or touch itself at a corner. A move activates the face's neighbours.
+//!    loop or touch itself at a corner. With `fold_guard` (beyond both papers), a move is
+//!    also refused when the face's normal points more than 90° away from the receiving
+//!    cluster's summed area vector: a cluster then cannot grow round the rim of a sheet
+//!    thinner than itself (an ear) onto the far side, where its dual vertex would sit
+//!    between the two sides. A move activates the face's neighbours.
 //!    On meshes of 20,000 faces or more the clusters are split into 8 parts along the
 //!    Morton curve, swept in parallel, and the faces on the borders between parts after
 //!    them in one thread: the same result on any number of threads (see `sweep.rs`).
@@ -109,6 +114,8 @@ params! {
         pub max_passes: u32 = 200,
         /// Stop after a pass that lowers the energy by less than this fraction (0: only when nothing moves).
         pub tolerance: f64 = 0.0,
+        /// Refuse moves of a face into a cluster whose faces, summed, face more than 90° away from it (keeps clusters from wrapping round thin sheets).
+        pub fold_guard: bool = false,
     }
 }
 
@@ -225,6 +232,7 @@ fn run_from<E: Energy>(
         c.seed(n, params.seed)?;
     }
     c.set_tolerance(params.tolerance);
+    c.set_fold_guard(params.fold_guard);
     let log = c.minimize(params.max_passes, None, on_pass);
     Ok(Clustering {
         labels: c.into_labels(),

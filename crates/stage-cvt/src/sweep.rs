@@ -19,6 +19,7 @@
 
 use crate::energy::{Energy, FacePoint, Sums};
 use crate::engine::fan_runs;
+use coarsen_geom::DVec3;
 use coarsen_mesh::topology::NONE;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -35,6 +36,8 @@ pub(crate) struct View<'v, E: Energy + ?Sized> {
     pub nbr: &'v [[u32; 3]],
     pub closed: &'v [bool],
     pub face_sums: &'v [FacePoint],
+    /// Per layout vertex: its position, when moves are checked against folds.
+    pub pos: Option<&'v [DVec3]>,
     pub energy: &'v E,
     pub labels: &'v [AtomicU32],
     /// Faces to sweep in this pass.
@@ -56,6 +59,8 @@ pub(crate) struct Part<'p> {
     pub range: Range<u32>,
     pub sums: &'p mut [Sums],
     pub terms: &'p mut [f64],
+    /// Per cluster: the sum of its faces' area vectors (with [`View::pos`]).
+    pub normals: &'p mut [DVec3],
     /// Per cluster: the last pass that changed it.
     pub last_mod: &'p mut [u32],
     /// Per cluster: faces asleep next to it. A face whose cluster and neighbouring clusters
@@ -110,7 +115,9 @@ impl<E: Energy + ?Sized> View<'_, E> {
     }
 
     /// Sweeps face `t` of `part` (whose label range holds `t`'s cluster): moves it to the
-    /// best neighbouring cluster if allowed (refused moves counted in `refused`). With
+    /// best neighbouring cluster if allowed — and, under the fold guard ([`View::pos`]),
+    /// if that cluster's summed area vector is within 90° of the face's (refused moves
+    /// counted in `refused`). With
     /// `defer`, a face with a neighbouring cluster outside the part is left alone.
     #[inline]
     fn visit(
@@ -161,6 +168,16 @@ impl<E: Energy + ?Sized> View<'_, E> {
         let Some((_, to, after_to)) = best else {
             return Visit::Stayed;
         };
+        let area = self.pos.map(|pos| {
+            let [a, b, c] = self.corners[t as usize].map(|v| pos[v as usize]);
+            (b - a).cross(c - a)
+        });
+        if let Some(n) = area
+            && n.dot(part.normals[(to - lo) as usize]) < 0.0
+        {
+            *refused += 1;
+            return Visit::Stayed;
+        }
         let allowed = a.count >= 1.5
             && self.corners[t as usize].iter().all(|&v| {
                 let fan = &self.fan
@@ -180,6 +197,10 @@ impl<E: Energy + ?Sized> View<'_, E> {
         part.sums[ti] = part.sums[ti].plus(ft);
         part.terms[fi] = after_from;
         part.terms[ti] = after_to;
+        if let Some(n) = area {
+            part.normals[fi] -= n;
+            part.normals[ti] += n;
+        }
         part.last_mod[fi] = pass;
         part.last_mod[ti] = pass;
         self.labels[t as usize].store(to, Relaxed);
@@ -323,6 +344,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
 pub(crate) struct State<'s> {
     pub sums: &'s mut [Sums],
     pub terms: &'s mut [f64],
+    pub normals: &'s mut [DVec3],
     pub last_mod: &'s mut [u32],
     pub sleepers: &'s mut [Vec<u32>],
 }
@@ -333,6 +355,7 @@ pub(crate) fn split_parts<'p>(starts: &[u32], state: State<'p>) -> Vec<Part<'p>>
     let State {
         mut sums,
         mut terms,
+        mut normals,
         mut last_mod,
         mut sleepers,
     } = state;
@@ -341,16 +364,18 @@ pub(crate) fn split_parts<'p>(starts: &[u32], state: State<'p>) -> Vec<Part<'p>>
         let len = (w[1] - w[0]) as usize;
         let (s, rest_s) = std::mem::take(&mut sums).split_at_mut(len);
         let (t, rest_t) = std::mem::take(&mut terms).split_at_mut(len);
+        let (nm, rest_n) = std::mem::take(&mut normals).split_at_mut(len);
         let (l, rest_l) = std::mem::take(&mut last_mod).split_at_mut(len);
         let (z, rest_z) = std::mem::take(&mut sleepers).split_at_mut(len);
         parts.push(Part {
             range: w[0]..w[1],
             sums: s,
             terms: t,
+            normals: nm,
             last_mod: l,
             sleepers: z,
         });
-        (sums, terms, last_mod, sleepers) = (rest_s, rest_t, rest_l, rest_z);
+        (sums, terms, normals, last_mod, sleepers) = (rest_s, rest_t, rest_n, rest_l, rest_z);
     }
     parts
 }
@@ -378,6 +403,7 @@ pub(crate) fn pass<E: Energy + ?Sized>(
     let State {
         sums,
         terms,
+        normals,
         last_mod,
         sleepers,
     } = state;
@@ -386,6 +412,7 @@ pub(crate) fn pass<E: Energy + ?Sized>(
         State {
             sums: &mut *sums,
             terms: &mut *terms,
+            normals: &mut *normals,
             last_mod: &mut *last_mod,
             sleepers: &mut *sleepers,
         },
@@ -418,6 +445,7 @@ pub(crate) fn pass<E: Energy + ?Sized>(
             range: 0..n,
             sums,
             terms,
+            normals,
             last_mod,
             sleepers,
         };

@@ -607,3 +607,49 @@ fn components_count_only_edges_of_two_faces() {
     let c = Clusterer::new(&m, &topo, &e, None).unwrap();
     assert_eq!(c.components(), (vec![0, 0, 0, 0, 1, 1, 1, 1], 2));
 }
+
+/// Faces whose normal points more than 90° away from their cluster's summed area vector.
+fn faces_against_their_cluster(mesh: &Mesh, labels: &[u32], n: usize) -> usize {
+    let area = |f: &[u32; 3]| {
+        let [a, b, c] = f.map(|v| mesh.positions[v as usize]);
+        (b - a).cross(c - a)
+    };
+    let mut sums = vec![DVec3::ZERO; n];
+    for (f, &l) in mesh.faces.iter().zip(labels) {
+        sums[l as usize] += area(f);
+    }
+    mesh.faces
+        .iter()
+        .zip(labels)
+        .filter(|(f, l)| area(f).dot(sums[**l as usize]) < 0.0)
+        .count()
+}
+
+#[test]
+fn the_fold_guard_keeps_clusters_off_the_far_side_of_a_thin_sheet() {
+    // A sphere flattened to a sheet 0.04 thick, 2 across: clusters are wider than the
+    // sheet is thick, so without the guard they grow round its rim onto the far side.
+    let mut sheet = icosphere(1.0, 4).unwrap();
+    for p in &mut sheet.positions {
+        p.z *= 0.02;
+    }
+    let count = |fold_guard| {
+        let p = CvtParams {
+            clusters: 60,
+            energy: EnergyKind::Valette2004,
+            fold_guard,
+            ..CvtParams::default()
+        };
+        let out = run(&sheet, None, p).0.unwrap();
+        let labels = out.face_attrs.label(CLUSTER).unwrap();
+        check_invariant(&sheet, labels, 60);
+        faces_against_their_cluster(&sheet, labels, 60)
+    };
+    let (without, with) = (count(false), count(true));
+    eprintln!("faces against their cluster: {without} without the guard, {with} with it");
+    assert!(without > 0);
+    assert!(
+        with * 4 < without,
+        "{with} with the guard, {without} without"
+    );
+}
