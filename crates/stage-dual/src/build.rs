@@ -522,8 +522,9 @@ pub(crate) fn repair(
     (changed, splits)
 }
 
-/// A few passes of [`Valette2004`] minimisation from the faces `start` (the faces a repair
-/// changed), the clusterer built on the first call and kept for the next ones.
+/// `repair.relax_passes` passes of [`Valette2004`] minimisation (with `repair.fold_guard`)
+/// from the faces `start` (the faces a repair changed), the clusterer built on the first
+/// call and kept for the next ones.
 pub(crate) fn relax<'m>(
     clusterer: &mut Option<Clusterer<'m, Valette2004>>,
     mesh: &'m Mesh,
@@ -531,13 +532,17 @@ pub(crate) fn relax<'m>(
     labels: &mut Vec<u32>,
     n: usize,
     start: &[u32],
-    passes: u32,
+    repair: crate::Repair,
 ) {
+    let passes = repair.relax_passes;
     if passes == 0 || start.is_empty() {
         return;
     }
     if clusterer.is_none() {
         *clusterer = Clusterer::for_few_passes(mesh, topo, &Valette2004, None).ok();
+        if let Some(c) = clusterer.as_mut() {
+            c.set_fold_guard(repair.fold_guard);
+        }
     }
     let Some(c) = clusterer.as_mut() else {
         return;
@@ -573,9 +578,9 @@ pub(crate) fn repaired_dual(
     topo: &Topology,
     labels: &mut Vec<u32>,
     n: usize,
-    max_rounds: u32,
-    relax_passes: u32,
+    opts: crate::Repair,
 ) -> Result<(Vec<[u32; 3]>, DualStats), DualError> {
+    let max_rounds = opts.max_rounds;
     let expect = topology_of(mesh, topo);
     // The face across each edge, built only when a repair needs it.
     let table: std::cell::OnceCell<Vec<[u32; 3]>> = std::cell::OnceCell::new();
@@ -619,15 +624,7 @@ pub(crate) fn repaired_dual(
                 stats.repairs += splits;
                 // The last rounds do not relax, so that a repair is not undone.
                 if round + 2 < max_rounds {
-                    relax(
-                        &mut clusterer,
-                        mesh,
-                        topo,
-                        labels,
-                        n,
-                        &changed,
-                        relax_passes,
-                    );
+                    relax(&mut clusterer, mesh, topo, labels, n, &changed, opts);
                 }
             }
             splits

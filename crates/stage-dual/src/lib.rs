@@ -18,7 +18,8 @@
 //! **split** in two (double sweep: grown from its two faces farthest apart) and the count is
 //! kept exact by **merging** the smallest interior cluster far from every problem into its
 //! smallest neighbour; a few constrained minimisation passes (`relax_passes`) then smooth
-//! the touched clusters, and the diagnosis runs again, at most `max_repair_rounds` times.
+//! the touched clusters (with `fold_guard`, refusing moves into clusters that face away,
+//! as `cluster.cvt` does), and the diagnosis runs again, at most `max_repair_rounds` times.
 //! A boundary loop's problem (a cluster meeting it twice, or meeting two loops) first
 //! blames every cluster along the loop, which adds clusters along it; if that has not
 //! converged after eight rounds (many loops close together), the repair starts again from
@@ -128,10 +129,23 @@ params! {
         /// (a part thinner than a cluster) to points of their clusters where fewer do
         /// (off where a post-process re-triangulates anyway: it fixes its own).
         pub fix_facing: bool = true,
+        /// Keep the clusters the repairs relax off the far side of thin sheets (as `cluster.cvt`'s `fold_guard`).
+        pub fold_guard: bool = false,
     }
 }
 
 impl Params for DualParams {}
+
+/// How [`dual`] repairs a clustering that has no valid dual.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Repair {
+    /// Most diagnose-and-repair rounds before giving up.
+    pub max_rounds: u32,
+    /// Minimisation passes after each repair round (0 = none).
+    pub relax_passes: u32,
+    /// Whether those passes refuse moves into clusters facing away (`cluster.cvt`'s `fold_guard`).
+    pub fold_guard: bool,
+}
 
 /// The dual of a clustering: output mesh and figures.
 #[derive(Clone, Debug)]
@@ -153,15 +167,13 @@ pub struct Dual {
 /// onto the indexed `surface`, or onto `mesh` itself when `None`), carries the vertex
 /// attributes. `topo` is `mesh`'s adjacency; with `fix_facing`, faces facing away from
 /// the surface get their vertices moved where fewer do (see [`DualParams`]).
-#[allow(clippy::too_many_arguments)]
 pub fn dual(
     mesh: &Mesh,
     topo: &Topology,
     labels: &mut Vec<u32>,
     placement: Placement,
     surface: Option<&Facing<'_>>,
-    max_repair_rounds: u32,
-    relax_passes: u32,
+    repair: Repair,
     fix_facing: bool,
 ) -> Result<Dual, DualError> {
     if let Some(f) = (0..mesh.n_faces() as u32).find(|&f| topo.is_skipped_face(f)) {
@@ -201,8 +213,7 @@ pub fn dual(
     if let Some(why) = too_few_vertices(topo, n) {
         return Err(DualError::TooFew(why));
     }
-    let (faces, stats) =
-        build::repaired_dual(mesh, topo, labels, n, max_repair_rounds, relax_passes)?;
+    let (faces, stats) = build::repaired_dual(mesh, topo, labels, n, repair)?;
     // One index of the surface serves the placement and the flipped-face test.
     let own;
     let facing = match surface {
@@ -778,8 +789,11 @@ impl Stage for DualStage {
             &mut labels,
             p.placement,
             facing.as_ref(),
-            p.max_repair_rounds,
-            p.relax_passes,
+            Repair {
+                max_rounds: p.max_repair_rounds,
+                relax_passes: p.relax_passes,
+                fold_guard: p.fold_guard,
+            },
             p.fix_facing,
         )
         .map_err(|e| match e {

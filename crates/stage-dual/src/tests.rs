@@ -18,8 +18,11 @@ fn dual_on(
         labels,
         placement,
         None,
-        rounds,
-        relax_passes,
+        Repair {
+            max_rounds: rounds,
+            relax_passes,
+            fold_guard: false,
+        },
         true,
     )
 }
@@ -497,7 +500,15 @@ fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
     let n = 24;
     let mut kept = None;
     let mut labels = first.clone();
-    build::relax(&mut kept, &sphere, &topo, &mut labels, n, &start, 3);
+    build::relax(
+        &mut kept,
+        &sphere,
+        &topo,
+        &mut labels,
+        n,
+        &start,
+        THREE_PASSES,
+    );
     assert!(kept.is_some());
     assert_ne!(labels, first, "the first relaxation moves faces");
     // The same change to both, then the second relaxation.
@@ -507,8 +518,24 @@ fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
             .step_by(97)
             .for_each(|x| *x = (*x + 1) % n as u32);
     }
-    build::relax(&mut kept, &sphere, &topo, &mut labels, n, &start, 3);
-    build::relax(&mut None, &sphere, &topo, &mut fresh_labels, n, &start, 3);
+    build::relax(
+        &mut kept,
+        &sphere,
+        &topo,
+        &mut labels,
+        n,
+        &start,
+        THREE_PASSES,
+    );
+    build::relax(
+        &mut None,
+        &sphere,
+        &topo,
+        &mut fresh_labels,
+        n,
+        &start,
+        THREE_PASSES,
+    );
     assert_eq!(labels, fresh_labels);
 }
 
@@ -572,3 +599,10 @@ fn a_plate_with_close_holes_is_repaired_without_a_rebuild() {
         }
     }
 }
+
+/// Repair relaxation of three passes, no fold guard.
+const THREE_PASSES: Repair = Repair {
+    max_rounds: 0,
+    relax_passes: 3,
+    fold_guard: false,
+};

@@ -4,7 +4,9 @@
 //! onto the nearest point of the run's input surface (a vertex of the output's boundary
 //! onto the input's boundary, along the loop of the nearest coarse boundary vertex), so the
 //! resampling does not drift from the original. It reuses the `subdivide`/refine split,
-//! `cluster.cvt` and `dual` crates; it copies none of them.
+//! `cluster.cvt` and `dual` crates; it copies none of them. With `fold_guard` the
+//! re-clustering and the dual's repairs keep clusters off the far side of thin sheets (see
+//! `cluster.cvt`).
 //!
 //! When the finest clustering has no valid dual that its repairs can reach, the coarse mesh
 //! is returned as it came, with a warning and the report figure `kept_coarse`. The report's
@@ -44,6 +46,8 @@ params! {
         pub tolerance: f64 = 1e-3,
         /// Subdivide fewer times rather than pass this many faces.
         pub max_faces: u64 = 8_000_000,
+        /// Keep the re-clustering's clusters from wrapping round thin sheets (as `cluster.cvt`'s `fold_guard`).
+        pub fold_guard: bool = false,
     }
 }
 
@@ -100,6 +104,7 @@ impl Stage for Postprocess {
             r: p.r,
             seed: p.seed,
             max_passes: p.max_passes,
+            fold_guard: p.fold_guard,
             ..Default::default()
         };
         let progress = cx.progress;
@@ -217,8 +222,11 @@ impl Stage for Postprocess {
             &mut labels,
             p.placement,
             facing.as_ref(),
-            40,
-            8,
+            coarsen_stage_dual::Repair {
+                max_rounds: 40,
+                relax_passes: 8,
+                fold_guard: p.fold_guard,
+            },
             true,
         ) {
             Ok(d) => d,
