@@ -498,17 +498,12 @@ fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
     let start: Vec<u32> = (0..sphere.n_faces() as u32).collect();
     let first: Vec<u32> = (0..sphere.n_faces()).map(cell).collect();
     let n = 24;
+    let relax = |kept: &mut Option<_>, labels: &mut Vec<u32>| {
+        build::relax(kept, &sphere, &topo, labels, n, &start, THREE_PASSES)
+    };
     let mut kept = None;
     let mut labels = first.clone();
-    build::relax(
-        &mut kept,
-        &sphere,
-        &topo,
-        &mut labels,
-        n,
-        &start,
-        THREE_PASSES,
-    );
+    relax(&mut kept, &mut labels);
     assert!(kept.is_some());
     assert_ne!(labels, first, "the first relaxation moves faces");
     // The same change to both, then the second relaxation.
@@ -518,24 +513,8 @@ fn relaxing_with_the_kept_clusterer_equals_relaxing_with_a_fresh_one() {
             .step_by(97)
             .for_each(|x| *x = (*x + 1) % n as u32);
     }
-    build::relax(
-        &mut kept,
-        &sphere,
-        &topo,
-        &mut labels,
-        n,
-        &start,
-        THREE_PASSES,
-    );
-    build::relax(
-        &mut None,
-        &sphere,
-        &topo,
-        &mut fresh_labels,
-        n,
-        &start,
-        THREE_PASSES,
-    );
+    relax(&mut kept, &mut labels);
+    relax(&mut None, &mut fresh_labels);
     assert_eq!(labels, fresh_labels);
 }
 
