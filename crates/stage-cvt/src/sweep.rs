@@ -115,10 +115,10 @@ impl<E: Energy + ?Sized> View<'_, E> {
     }
 
     /// Sweeps face `t` of `part` (whose label range holds `t`'s cluster): moves it to the
-    /// best neighbouring cluster if allowed — and, under the fold guard ([`View::pos`]),
-    /// if that cluster's summed area vector is within 90° of the face's (refused moves
-    /// counted in `refused`). With
-    /// `defer`, a face with a neighbouring cluster outside the part is left alone.
+    /// best neighbouring cluster if allowed and, under the fold guard ([`View::pos`]), if
+    /// that cluster's summed area vector lies within 90° of the face's (refused moves are
+    /// counted in `refused`). With `defer`, a face with a neighbouring cluster outside the
+    /// part is left alone.
     #[inline]
     fn visit(
         &self,
