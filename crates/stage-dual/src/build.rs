@@ -522,7 +522,7 @@ pub(crate) fn repair(
     (changed, splits)
 }
 
-/// `repair.relax_passes` passes of [`Valette2004`] minimisation (with `repair.fold_guard`)
+/// `opts.relax_passes` passes of [`Valette2004`] minimisation (with `opts.fold_guard`)
 /// from the faces `start` (the faces a repair changed), the clusterer built on the first
 /// call and kept for the next ones.
 pub(crate) fn relax<'m>(
@@ -532,16 +532,16 @@ pub(crate) fn relax<'m>(
     labels: &mut Vec<u32>,
     n: usize,
     start: &[u32],
-    repair: crate::Repair,
+    opts: crate::Repair,
 ) {
-    let passes = repair.relax_passes;
+    let passes = opts.relax_passes;
     if passes == 0 || start.is_empty() {
         return;
     }
     if clusterer.is_none() {
         *clusterer = Clusterer::for_few_passes(mesh, topo, &Valette2004, None).ok();
         if let Some(c) = clusterer.as_mut() {
-            c.set_fold_guard(repair.fold_guard);
+            c.set_fold_guard(opts.fold_guard);
         }
     }
     let Some(c) = clusterer.as_mut() else {
