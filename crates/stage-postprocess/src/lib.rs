@@ -328,6 +328,37 @@ mod tests {
     use super::*;
     use coarsen_stage::StageReport;
 
+    /// `fold_guard` reaches the re-clustering: on a sheet thinner than a cluster it changes
+    /// the result, which stays a closed manifold of the coarse mesh's vertex count.
+    #[test]
+    fn the_fold_guard_reaches_the_reclustering() {
+        let flat = |subdivisions| {
+            let mut m = coarsen_shapes::icosphere(1.0, subdivisions).unwrap();
+            m.positions.iter_mut().for_each(|p| p.z *= 0.02);
+            m
+        };
+        let (original, coarse) = (flat(4), flat(2));
+        let run = |fold_guard| {
+            let mut report = StageReport::default();
+            let p = PostprocessParams {
+                times: 2,
+                energy: EnergyKind::Valette2004,
+                r: 0.0,
+                fold_guard,
+                ..Default::default()
+            };
+            let out = Postprocess::new(p)
+                .run(coarse.clone(), &mut Context::new(&original, &mut report))
+                .unwrap();
+            assert_eq!(out.n_vertices(), coarse.n_vertices());
+            let t = Topology::build(&out).summary(&out);
+            assert!(t.manifold && t.consistently_oriented, "{t:?}");
+            assert_eq!((t.n_boundary_loops, t.genus_total), (0, Some(0)));
+            out
+        };
+        assert_ne!(run(false).positions, run(true).positions);
+    }
+
     #[test]
     fn postprocess_keeps_the_vertex_count_and_topology_and_improves_shapes() {
         let original = coarsen_shapes::torus(2.0, 0.6, 60, 30).unwrap();
