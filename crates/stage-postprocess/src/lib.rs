@@ -328,6 +328,23 @@ mod tests {
     use super::*;
     use coarsen_stage::StageReport;
 
+    /// Runs the stage on `coarse` against `original`; checks that the output keeps the
+    /// vertex count and is an oriented manifold, and gives its summary and the report.
+    fn run_checked(
+        original: &Mesh,
+        coarse: &Mesh,
+        p: PostprocessParams,
+    ) -> (Mesh, coarsen_mesh::TopologySummary, StageReport) {
+        let mut report = StageReport::default();
+        let out = Postprocess::new(p)
+            .run(coarse.clone(), &mut Context::new(original, &mut report))
+            .unwrap();
+        assert_eq!(out.n_vertices(), coarse.n_vertices());
+        let t = Topology::build(&out).summary(&out);
+        assert!(t.manifold && t.consistently_oriented, "{t:?}");
+        (out, t, report)
+    }
+
     /// `fold_guard` reaches the re-clustering: on a sheet thinner than a cluster it changes
     /// the result, which stays a closed manifold of the coarse mesh's vertex count.
     #[test]
@@ -339,7 +356,6 @@ mod tests {
         };
         let (original, coarse) = (flat(4), flat(2));
         let run = |fold_guard| {
-            let mut report = StageReport::default();
             let p = PostprocessParams {
                 times: 2,
                 energy: EnergyKind::Valette2004,
@@ -347,12 +363,7 @@ mod tests {
                 fold_guard,
                 ..Default::default()
             };
-            let out = Postprocess::new(p)
-                .run(coarse.clone(), &mut Context::new(&original, &mut report))
-                .unwrap();
-            assert_eq!(out.n_vertices(), coarse.n_vertices());
-            let t = Topology::build(&out).summary(&out);
-            assert!(t.manifold && t.consistently_oriented, "{t:?}");
+            let (out, t, _) = run_checked(&original, &coarse, p);
             assert_eq!((t.n_boundary_loops, t.genus_total), (0, Some(0)));
             out
         };
@@ -364,17 +375,11 @@ mod tests {
         let original = coarsen_shapes::torus(2.0, 0.6, 60, 30).unwrap();
         // A poor coarse mesh: long thin triangles (many segments around, few across).
         let coarse = coarsen_shapes::torus(2.0, 0.6, 90, 6).unwrap();
-        let mut report = StageReport::default();
         let p = PostprocessParams {
             times: 2,
             ..Default::default()
         };
-        let out = Postprocess::new(p)
-            .run(coarse.clone(), &mut Context::new(&original, &mut report))
-            .unwrap();
-        assert_eq!(out.n_vertices(), coarse.n_vertices());
-        let t = Topology::build(&out).summary(&out);
-        assert!(t.manifold && t.consistently_oriented, "{t:?}");
+        let (out, t, report) = run_checked(&original, &coarse, p);
         assert_eq!(t.genus_total, Some(1));
         let min_angle = |m: &Mesh| {
             (0..m.n_faces())
