@@ -37,6 +37,11 @@ const ROWS: &[(&str, &str, &[&str])] = &[
         "uniform-cvt",
         &[],
     ),
+    (
+        "uniform density, the worst faces not polished",
+        "uniform-cvt",
+        &["relax.polish=0"],
+    ),
     ("goal as shipped (r = 3, two relaxations)", "goal", &[]),
     (
         "goal, r = 2",

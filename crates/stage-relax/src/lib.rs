@@ -55,11 +55,19 @@
 //! input point near the faces it changes would end farther than that bound from them (or,
 //! if already farther, farther than it was).
 //!
+//! With `polish` > 0, after the sweeps, the vertices of the worst faces by quality (the
+//! lowest 0.2 %, at least 8) are offered the sweep's moves and moves towards
+//! the apex that would make their worst face equilateral, and take the one that most
+//! raises the smallest quality of their faces, when it lowers their summed quality by no
+//! more than it adds to the smallest, leaves no face with a smaller smallest angle than it
+//! had (capped at `floor_deg`; with no floor, no face may lose angle) and passes the sweeps'
+//! guards. A few rounds, each on the worst faces of the round before's result.
+//!
 //! The report gives `facing_away` (faces facing away before and after mending, when it
 //! ran), `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep),
 //! `rebalanced` (split/collapse pairs), `fitted` and `fit_given_up` (fidelity edits, and
-//! input points no edit could bring nearer, when `fit` is on) and
-//! `min_angle_before` / `min_angle_after` in degrees.
+//! input points no edit could bring nearer, when `fit` is on), `polished` (moves kept by
+//! the polishing, when it is on) and `min_angle_before` / `min_angle_after` in degrees.
 
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
@@ -74,12 +82,14 @@ use std::sync::Arc;
 mod fit;
 mod flip;
 mod mend;
+mod polish;
 mod rebalance;
 mod sweep;
 
 use fit::*;
 use flip::*;
 use mend::*;
+use polish::*;
 use rebalance::*;
 use sweep::*;
 
@@ -116,6 +126,10 @@ params! {
         /// Before the sweeps, move the vertices of faces facing away from the input (a
         /// part thinner than a face, a fold) to nearby points of the input where fewer do.
         pub mend: bool = true,
+        /// Rounds of polishing after the sweeps: the vertices of the worst faces by quality
+        /// (the lowest 0.2 %, at least 8) move where the smallest quality of their faces
+        /// rises, no face losing angle below `floor_deg`. 0 = none.
+        pub polish: u32 = 0,
     }
 }
 
@@ -129,6 +143,7 @@ impl Params for RelaxParams {
         coarsen_stage::params::check_range(&mut v, "rebalance", self.rebalance, 0, 100_000);
         coarsen_stage::params::check_range(&mut v, "fit", self.fit, 0, 100_000);
         coarsen_stage::params::check_range(&mut v, "max_dev_pct", self.max_dev_pct, 0.0, 100.0);
+        coarsen_stage::params::check_range(&mut v, "polish", self.polish, 0, 1000);
         v
     }
 }
@@ -152,6 +167,8 @@ pub struct Relaxed {
     pub min_angle_after: f64,
     /// Faces facing away from the input before and after mending (when it ran).
     pub facing_away: Option<[usize; 2]>,
+    /// Moves kept by the polishing rounds.
+    pub polished: usize,
 }
 
 /// Smallest angle (radians) and summed quality of the faces `fan` (of `faces`, corners at
@@ -360,6 +377,20 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
             break;
         }
     }
+    if params.polish > 0 {
+        if let Some(w) = watch.as_mut() {
+            w.assign(mesh);
+        }
+        out.polished = polish(
+            mesh,
+            &topo,
+            &ends,
+            surface,
+            watch.as_ref(),
+            params,
+            cos_turn,
+        );
+    }
     out.min_angle_after = min_angle(mesh);
     out
 }
@@ -405,6 +436,9 @@ impl Stage for Relax {
         }
         if let Some(f) = r.facing_away {
             cx.report.figure("facing_away", f);
+        }
+        if self.0.polish > 0 {
+            cx.report.figure("polished", r.polished);
         }
         cx.report.figure("min_angle_before", r.min_angle_before);
         cx.report.figure("min_angle_after", r.min_angle_after);
