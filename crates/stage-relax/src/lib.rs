@@ -484,7 +484,7 @@ mod tests {
 
     /// Moves each vertex of `m` (a unit sphere) by up to `amount` / 2 along each axis,
     /// pseudo-randomly from `seed`, and back onto the sphere.
-    fn jitter_on_sphere(m: &mut Mesh, seed: u64, amount: f64) {
+    pub(crate) fn jitter_on_sphere(m: &mut Mesh, seed: u64, amount: f64) {
         let mut s = seed;
         for p in &mut m.positions {
             s = s

@@ -279,18 +279,7 @@ mod tests {
         let original = coarsen_shapes::icosphere(1.0, 4).unwrap();
         let surface = Surface::new(&original);
         let mut m = coarsen_shapes::icosphere(1.0, 3).unwrap();
-        let mut s = 11u64;
-        for p in &mut m.positions {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let t = DVec3::new(
-                ((s >> 11) % 1000) as f64 / 1000.0 - 0.5,
-                ((s >> 23) % 1000) as f64 / 1000.0 - 0.5,
-                ((s >> 37) % 1000) as f64 / 1000.0 - 0.5,
-            );
-            *p = (*p + 0.1 * t).normalize();
-        }
+        crate::tests::jitter_on_sphere(&mut m, 11, 0.1);
         let params = |polish| RelaxParams {
             floor_deg: 40.0,
             polish,
