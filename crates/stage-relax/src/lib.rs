@@ -381,15 +381,16 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         if let Some(w) = watch.as_mut() {
             w.assign(mesh);
         }
-        out.polished = polish(
-            mesh,
-            &topo,
-            &ends,
+        let sweep = Sweep {
+            faces: &mesh.faces,
+            topo: &topo,
+            ends: &ends,
             surface,
-            watch.as_ref(),
+            watch: watch.as_ref(),
             params,
             cos_turn,
-        );
+        };
+        out.polished = polish(&mut mesh.positions, &sweep);
     }
     out.min_angle_after = min_angle(mesh);
     out

@@ -21,40 +21,26 @@ const WORST_MIN: usize = 8;
 /// what it adds to their smallest quality.
 const TRADE: f64 = 1.0;
 
-/// Smallest quality and summed quality of the faces `fan` with vertex `v` at `p`; `None`
-/// when a face normal turns beyond `cos_turn` from `normals`, or a face's smallest angle
-/// capped at `floor` (radians, 0 = uncapped) falls below its own in `angles`. Writes each
-/// face's smallest angle to `angles` when `record`.
-#[allow(clippy::too_many_arguments)]
+/// Smallest quality and summed quality of the faces `fan` with vertex `v` at `p`, and each
+/// face's smallest angle in `angles`; `None` when a face normal turns beyond `cos_turn`
+/// from `normals`.
 fn fan_worst(
     faces: &[[u32; 3]],
     fan: &[u32],
     v: u32,
     p: DVec3,
-    positions: &[DVec3],
-    normals: &[DVec3],
-    cos_turn: f64,
-    floor: f64,
+    pos: impl Fn(u32) -> DVec3,
+    (normals, cos_turn): (&[DVec3], f64),
     angles: &mut Vec<f64>,
-    record: bool,
 ) -> Option<(f64, f64)> {
-    let capped = |x: f64| if floor > 0.0 { x.min(floor) } else { x };
-    if record {
-        angles.clear();
-    }
-    let mut quality = f64::INFINITY;
-    let mut sum = 0.0;
+    angles.clear();
+    let (mut quality, mut sum) = (f64::INFINITY, 0.0);
     for (i, &f) in fan.iter().enumerate() {
-        let [a, b, c] = faces[f as usize].map(|w| if w == v { p } else { positions[w as usize] });
+        let [a, b, c] = faces[f as usize].map(|w| if w == v { p } else { pos(w) });
         if triangle::normal(a, b, c).dot(normals[i]) < cos_turn {
             return None;
         }
-        let angle = triangle::min_angle(a, b, c);
-        if record {
-            angles.push(angle);
-        } else if capped(angle) < capped(angles[i]) {
-            return None;
-        }
+        angles.push(triangle::min_angle(a, b, c));
         let q = triangle::quality(a, b, c);
         quality = quality.min(q);
         sum += q;
@@ -62,37 +48,47 @@ fn fan_worst(
     Some((quality, sum))
 }
 
-/// `params.polish` rounds of polishing `mesh` (adjacency `topo`, boundary neighbours `ends`);
-/// returns the moves kept.
-pub(crate) fn polish(
-    mesh: &mut Mesh,
-    topo: &Topology,
-    ends: &[Vec<u32>],
-    surface: Option<&Surface<'_>>,
-    watch: Option<&Watch>,
-    params: &RelaxParams,
-    cos_turn: f64,
-) -> usize {
-    let n_faces = mesh.n_faces();
+/// The quality of face `f` of `faces`, corners at `pos`.
+fn quality_of(faces: &[[u32; 3]], pos: impl Fn(u32) -> DVec3, f: u32) -> f64 {
+    let [a, b, c] = faces[f as usize].map(pos);
+    triangle::quality(a, b, c)
+}
+
+/// Where the apex that would make face `g` equilateral lies, on the side of its corner `v`
+/// (at `p`).
+fn apex(faces: &[[u32; 3]], g: u32, v: u32, p: DVec3, pos: impl Fn(u32) -> DVec3) -> DVec3 {
+    let [a, b, c] = faces[g as usize];
+    let (u, w) = match v {
+        _ if v == a => (b, c),
+        _ if v == b => (c, a),
+        _ => (a, b),
+    };
+    let (u, w) = (pos(u), pos(w));
+    let mid = 0.5 * (u + w);
+    let side = triangle::normal(p, u, w).cross(w - u).normalize_or_zero();
+    let side = if side.dot(p - mid) < 0.0 { -side } else { side };
+    mid + side * (0.75f64.sqrt() * u.distance(w))
+}
+
+/// `sweep.params.polish` rounds of polishing `mesh`, whose faces and adjacency `sweep`
+/// reads; returns the moves kept.
+pub(crate) fn polish(positions: &mut [DVec3], sweep: &Sweep<'_>) -> usize {
+    let faces = sweep.faces;
+    let n_faces = faces.len();
     if n_faces == 0 {
         return 0;
     }
     let worst = ((n_faces as f64 * WORST_SHARE) as usize).clamp(WORST_MIN.min(n_faces), n_faces);
-    let floor = params.floor_deg.to_radians();
-    let onto = surface.filter(|_| params.project);
+    let floor = sweep.params.floor_deg.to_radians();
+    let capped = |x: f64| if floor > 0.0 { x.min(floor) } else { x };
+    let (mut normals, mut cands, mut tris) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut angles, mut after_angles) = (Vec::new(), Vec::new());
     let mut moves = 0;
-    let mut normals = Vec::new();
-    let mut cands = Vec::new();
-    let mut tris = Vec::new();
-    let mut angles = Vec::new();
-    for _ in 0..params.polish {
-        let mut ranked: Vec<(f64, u32)> = (0..n_faces)
-            .map(|f| {
-                let [a, b, c] = mesh.corners(f);
-                (triangle::quality(a, b, c), f as u32)
-            })
-            .collect();
+    for _ in 0..sweep.params.polish {
         let by_quality = |x: &(f64, u32), y: &(f64, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+        let mut ranked: Vec<(f64, u32)> = (0..n_faces as u32)
+            .map(|f| (quality_of(faces, |w| positions[w as usize], f), f))
+            .collect();
         if worst < n_faces {
             ranked.select_nth_unstable_by(worst, by_quality);
             ranked.truncate(worst);
@@ -100,151 +96,55 @@ pub(crate) fn polish(
         ranked.sort_unstable_by(by_quality);
         let mut moved_round = 0;
         for &(_, f) in &ranked {
-            for v in mesh.faces[f as usize] {
-                let fan = topo.vertex_faces(v);
-                if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
+            for v in faces[f as usize] {
+                let fan = sweep.topo.vertex_faces(v);
+                if fan.is_empty() || sweep.topo.n_vertex_fans(v) != 1 {
                     continue;
                 }
-                let boundary = topo.is_boundary_vertex(v);
-                // A boundary vertex slides between its two boundary neighbours.
-                let slide = match (boundary, &ends[v as usize][..]) {
-                    (false, _) => None,
-                    (true, &[u, w]) => Some([u, w]),
-                    (true, _) => continue,
-                };
-                let faces = &mesh.faces;
-                let positions = &mesh.positions;
-                let p = positions[v as usize];
-                normals.clear();
-                let (mut sum, mut area, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-                for &g in fan {
-                    let [a, b, c] = faces[g as usize].map(|w| positions[w as usize]);
-                    let w = triangle::area(a, b, c);
-                    sum += w * triangle::centroid(a, b, c);
-                    area += w;
-                    normal += triangle::cross(a, b, c);
-                    normals.push(triangle::normal(a, b, c));
-                }
-                let normal = normal.normalize_or_zero();
-                if area <= 0.0 || normal == DVec3::ZERO {
-                    continue;
-                }
-                let Some(before) = fan_worst(
-                    faces,
-                    fan,
-                    v,
-                    p,
-                    positions,
-                    &normals,
-                    -1.0,
-                    floor,
-                    &mut angles,
-                    true,
-                ) else {
+                let pos = |w: u32| positions[w as usize];
+                let p = pos(v);
+                // The sweep's moves, and moves towards the apex that makes the vertex's
+                // worst face equilateral.
+                let Some(place) = sweep.moves(v, pos, &mut normals, &mut cands) else {
                     continue;
                 };
-                // Where a target takes the vertex: inside, onto the nearest point of the
-                // input; on the boundary, onto the input's boundary along its loop.
-                let place = |target: DVec3| match (slide, onto) {
-                    (None, Some(sf)) => sf.project(target).unwrap_or(target),
-                    (Some([u, w]), Some(sf)) => {
-                        let [u, w] = [u, w].map(|k| positions[k as usize]);
-                        sf.project_boundary_along(
-                            p,
-                            target,
-                            BOUNDARY_REACH * (u.distance(p) + w.distance(p)),
-                        )
-                        .unwrap_or(DVec3::NAN)
-                    }
-                    (_, None) => target,
+                let Some(before) = fan_worst(faces, fan, v, p, pos, (&normals, -1.0), &mut angles)
+                else {
+                    continue;
                 };
-                // The sweep's moves (inside: towards the ring's centroid and its
-                // neighbours' mean, in the tangent plane; on the boundary: to the middle and
-                // thirds between its boundary neighbours) and moves towards the apex that
-                // makes the vertex's worst face equilateral.
-                cands.clear();
-                match slide {
-                    None => {
-                        let tangent = |d: DVec3| d - d.dot(normal) * normal;
-                        let d = tangent(sum / area - p);
-                        let ring = topo.vertex_neighbors(v);
-                        let mean = ring.iter().map(|&w| positions[w as usize]).sum::<DVec3>()
-                            / ring.len().max(1) as f64;
-                        let l = tangent(mean - p);
-                        cands.extend(
-                            [d, 0.5 * d, 0.25 * d, l, 0.5 * l].map(|m| p + params.step * m),
-                        );
-                    }
-                    Some([u, w]) => {
-                        let [u, w] = [u, w].map(|k| positions[k as usize]);
-                        cands.extend(
-                            [0.5, 1.0 / 3.0, 2.0 / 3.0]
-                                .map(|s| p + params.step * (u.lerp(w, s) - p)),
-                        );
-                    }
-                }
                 let bad = fan
                     .iter()
-                    .map(|&g| {
-                        let [a, b, c] = faces[g as usize].map(|w| positions[w as usize]);
-                        (triangle::quality(a, b, c), g)
-                    })
+                    .map(|&g| (quality_of(faces, pos, g), g))
                     .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
                 if let Some((_, g)) = bad {
-                    let [a, b, c] = faces[g as usize];
-                    let (u, w) = match v {
-                        _ if v == a => (b, c),
-                        _ if v == b => (c, a),
-                        _ => (a, b),
-                    };
-                    let (u, w) = (positions[u as usize], positions[w as usize]);
-                    let mid = 0.5 * (u + w);
-                    let side = triangle::normal(p, u, w).cross(w - u).normalize_or_zero();
-                    let side = if side.dot(p - mid) < 0.0 { -side } else { side };
-                    let apex = mid + side * (0.75f64.sqrt() * u.distance(w));
-                    cands.extend([1.0, 0.5, 0.25].map(|t| p + t * (apex - p)));
+                    let top = apex(faces, g, v, p, pos);
+                    cands.extend([1.0, 0.5, 0.25].map(|t| sweep.place(&place, p + t * (top - p))));
                 }
-                for q in cands.iter_mut() {
-                    *q = place(*q);
-                }
-                // The candidates that keep the capped smallest angle and raise the smallest
-                // quality, best first; the input tests in that order.
+                // The candidates that raise the smallest quality, trade no more summed
+                // quality for it and cost no face angle below the floor, best first; the
+                // input tests in that order.
                 let mut kept: Vec<(f64, DVec3)> = cands
                     .iter()
                     .filter(|q| q.is_finite() && **q != p)
                     .filter_map(|&q| {
-                        let after = fan_worst(
-                            faces,
-                            fan,
-                            v,
-                            q,
-                            positions,
-                            &normals,
-                            cos_turn,
-                            floor,
-                            &mut angles,
-                            false,
-                        )?;
+                        let turn = (&normals[..], sweep.cos_turn);
+                        let after = fan_worst(faces, fan, v, q, pos, turn, &mut after_angles)?;
                         let gain = after.0 - before.0;
-                        (gain > 0.0 && after.1 - before.1 >= -TRADE * gain).then_some((after.0, q))
+                        let kept_angles = after_angles
+                            .iter()
+                            .zip(&angles)
+                            .all(|(&x, &y)| capped(x) >= capped(y));
+                        (gain > 0.0 && after.1 - before.1 >= -TRADE * gain && kept_angles)
+                            .then_some((after.0, q))
                     })
                     .collect();
                 kept.sort_by(|x, y| y.0.total_cmp(&x.0));
-                let moved_fan = |q: DVec3| {
-                    fan.iter().map(move |&g| {
-                        faces[g as usize].map(|w| if w == v { q } else { positions[w as usize] })
-                    })
-                };
-                let chosen = kept.iter().map(|&(_, q)| q).find(|&q| {
-                    surface.is_none_or(|s| moved_fan(q).all(|[a, b, c]| s.agrees(a, b, c)))
-                        && watch.is_none_or(|w| {
-                            tris.clear();
-                            tris.extend(moved_fan(q));
-                            w.allows(fan, &tris)
-                        })
-                });
+                let chosen = kept
+                    .iter()
+                    .map(|&(_, q)| q)
+                    .find(|&q| sweep.admits(v, q, pos, &mut tris));
                 if let Some(q) = chosen {
-                    mesh.positions[v as usize] = q;
+                    positions[v as usize] = q;
                     moved_round += 1;
                 }
             }

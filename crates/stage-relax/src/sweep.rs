@@ -37,6 +37,7 @@ pub(crate) struct Sweep<'a> {
 #[derive(Default)]
 struct Scratch {
     normals: Vec<DVec3>,
+    cands: Vec<DVec3>,
     tris: Vec<[DVec3; 3]>,
     ranked: Vec<((f64, f64), DVec3)>,
 }
@@ -106,67 +107,13 @@ impl Sweep<'_> {
         pos: impl Fn(u32) -> DVec3 + Copy,
         sc: &mut Scratch,
     ) -> Option<DVec3> {
-        let (topo, params, cos_turn) = (self.topo, self.params, self.cos_turn);
-        let fan = topo.vertex_faces(v);
-        if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
+        let (params, cos_turn) = (self.params, self.cos_turn);
+        let fan = self.topo.vertex_faces(v);
+        if fan.is_empty() || self.topo.n_vertex_fans(v) != 1 {
             return None;
         }
-        let corners = |f: u32| self.faces[f as usize].map(pos);
         let p = pos(v);
-        sc.normals.clear();
-        let (mut sum, mut area, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-        for &f in fan {
-            let [a, b, c] = corners(f);
-            let w = triangle::area(a, b, c);
-            sum += w * triangle::centroid(a, b, c);
-            area += w;
-            normal += triangle::cross(a, b, c);
-            sc.normals.push(triangle::normal(a, b, c));
-        }
-        // Candidate positions, best first: the full move, then partial ones (on the
-        // boundary: a third and two thirds of the way between the two neighbours).
-        let mut cands = [DVec3::NAN; 5];
-        let onto = self.surface.filter(|_| params.project);
-        if topo.is_boundary_vertex(v) {
-            let [u, w] = match self.ends[v as usize][..] {
-                [u, w] => [u, w].map(pos),
-                _ => return None,
-            };
-            for (c, s) in cands.iter_mut().zip([0.5, 1.0 / 3.0, 2.0 / 3.0]) {
-                let target = p + params.step * (u.lerp(w, s) - p);
-                *c = match onto {
-                    Some(sf) => sf
-                        .project_boundary_along(
-                            p,
-                            target,
-                            BOUNDARY_REACH * (u.distance(p) + w.distance(p)),
-                        )
-                        .unwrap_or(DVec3::NAN),
-                    None => target,
-                };
-            }
-        } else {
-            let normal = normal.normalize_or_zero();
-            if area <= 0.0 || normal == DVec3::ZERO {
-                return None;
-            }
-            let d = sum / area - p;
-            let d = d - d.dot(normal) * normal;
-            // With `floor_deg`, also the mean of the neighbours (evens edge lengths).
-            let ring = topo.vertex_neighbors(v);
-            let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
-            let l = mean - p;
-            let l = l - l.dot(normal) * normal;
-            let n_moves = if params.floor_deg > 0.0 { 5 } else { 3 };
-            let moves = [d, 0.5 * d, 0.25 * d, l, 0.5 * l];
-            for (c, m) in cands.iter_mut().zip(moves).take(n_moves) {
-                let q = p + params.step * m;
-                *c = match onto {
-                    Some(sf) => sf.project(q).unwrap_or(q),
-                    None => q,
-                };
-            }
-        }
+        self.moves(v, pos, &mut sc.normals, &mut sc.cands)?;
         let shape = |q: DVec3, cos: f64, normals: &[DVec3]| {
             fan_shape(self.faces, fan, v, q, pos, normals, cos)
         };
@@ -181,18 +128,9 @@ impl Sweep<'_> {
             let (x, y) = (after.0.min(floor), before.0.min(floor));
             x > y || (x == y && after.1 > before.1)
         };
-        // The fan's corners with `v` at `q`.
-        let moved_fan = |q: DVec3| {
-            fan.iter()
-                .map(move |&f| self.faces[f as usize].map(|w| if w == v { q } else { pos(w) }))
-        };
-        let agrees = |q: DVec3| {
-            self.surface
-                .is_none_or(|s| moved_fan(q).all(|[a, b, c]| s.agrees(a, b, c)))
-        };
-        // Rank the improving candidates; the (costlier) input-normal test goes in order.
+        // Rank the improving candidates; the (costlier) input tests go in order.
         sc.ranked.clear();
-        for &q in cands.iter().filter(|q| q.is_finite() && **q != p) {
+        for &q in sc.cands.iter().filter(|q| q.is_finite() && **q != p) {
             if let Some(after) = shape(q, cos_turn, &sc.normals).filter(|&a| better(a)) {
                 sc.ranked.push((after, q));
             }
@@ -206,19 +144,125 @@ impl Sweep<'_> {
                 y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1))
             }
         });
-        let (ranked, tris) = (&sc.ranked, &mut sc.tris);
-        let mut close = |q: DVec3| {
-            self.watch.is_none_or(|w| {
-                tris.clear();
-                tris.extend(moved_fan(q));
-                w.allows(fan, tris)
-            })
-        };
-        ranked
+        let tris = &mut sc.tris;
+        sc.ranked
             .iter()
-            .find(|(_, q)| agrees(*q) && close(*q))
+            .find(|(_, q)| self.admits(v, *q, pos, tris))
             .map(|&(_, q)| q)
     }
+
+    /// The moves offered to vertex `v` (one fan, `pos` the positions of it and its ring):
+    /// fills `normals` with its faces' normals and `cands` with its candidate positions,
+    /// best first, placed on the input when projecting (NaN where a boundary projection
+    /// finds nothing). Returns where a target of `v` is placed (see [`Place`]), or `None`
+    /// when `v` cannot move: a boundary vertex without two boundary neighbours, or an
+    /// interior one whose faces have no area or no normal.
+    pub(crate) fn moves(
+        &self,
+        v: u32,
+        pos: impl Fn(u32) -> DVec3 + Copy,
+        normals: &mut Vec<DVec3>,
+        cands: &mut Vec<DVec3>,
+    ) -> Option<Place> {
+        let (topo, params) = (self.topo, self.params);
+        let fan = topo.vertex_faces(v);
+        let corners = |f: u32| self.faces[f as usize].map(pos);
+        let p = pos(v);
+        normals.clear();
+        cands.clear();
+        let (mut sum, mut area, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
+        for &f in fan {
+            let [a, b, c] = corners(f);
+            let w = triangle::area(a, b, c);
+            sum += w * triangle::centroid(a, b, c);
+            area += w;
+            normal += triangle::cross(a, b, c);
+            normals.push(triangle::normal(a, b, c));
+        }
+        // Candidate positions, best first: the full move, then partial ones (on the
+        // boundary: a third and two thirds of the way between the two neighbours).
+        let place = if topo.is_boundary_vertex(v) {
+            let [u, w] = match self.ends[v as usize][..] {
+                [u, w] => [u, w].map(pos),
+                _ => return None,
+            };
+            let place = Place {
+                from: p,
+                slide: Some((u.distance(p) + w.distance(p)) * BOUNDARY_REACH),
+            };
+            cands.extend([0.5, 1.0 / 3.0, 2.0 / 3.0].map(|s| p + params.step * (u.lerp(w, s) - p)));
+            place
+        } else {
+            let normal = normal.normalize_or_zero();
+            if area <= 0.0 || normal == DVec3::ZERO {
+                return None;
+            }
+            let d = sum / area - p;
+            let d = d - d.dot(normal) * normal;
+            // With `floor_deg`, also the mean of the neighbours (evens edge lengths).
+            let ring = topo.vertex_neighbors(v);
+            let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
+            let l = mean - p;
+            let l = l - l.dot(normal) * normal;
+            let n_moves = if params.floor_deg > 0.0 { 5 } else { 3 };
+            let moves = [d, 0.5 * d, 0.25 * d, l, 0.5 * l];
+            cands.extend(moves.iter().take(n_moves).map(|&m| p + params.step * m));
+            Place {
+                from: p,
+                slide: None,
+            }
+        };
+        for q in cands.iter_mut() {
+            *q = self.place(&place, *q);
+        }
+        Some(place)
+    }
+
+    /// Where `target` takes a vertex leaving `place.from`: onto the input surface (inside)
+    /// or along the input's boundary (on it) when projecting, else `target` itself (NaN
+    /// where a boundary projection finds nothing).
+    pub(crate) fn place(&self, place: &Place, target: DVec3) -> DVec3 {
+        match (self.surface.filter(|_| self.params.project), place.slide) {
+            (None, _) => target,
+            (Some(sf), None) => sf.project(target).unwrap_or(target),
+            (Some(sf), Some(reach)) => sf
+                .project_boundary_along(place.from, target, reach)
+                .unwrap_or(DVec3::NAN),
+        }
+    }
+
+    /// Whether vertex `v` may go to `q` (`pos` the positions of it and its ring): none of
+    /// its faces then faces away from the input, and the fidelity bound holds (`tris` is
+    /// scratch).
+    pub(crate) fn admits(
+        &self,
+        v: u32,
+        q: DVec3,
+        pos: impl Fn(u32) -> DVec3 + Copy,
+        tris: &mut Vec<[DVec3; 3]>,
+    ) -> bool {
+        let fan = self.topo.vertex_faces(v);
+        // The fan's corners with `v` at `q`.
+        let moved_fan = || {
+            fan.iter()
+                .map(move |&f| self.faces[f as usize].map(|w| if w == v { q } else { pos(w) }))
+        };
+        self.surface
+            .is_none_or(|s| moved_fan().all(|[a, b, c]| s.agrees(a, b, c)))
+            && self.watch.is_none_or(|w| {
+                tris.clear();
+                tris.extend(moved_fan());
+                w.allows(fan, tris)
+            })
+    }
+}
+
+/// Where the targets of a vertex's moves are placed (see [`Sweep::place`]).
+pub(crate) struct Place {
+    /// The vertex's position.
+    from: DVec3,
+    /// On the boundary: how far along it (arc length) a target may be looked for.
+    slide: Option<f64>,
 }
 
 /// A fixed split of a mesh's vertices into [`PARTS`] spatial parts.
