@@ -339,6 +339,12 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         let m = mend(mesh, &mut topo, sf, &ends, floor);
         out.facing_away = Some([m.before, m.after]);
     }
+    let shared = SweepShared {
+        ends: &ends,
+        surface,
+        params,
+        cos_turn,
+    };
     // The parts of a big mesh's sweeps (its vertices barely move between sweeps).
     let parts = Parts::new(&mesh.positions);
     for _ in 0..params.sweeps {
@@ -362,15 +368,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                 }
             }
         }
-        let sweep = Sweep {
-            faces: &mesh.faces,
-            topo: &topo,
-            ends: &ends,
-            surface,
-            watch: watch.as_ref(),
-            params,
-            cos_turn,
-        };
+        let sweep = shared.over(&mesh.faces, &topo, watch.as_ref());
         let moved = sweep.run(&mut mesh.positions, parts.as_ref());
         out.moved.push(moved);
         if moved == 0 && out.flipped.last().is_none_or(|&f| f == 0) {
@@ -381,15 +379,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         if let Some(w) = watch.as_mut() {
             w.assign(mesh);
         }
-        let sweep = Sweep {
-            faces: &mesh.faces,
-            topo: &topo,
-            ends: &ends,
-            surface,
-            watch: watch.as_ref(),
-            params,
-            cos_turn,
-        };
+        let sweep = shared.over(&mesh.faces, &topo, watch.as_ref());
         out.polished = polish(&mut mesh.positions, &sweep);
     }
     out.min_angle_after = min_angle(mesh);

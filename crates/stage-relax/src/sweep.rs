@@ -33,6 +33,39 @@ pub(crate) struct Sweep<'a> {
     pub cos_turn: f64,
 }
 
+/// What every sweep of one relaxation (and its polish) reads besides the mesh's faces,
+/// adjacency and fidelity watch as they then are.
+pub(crate) struct SweepShared<'a> {
+    /// See [`Sweep::ends`].
+    pub ends: &'a [Vec<u32>],
+    /// See [`Sweep::surface`].
+    pub surface: Option<&'a Surface<'a>>,
+    /// See [`Sweep::params`].
+    pub params: &'a RelaxParams,
+    /// See [`Sweep::cos_turn`].
+    pub cos_turn: f64,
+}
+
+impl SweepShared<'_> {
+    /// A sweep over `faces` (adjacency `topo`, fidelity `watch`).
+    pub(crate) fn over<'b>(
+        &'b self,
+        faces: &'b [[u32; 3]],
+        topo: &'b Topology,
+        watch: Option<&'b Watch>,
+    ) -> Sweep<'b> {
+        Sweep {
+            faces,
+            topo,
+            ends: self.ends,
+            surface: self.surface,
+            watch,
+            params: self.params,
+            cos_turn: self.cos_turn,
+        }
+    }
+}
+
 /// Scratch buffers of one sweeper.
 #[derive(Default)]
 struct Scratch {
