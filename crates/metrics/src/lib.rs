@@ -49,7 +49,7 @@ pub use features::{FeatureEdges, FeatureOptions, feature_edges, sharp_edges};
 pub use fidelity::{Fidelity, FidelityOptions, fidelity};
 pub use grid::{GridFacing, LazyGridFacing};
 pub use quality::{Quality, quality};
-pub use validity::{Facing, SurfaceIndex, Validity, validity};
+pub use validity::{Facing, SurfaceIndex, SurfaceParts, Validity, validity};
 
 use coarsen_mesh::Mesh;
 use prepare::Prepared;

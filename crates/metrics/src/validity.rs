@@ -209,14 +209,19 @@ pub struct SurfaceIndex {
     rim_ends: Vec<(u32, u32)>,
 }
 
-impl SurfaceIndex {
-    /// Indexes `input` (its faces and adjacency).
-    pub fn new(input: &Mesh) -> Self {
-        SurfaceIndex::with_topology(input, &Topology::build(input))
-    }
+/// What a [`SurfaceIndex`] takes of its input's adjacency, taken before the face
+/// hierarchy is built: a caller can then let the adjacency go first (at millions of faces
+/// the two together would set the run's peak memory).
+pub struct SurfaceParts {
+    vertex_face_offsets: Vec<u32>,
+    vertex_faces: Vec<u32>,
+    boundary_edges: Vec<[u32; 2]>,
+    rim_edges: Vec<[u32; 2]>,
+}
 
-    /// Indexes the faces of `input`, whose adjacency `topo` was built earlier.
-    pub fn with_topology(input: &Mesh, topo: &Topology) -> Self {
+impl SurfaceParts {
+    /// The parts of `input`'s index from its adjacency `topo`.
+    pub fn of(input: &Mesh, topo: &Topology) -> Self {
         let n = input.n_vertices();
         let mut vertex_face_offsets = Vec::with_capacity(n + 1);
         let mut vertex_faces = Vec::with_capacity(3 * input.n_faces());
@@ -233,6 +238,22 @@ impl SurfaceIndex {
             .filter(|&e| topo.is_boundary_edge(e) || topo.edge_faces(e).len() >= 3)
             .map(|e| topo.edge(e))
             .collect();
+        SurfaceParts {
+            vertex_face_offsets,
+            vertex_faces,
+            boundary_edges,
+            rim_edges,
+        }
+    }
+
+    /// The index of `input` (the mesh these parts were taken from).
+    pub fn build(self, input: &Mesh) -> SurfaceIndex {
+        let SurfaceParts {
+            vertex_face_offsets,
+            vertex_faces,
+            boundary_edges,
+            rim_edges,
+        } = self;
         let segments: Vec<[u32; 3]> = rim_edges.iter().map(|&[a, b]| [a, b, b]).collect();
         let mut rim_ends: Vec<(u32, u32)> = (0..rim_edges.len() as u32)
             .flat_map(|e| rim_edges[e as usize].map(|v| (v, e)))
@@ -247,6 +268,18 @@ impl SurfaceIndex {
             rim_edges,
             bvh: Bvh::build(&input.positions, &input.faces),
         }
+    }
+}
+
+impl SurfaceIndex {
+    /// Indexes `input` (its faces and adjacency).
+    pub fn new(input: &Mesh) -> Self {
+        SurfaceIndex::with_topology(input, &Topology::build(input))
+    }
+
+    /// Indexes the faces of `input`, whose adjacency `topo` was built earlier.
+    pub fn with_topology(input: &Mesh, topo: &Topology) -> Self {
+        SurfaceParts::of(input, topo).build(input)
     }
 
     /// The rim edges at vertex `v`.

@@ -92,7 +92,7 @@ pub use build::{DualError, DualStats, Problems};
 
 use coarsen_geom::{Aabb, DVec3, Quadric};
 use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
-use coarsen_metrics::{Facing, SurfaceIndex};
+use coarsen_metrics::{Facing, SurfaceIndex, SurfaceParts};
 use coarsen_spatial::{Bvh, closest_point_on_segment};
 use coarsen_stage::{
     AttrKind, AttrRef, Context, Contract, Domain, Mesh, Needs, Params, Stage, StageError, params,
@@ -176,6 +176,64 @@ pub fn dual(
     repair: Repair,
     fix_facing: bool,
 ) -> Result<Dual, DualError> {
+    repaired(mesh, topo, labels, repair)?.finish(mesh, labels, placement, surface, fix_facing)
+}
+
+/// A clustering repaired for its dual, with the dual's faces: [`dual`] up to the placement,
+/// which needs no more of the adjacency than the boundary kept here (so that a caller can
+/// let the adjacency go before it indexes the surface to place on).
+pub struct Repaired {
+    n: usize,
+    faces: Vec<[u32; 3]>,
+    stats: DualStats,
+    boundary: Boundary,
+}
+
+/// What the placement reads of the clustered mesh's adjacency: its boundary.
+struct Boundary {
+    /// The boundary edges (of one face), in the adjacency's edge order: (face, ends).
+    edges: Vec<(u32, [u32; 2])>,
+    /// The closed boundary loops of three or more vertices, each with the face along its
+    /// edge `j → j + 1` (`None` where the adjacency finds none).
+    loops: Vec<(Vec<u32>, Vec<Option<u32>>)>,
+}
+
+impl Boundary {
+    fn of(topo: &Topology) -> Boundary {
+        let edges = (0..topo.n_edges() as u32)
+            .filter_map(|e| match topo.edge_faces(e) {
+                &[f] => Some((f, topo.edge(e))),
+                _ => None,
+            })
+            .collect();
+        let loops = (0..topo.n_boundary_loops())
+            .filter_map(|i| {
+                let lp = topo.boundary_loop(i);
+                let k = lp.len();
+                if k < 3 || lp[0] == lp[k - 1] {
+                    return None;
+                }
+                let faces = (0..k)
+                    .map(|j| {
+                        topo.find_edge(lp[j], lp[(j + 1) % k])
+                            .and_then(|e| topo.edge_faces(e).first().copied())
+                    })
+                    .collect();
+                Some((lp.to_vec(), faces))
+            })
+            .collect();
+        Boundary { edges, loops }
+    }
+}
+
+/// The first part of [`dual`]: the checks and the repairs of the clustering (the repaired
+/// labels are written back), with what the rest needs of `topo`.
+pub fn repaired(
+    mesh: &Mesh,
+    topo: &Topology,
+    labels: &mut Vec<u32>,
+    repair: Repair,
+) -> Result<Repaired, DualError> {
     if let Some(f) = (0..mesh.n_faces() as u32).find(|&f| topo.is_skipped_face(f)) {
         return Err(DualError::NotManifold(format!("face {f} repeats a vertex")));
     }
@@ -214,6 +272,50 @@ pub fn dual(
         return Err(DualError::TooFew(why));
     }
     let (faces, stats) = build::repaired_dual(mesh, topo, labels, n, repair)?;
+    Ok(Repaired {
+        n,
+        faces,
+        stats,
+        boundary: Boundary::of(topo),
+    })
+}
+
+impl Repaired {
+    /// The rest of [`dual`] for the `mesh` and repaired `labels` this came from: the
+    /// placement and what follows.
+    pub fn finish(
+        self,
+        mesh: &Mesh,
+        labels: &[u32],
+        placement: Placement,
+        surface: Option<&Facing<'_>>,
+        fix_facing: bool,
+    ) -> Result<Dual, DualError> {
+        let Repaired {
+            n,
+            faces,
+            stats,
+            boundary,
+        } = self;
+        place_and_mend(
+            mesh, labels, n, faces, stats, &boundary, placement, surface, fix_facing,
+        )
+    }
+}
+
+/// [`Repaired::finish`].
+#[allow(clippy::too_many_arguments)]
+fn place_and_mend(
+    mesh: &Mesh,
+    labels: &[u32],
+    n: usize,
+    faces: Vec<[u32; 3]>,
+    stats: DualStats,
+    boundary: &Boundary,
+    placement: Placement,
+    surface: Option<&Facing<'_>>,
+    fix_facing: bool,
+) -> Result<Dual, DualError> {
     // One index of the surface serves the placement and the flipped-face test.
     let own;
     let facing = match surface {
@@ -227,7 +329,7 @@ pub fn dual(
     let (start, members) = faces_by_cluster(labels, n);
     let centroids = cluster_centroids(mesh, &start, &members);
     let (mut positions, on_boundary, quadric_fallbacks) =
-        place(mesh, topo, labels, &centroids, placement, facing.bvh());
+        place(mesh, boundary, labels, &centroids, placement, facing.bvh());
     let boundary_clusters = on_boundary.iter().filter(|&&b| b).count();
     // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
     // one facing away from the input surface nearest its centroid (closest-vertex placement
@@ -301,12 +403,10 @@ pub fn dual(
         }
         // The boundary edges of the involved clusters kept on the boundary above.
         let mut edges_of: Vec<Vec<[DVec3; 2]>> = vec![Vec::new(); n];
-        for e in 0..topo.n_edges() as u32 {
-            if let &[f] = topo.edge_faces(e) {
-                let c = labels[f as usize] as usize;
-                if involved[c] && rim(c) {
-                    edges_of[c].push(topo.edge(e).map(|v| mesh.positions[v as usize]));
-                }
+        for &(f, ends) in &boundary.edges {
+            let c = labels[f as usize] as usize;
+            if involved[c] && rim(c) {
+                edges_of[c].push(ends.map(|v| mesh.positions[v as usize]));
             }
         }
         let mut around: Vec<Vec<usize>> = vec![Vec::new(); n];
@@ -559,7 +659,7 @@ fn vertex_origins(mesh: &Mesh, start: &[usize], order: &[u32]) -> VertexOrigins 
 /// whether it is on the boundary, quadric fall-backs)`.
 fn place(
     mesh: &Mesh,
-    topo: &Topology,
+    boundary: &Boundary,
     labels: &[u32],
     centroids: &[DVec3],
     placement: Placement,
@@ -641,20 +741,16 @@ fn place(
     // run of boundary edges, so the output boundary vertices are spread evenly along it;
     // the nearest point of their boundary edges where no run is found.
     let mut best: Vec<Option<(f64, DVec3)>> = vec![None; n];
-    for e in 0..topo.n_edges() as u32 {
-        let ef = topo.edge_faces(e);
-        if ef.len() != 1 {
-            continue;
-        }
-        let c = labels[ef[0] as usize] as usize;
-        let [a, b] = topo.edge(e).map(|v| mesh.positions[v as usize]);
+    for &(f, ends) in &boundary.edges {
+        let c = labels[f as usize] as usize;
+        let [a, b] = ends.map(|v| mesh.positions[v as usize]);
         let p = closest_point_on_segment(pos[c], a, b).0;
         let d = p.distance_squared(pos[c]);
         if best[c].is_none_or(|(bd, _)| d < bd) {
             best[c] = Some((d, p));
         }
     }
-    for (c, mid) in boundary_run_middles(mesh, topo, labels, n)
+    for (c, mid) in boundary_run_middles(mesh, boundary, labels, n)
         .into_iter()
         .enumerate()
     {
@@ -677,24 +773,18 @@ fn place(
 /// by one cluster only).
 fn boundary_run_middles(
     mesh: &Mesh,
-    topo: &Topology,
+    boundary: &Boundary,
     labels: &[u32],
     n: usize,
 ) -> Vec<Option<DVec3>> {
     let mut out: Vec<Option<(f64, DVec3)>> = vec![None; n];
-    for i in 0..topo.n_boundary_loops() {
-        let lp = topo.boundary_loop(i);
+    for (lp, edge_faces) in &boundary.loops {
         let k = lp.len();
-        if k < 3 || lp[0] == lp[k - 1] {
-            continue;
-        }
         // The cluster of each edge lp[j] → lp[j + 1].
-        let edge_cluster = |j: usize| {
-            topo.find_edge(lp[j], lp[(j + 1) % k])
-                .and_then(|e| topo.edge_faces(e).first().copied())
-                .map(|f| labels[f as usize])
-        };
-        let ec: Vec<Option<u32>> = (0..k).map(edge_cluster).collect();
+        let ec: Vec<Option<u32>> = edge_faces
+            .iter()
+            .map(|f| f.map(|f| labels[f as usize]))
+            .collect();
         let Some(start) = (0..k).find(|&j| ec[j] != ec[(j + k - 1) % k]) else {
             continue;
         };
@@ -775,35 +865,56 @@ impl Stage for DualStage {
         let topo = cx
             .topology(&mesh)
             .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        let facing = match cx.original.n_faces() {
-            0 => None,
-            _ => Some(Facing::with_index(
-                cx.original,
-                cx.input_index_with_topology(SurfaceIndex::with_topology)
-                    .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?,
-            )),
-        };
-        let d = dual(
-            &mesh,
-            &topo,
-            &mut labels,
-            p.placement,
-            facing.as_ref(),
-            Repair {
-                max_rounds: p.max_repair_rounds,
-                relax_passes: p.relax_passes,
-                fold_guard: p.fold_guard,
-            },
-            p.fix_facing,
-        )
-        .map_err(|e| match e {
+        let stage_error = |e: DualError| match e {
             DualError::Unrepaired(_) => StageError::Internal(format!("`{}`: {e}", Self::KIND)),
             DualError::TooFew(_) => StageError::Param {
                 name: "target",
                 message: format!("`{}`: {e}", Self::KIND),
             },
             e => StageError::Input(format!("`{}`: {e}", Self::KIND)),
-        })?;
+        };
+        let repaired = repaired(
+            &mesh,
+            &topo,
+            &mut labels,
+            Repair {
+                max_rounds: p.max_repair_rounds,
+                relax_passes: p.relax_passes,
+                fold_guard: p.fold_guard,
+            },
+        )
+        .map_err(stage_error)?;
+        let rim: Vec<DVec3> = (0..mesh.n_vertices() as u32)
+            .filter(|&v| topo.is_boundary_vertex(v))
+            .map(|v| mesh.positions[v as usize])
+            .collect();
+        // The input's index takes what it needs of the adjacency (the clustered mesh's, when
+        // the clustering ran on the input) before the adjacency goes and the index's face
+        // hierarchy is built: at millions of faces the two together set the run's peak.
+        let index = match cx.original.n_faces() {
+            0 => None,
+            _ => match cx.input_index_at_hand::<SurfaceIndex>() {
+                Some(index) => Some(Ok(index)),
+                None => Some(Err(SurfaceParts::of(
+                    cx.original,
+                    &*cx.input_topology().map_err(|e| {
+                        StageError::Input(format!("`{}`: the input: {e}", Self::KIND))
+                    })?,
+                ))),
+            },
+        };
+        drop(topo);
+        cx.release_topology();
+        let facing = index.map(|index| {
+            let index = match index {
+                Ok(index) => index,
+                Err(parts) => cx.input_index(|original| parts.build(original)),
+            };
+            Facing::with_index(cx.original, index)
+        });
+        let d = repaired
+            .finish(&mesh, &labels, p.placement, facing.as_ref(), p.fix_facing)
+            .map_err(stage_error)?;
         // Beyond the dual's own input: when its boundary has left the run's input's (after
         // a simplifier, whose boundary edges are chords of the input's), the boundary
         // vertices go onto the input's own boundary, from the dual input's boundary
@@ -812,10 +923,6 @@ impl Stage for DualStage {
         let mut d = d;
         let mut pulled = Pulled::default();
         if let Some(facing) = &facing {
-            let rim: Vec<DVec3> = (0..mesh.n_vertices() as u32)
-                .filter(|&v| topo.is_boundary_vertex(v))
-                .map(|v| mesh.positions[v as usize])
-                .collect();
             let diag = cx.original.bbox().diagonal();
             let tol = 1e-9 * diag;
             let off = rim.par_iter().any(|&p| {

@@ -174,6 +174,21 @@ impl<'a> Context<'a> {
         }
     }
 
+    /// The value of type `T` derived from the run input ([`Context::input_index`]) when a
+    /// stage before built it; nothing is built.
+    pub fn input_index_at_hand<T: std::any::Any + Send + Sync>(&self) -> Option<std::sync::Arc<T>> {
+        self.shared.and_then(|s| s.input_index_at_hand())
+    }
+
+    /// Lets go of the adjacency kept for the stages after (see [`Context::topology`]): for
+    /// a stage done with it before it builds something big, so that the two do not add up
+    /// to the run's peak memory. The next stage that asks builds it again.
+    pub fn release_topology(&self) {
+        if let Some(s) = self.shared {
+            s.forget_topology();
+        }
+    }
+
     /// The adjacency of `mesh`, shared with the stages before and after while the faces
     /// stay the same.
     pub fn topology(

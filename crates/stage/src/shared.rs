@@ -59,6 +59,16 @@ impl Shared {
         Ok(v)
     }
 
+    /// The value of type `T` derived from the run input when it is built already.
+    pub fn input_index_at_hand<T: Any + Send + Sync>(&self) -> Option<Arc<T>> {
+        let key = TypeId::of::<T>();
+        let input = self.input.lock().unwrap_or_else(PoisonError::into_inner);
+        input
+            .iter()
+            .find(|(k, _)| *k == key)
+            .and_then(|(_, v)| Arc::clone(v).downcast::<T>().ok())
+    }
+
     /// The adjacency of the run input `input`: the one built before while something still
     /// holds it, or the adjacency kept for the next stage when that was built from the
     /// input's faces, else a new one.
@@ -157,6 +167,16 @@ mod tests {
         });
         let c = shared.input_index(|| "other type");
         assert_eq!((*a, *b, *c, builds), (7, 7, "other type", 1));
+    }
+
+    #[test]
+    fn an_input_index_is_at_hand_only_once_built() {
+        let shared = Shared::new();
+        assert!(shared.input_index_at_hand::<u64>().is_none());
+        let built = shared.input_index(|| 7u64);
+        let at_hand = shared.input_index_at_hand::<u64>().unwrap();
+        assert!(Arc::ptr_eq(&built, &at_hand));
+        assert!(shared.input_index_at_hand::<u32>().is_none());
     }
 
     #[test]
