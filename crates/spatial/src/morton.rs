@@ -10,7 +10,8 @@
 //! heuristic build does.
 
 use crate::bvh::{
-    Bvh, MAX_LEAF, Node, PARALLEL_MIN, Subtree, corners, f32_at_least, f32_at_most, max3, min3,
+    Bvh, MAX_LEAF, Node, PARALLEL_MIN, Subtree, Tris, corners, f32_at_least, f32_at_most, max3,
+    min3,
 };
 use coarsen_geom::Aabb;
 use glam::DVec3;
@@ -42,19 +43,20 @@ fn split_at(codes: &[u64]) -> usize {
     codes.partition_point(|&c| c >> bit & 1 == 0)
 }
 
-/// The exact box of triangles `tris`.
-fn box_of(tris: &[[DVec3; 3]]) -> Aabb {
+/// The exact box of the triangles `range` of `tris`.
+fn box_of(tris: &Tris, range: std::ops::Range<usize>) -> Aabb {
     let mut b = Aabb::EMPTY;
-    for t in tris {
+    for i in range {
+        let t = tris.get(i);
         b.min = min3(min3(min3(b.min, t[0]), t[1]), t[2]);
         b.max = max3(max3(max3(b.max, t[0]), t[1]), t[2]);
     }
     b
 }
 
-/// The box of triangles `tris`, rounded outwards to single precision.
-fn leaf_box(tris: &[[DVec3; 3]]) -> ([f32; 3], [f32; 3]) {
-    let b = box_of(tris);
+/// The box of the triangles `range` of `tris`, rounded outwards to single precision.
+fn leaf_box(tris: &Tris, range: std::ops::Range<usize>) -> ([f32; 3], [f32; 3]) {
+    let b = box_of(tris, range);
     (
         b.min.to_array().map(f32_at_most),
         b.max.to_array().map(f32_at_least),
@@ -68,9 +70,9 @@ fn join_boxes(node: &mut Node, a: &Node, b: &Node) {
     node.max = [0, 1, 2].map(|k| a.max[k].max(b.max[k]));
 }
 
-/// The subtree over `codes` and their triangles `tris`, which start at `start` in leaf
-/// order, boxes set.
-fn subtree(codes: &[u64], tris: &[[DVec3; 3]], start: usize) -> Subtree {
+/// The subtree over `codes` and their triangles, which start at `start` in the leaf order
+/// of `tris`, boxes set.
+fn subtree(codes: &[u64], tris: &Tris, start: usize) -> Subtree {
     let n = codes.len();
     if n < PARALLEL_MIN {
         let mut nodes = vec![Node::BLANK];
@@ -79,7 +81,7 @@ fn subtree(codes: &[u64], tris: &[[DVec3; 3]], start: usize) -> Subtree {
             if hi - lo <= MAX_LEAF {
                 nodes[node].first = (start + lo) as u32;
                 nodes[node].count = (hi - lo) as u32;
-                (nodes[node].min, nodes[node].max) = leaf_box(&tris[lo..hi]);
+                (nodes[node].min, nodes[node].max) = leaf_box(tris, start + lo..start + hi);
                 continue;
             }
             let mid = lo + split_at(&codes[lo..hi]);
@@ -101,8 +103,11 @@ fn subtree(codes: &[u64], tris: &[[DVec3; 3]], start: usize) -> Subtree {
         return Subtree::Flat(nodes);
     }
     let mid = split_at(codes);
-    let ((lc, rc), (lt, rt)) = (codes.split_at(mid), tris.split_at(mid));
-    let halves = rayon::join(|| subtree(lc, lt, start), || subtree(rc, rt, start + mid));
+    let (lc, rc) = codes.split_at(mid);
+    let halves = rayon::join(
+        || subtree(lc, tris, start),
+        || subtree(rc, tris, start + mid),
+    );
     let mut root = Node::BLANK;
     join_boxes(&mut root, halves.0.root(), halves.1.root());
     Subtree::Split(root, Box::new(halves))
@@ -147,21 +152,22 @@ pub(crate) fn build(positions: &[DVec3], faces: &[[u32; 3]]) -> Bvh {
     let codes: Vec<u64> = keyed.par_iter().map(|k| k.0).collect();
     let face_ids: Vec<u32> = keyed.par_iter().map(|k| k.1).collect();
     drop(keyed);
-    let tris: Vec<[DVec3; 3]> = face_ids
-        .par_iter()
-        .map(|&f| corners(positions, &faces[f as usize]).unwrap_or([DVec3::ZERO; 3]))
-        .collect();
+    let tris = Tris::gather(positions, faces, &face_ids);
     let tree = subtree(&codes, &tris, 0);
     drop(codes);
     let pairs = tree.into_pairs();
     // Minima and maxima are exact, so the chunks may be merged in any order.
-    let root_box = tris.par_chunks(PARALLEL_MIN).map(box_of).reduce(
-        || Aabb::EMPTY,
-        |mut a, b| {
-            a.union(&b);
-            a
-        },
-    );
+    let n = tris.len();
+    let root_box = (0..n.div_ceil(PARALLEL_MIN))
+        .into_par_iter()
+        .map(|k| box_of(&tris, k * PARALLEL_MIN..((k + 1) * PARALLEL_MIN).min(n)))
+        .reduce(
+            || Aabb::EMPTY,
+            |mut a, b| {
+                a.union(&b);
+                a
+            },
+        );
     Bvh {
         pairs,
         tris,
