@@ -127,6 +127,47 @@ impl SplitMix64 {
     }
 }
 
+/// The clusterer's face layout against the mesh's face numbering; the identity (a mesh
+/// laid out in its own order, or one the runner renumbered along the curve already) is
+/// kept as its length alone (two arrays of a face each fewer: 36 MB at 4.4M faces).
+enum FacePerm {
+    Identity(usize),
+    Map {
+        /// Layout position → mesh face.
+        order: Vec<u32>,
+        /// Mesh face → layout position.
+        rank: Vec<u32>,
+    },
+}
+
+impl FacePerm {
+    /// The number of faces.
+    fn len(&self) -> usize {
+        match self {
+            FacePerm::Identity(n) => *n,
+            FacePerm::Map { order, .. } => order.len(),
+        }
+    }
+
+    /// The mesh face at layout position `i`.
+    #[inline]
+    fn order(&self, i: usize) -> u32 {
+        match self {
+            FacePerm::Identity(_) => i as u32,
+            FacePerm::Map { order, .. } => order[i],
+        }
+    }
+
+    /// The layout position of mesh face `f`.
+    #[inline]
+    fn rank(&self, f: usize) -> u32 {
+        match self {
+            FacePerm::Identity(_) => f as u32,
+            FacePerm::Map { rank, .. } => rank[f],
+        }
+    }
+}
+
 /// A face clustering in progress over one mesh.
 ///
 /// Generic over the energy so that the move tests call it directly; `dyn Energy` works too.
@@ -137,10 +178,8 @@ impl SplitMix64 {
 /// methods take and give faces in the mesh's own numbering.
 pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     energy: &'a E,
-    /// Layout position → mesh face.
-    order: Vec<u32>,
-    /// Mesh face → layout position.
-    rank: Vec<u32>,
+    /// Layout position ↔ mesh face.
+    perm: FacePerm,
     /// Per layout face: the layout face across each edge (corner i → i+1), or `NONE`.
     nbr: Vec<[u32; 3]>,
     /// Per layout face: its corners as layout vertices (when the layout is the mesh's own
@@ -239,26 +278,33 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 (0..nf as u32).collect(),
             ),
         };
-        let mut rank = vec![0u32; nf];
-        for (i, &f) in order.iter().enumerate() {
-            rank[f as usize] = i as u32;
-        }
+        let perm = match own_tables {
+            true => FacePerm::Identity(nf),
+            false => {
+                let mut rank = vec![0u32; nf];
+                for (i, &f) in order.iter().enumerate() {
+                    rank[f as usize] = i as u32;
+                }
+                FacePerm::Map { order, rank }
+            }
+        };
         let corners: Cow<'a, [[u32; 3]]> = match own_tables {
             true => Cow::Borrowed(&mesh.faces),
             false => Cow::Owned(
-                order
-                    .par_iter()
-                    .map(|&f| mesh.faces[f as usize].map(|v| vmap[v as usize]))
+                (0..nf)
+                    .into_par_iter()
+                    .map(|i| mesh.faces[perm.order(i) as usize].map(|v| vmap[v as usize]))
                     .collect(),
             ),
         };
         drop(vmap);
         // Face sums from the vertices in layout order (reads close in memory).
         let pos: Vec<DVec3> = vorder.par_iter().map(|&v| pos_of(v)).collect();
-        let face_sums: Vec<FacePoint> = order
+        let face_sums: Vec<FacePoint> = corners
             .par_iter()
-            .zip(corners.par_iter())
-            .map(|(&f, c)| {
+            .enumerate()
+            .map(|(i, c)| {
+                let f = perm.order(i);
                 let [a, b, c] = c.map(|v| pos[v as usize]);
                 let rho = density.map_or(1.0, |d| {
                     mesh.faces[f as usize]
@@ -289,7 +335,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 (Cow::Borrowed(off), Cow::Borrowed(fan))
             }
             false => {
-                let (off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| rank[g as usize]);
+                let (off, fan) = csr(&vorder, |v| topo.vertex_faces(v), |g| perm.rank(g as usize));
                 (Cow::Owned(off), Cow::Owned(fan))
             }
         };
@@ -297,20 +343,20 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             .par_iter()
             .map(|&v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
             .collect();
-        let nbr: Vec<[u32; 3]> = order
-            .par_iter()
-            .map(|&f| {
+        let nbr: Vec<[u32; 3]> = (0..nf)
+            .into_par_iter()
+            .map(|i| {
+                let f = perm.order(i);
                 topo.face_edges(f)
                     .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
-                        Some(&[a, b]) => rank[if a == f { b } else { a } as usize],
+                        Some(&[a, b]) => perm.rank(if a == f { b } else { a } as usize),
                         _ => NONE,
                     })
             })
             .collect();
         Ok(Clusterer {
             energy,
-            order,
-            rank,
+            perm,
             nbr,
             corners,
             fan_off,
@@ -377,7 +423,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let (comp, n) = self.layout_components();
         let mut out = vec![0u32; comp.len()];
         for (i, &c) in comp.iter().enumerate() {
-            out[self.order[i] as usize] = c;
+            out[self.perm.order(i) as usize] = c;
         }
         (out, n)
     }
@@ -512,10 +558,10 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
 
     /// Takes over an existing clustering of `n` clusters (labels `0..n`).
     pub fn set_labels(&mut self, labels: Vec<u32>, n: usize) -> Result<(), ClusterError> {
-        if labels.len() != self.order.len() {
+        if labels.len() != self.perm.len() {
             return Err(ClusterError::LabelCount {
                 labels: labels.len(),
-                faces: self.order.len(),
+                faces: self.perm.len(),
             });
         }
         if let Some((face, &label)) = labels.iter().enumerate().find(|(_, l)| **l as usize >= n) {
@@ -526,8 +572,8 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             });
         }
         let mut sums = vec![Sums::default(); n];
-        for (i, &f) in self.order.iter().enumerate() {
-            let l = labels[f as usize] as usize;
+        for i in 0..self.perm.len() {
+            let l = labels[self.perm.order(i) as usize] as usize;
             sums[l] = sums[l].plus(self.face_sums[i].sums());
         }
         self.labels = labels;
@@ -542,7 +588,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let mut own = vec![0u32; labels.len()];
         for (i, &l) in labels.iter().enumerate() {
             sums[l as usize] = sums[l as usize].plus(self.face_sums[i].sums());
-            own[self.order[i] as usize] = l;
+            own[self.perm.order(i) as usize] = l;
         }
         self.labels = own;
         self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
@@ -564,10 +610,10 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         if from == to || self.sums[from as usize].count < 1.5 {
             return false;
         }
-        let tl = self.rank[t as usize];
+        let tl = self.perm.rank(t as usize);
         self.corners[tl as usize].iter().all(|&v| {
             fan_runs(self.fan(v), self.closed[v as usize], [from, to, tl], |g| {
-                self.labels[self.order[g as usize] as usize]
+                self.labels[self.perm.order(g as usize) as usize]
             })
             .iter()
             .all(|&r| r <= 1)
@@ -577,7 +623,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// Moves face `t` to cluster `to` (no checks).
     pub fn apply_move(&mut self, t: u32, to: u32) {
         let from = self.labels[t as usize] as usize;
-        let ft = self.face_sums[self.rank[t as usize] as usize].sums();
+        let ft = self.face_sums[self.perm.rank(t as usize) as usize].sums();
         self.sums[from] = self.sums[from].minus(ft);
         self.sums[to as usize] = self.sums[to as usize].plus(ft);
         self.terms[from] = self.energy.cluster(&self.sums[from]);
@@ -599,7 +645,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         start: Option<&[u32]>,
         mut on_pass: impl FnMut(u32, u64, f64),
     ) -> PassLog {
-        let nf = self.order.len();
+        let nf = self.perm.len();
         let n = self.sums.len();
         if n == 0 {
             // Nothing labelled yet: nothing to minimise.
@@ -615,7 +661,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 set(&cur, f);
             }),
             Some(faces) => faces.iter().filter(|&&f| (f as usize) < nf).for_each(|&f| {
-                set(&cur, self.rank[f as usize]);
+                set(&cur, self.perm.rank(f as usize));
             }),
         }
         let mut log = PassLog {
@@ -654,10 +700,9 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             new_of[c as usize] = i as u32;
         }
         // Labels by layout face, in the parts' cluster numbering.
-        let labels: Vec<AtomicU32> = self
-            .order
-            .par_iter()
-            .map(|&f| AtomicU32::new(new_of[self.labels[f as usize] as usize]))
+        let labels: Vec<AtomicU32> = (0..nf)
+            .into_par_iter()
+            .map(|i| AtomicU32::new(new_of[self.labels[self.perm.order(i) as usize] as usize]))
             .collect();
         let mut sums: Vec<Sums> = order.iter().map(|&c| self.sums[c as usize]).collect();
         let mut terms: Vec<f64> = order.iter().map(|&c| self.terms[c as usize]).collect();
@@ -725,7 +770,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             }
         }
         for (i, l) in labels.into_iter().enumerate() {
-            self.labels[self.order[i] as usize] = order[l.into_inner() as usize];
+            self.labels[self.perm.order(i) as usize] = order[l.into_inner() as usize];
         }
         for (i, &c) in order.iter().enumerate() {
             self.sums[c as usize] = sums[i];
@@ -738,10 +783,9 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// the dual's repairs).
     pub fn connected_clusters(&self) -> Vec<bool> {
         let n = self.sums.len();
-        let labels: Vec<u32> = self
-            .order
-            .par_iter()
-            .map(|&f| self.labels[f as usize])
+        let labels: Vec<u32> = (0..self.perm.len())
+            .into_par_iter()
+            .map(|i| self.labels[self.perm.order(i) as usize])
             .collect();
         // The faces (layout slots) of each cluster.
         let (start, members) = faces_by_cluster(&labels, n);
