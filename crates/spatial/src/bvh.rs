@@ -2,9 +2,10 @@
 //!
 //! Layout: one flat array of nodes (the root first, the two children of an inner node
 //! side by side, each pair in one 64-byte cache line: 32-byte nodes with single-precision
-//! boxes rounded outwards) and the triangles' corners copied in leaf order, in double
-//! precision, so that a query walks contiguous memory and the index owns everything it
-//! needs (no borrow of the mesh).
+//! boxes rounded outwards) and the triangles in leaf order as three indices into the
+//! index's own copy of the positions, in double precision, so that the index owns
+//! everything it needs (no borrow of the mesh); a leaf's corners are all loaded before
+//! any is measured, so that their loads overlap.
 //!
 //! Build: top-down binned surface-area heuristic (16 bins on each axis of the centroid
 //! box; a range of more than 2 × [`SAMPLE`] triangles bins an even sample of them), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
