@@ -1,17 +1,18 @@
 //! The estimators: per-face corner terms, per-vertex sums, then the special vertices.
 //!
-//! The work runs in four phases, each a flat loop:
+//! The work runs in three phases, each a flat loop:
 //!
 //! 1. **`normalise_positions`**: positions moved to the bounding-box centre and scaled so
 //!    the box's longest side is 1, so areas neither overflow nor underflow and the
 //!    degenerate-area cut-off is relative to the mesh's size.
-//! 2. **`face_terms`** (parallel over faces): per corner its angle, its share of the
-//!    vertex area (mixed Voronoi, a third, or all of the face) and the gradient of the
-//!    face's area with respect to that corner; per face its twice-area normal.
-//! 3. **`vertex_sums`** (parallel over vertices): each vertex adds its corner terms over
-//!    [`Topology::vertex_faces`] in fan order (a fixed order: the same bits with any
-//!    thread count), classifies itself, and regular vertices get their curvature.
-//! 4. **`fill_special_vertices`**: boundary (by default), non-manifold and zero-area vertices
+//! 2. **`vertex_sums`** (parallel over vertices): each vertex adds the terms of its corner
+//!    of each face over [`Topology::vertex_faces`] in fan order (a fixed order: the same
+//!    bits with any thread count) — the corner's angle, its share of the vertex area (mixed
+//!    Voronoi, a third, or all of the face), the gradient of the face's area with respect
+//!    to it, and the face's twice-area normal — classifies itself, and regular vertices get
+//!    their curvature. The terms are worked out where they are summed, not stored per face
+//!    first (at 4.4M faces that table was 640 MB).
+//! 3. **`fill_special_vertices`**: boundary (by default), non-manifold and zero-area vertices
 //!    take the mean of their already resolved neighbours, ring after ring outwards from
 //!    the regular vertices.
 //!
@@ -117,16 +118,16 @@ pub struct Counts {
     pub clamped: usize,
 }
 
-/// The per-corner and per-face terms of one face.
+/// The terms of one corner of a face.
 #[derive(Clone, Copy, Debug, Default)]
-struct FaceTerms {
-    /// Interior angle at each corner.
-    angle: [f64; 3],
-    /// Each corner's share of its vertex's area.
-    area: [f64; 3],
-    /// Gradient of the face's area with respect to each corner.
-    grad: [DVec3; 3],
-    /// Twice-area normal `(b − a) × (c − a)`, in the face's own orientation.
+struct CornerTerms {
+    /// Interior angle at the corner.
+    angle: f64,
+    /// The corner's share of its vertex's area.
+    area: f64,
+    /// Gradient of the face's area with respect to the corner.
+    grad: DVec3,
+    /// The face's twice-area normal `(b − a) × (c − a)`, in its own orientation.
     normal: DVec3,
 }
 
@@ -155,8 +156,7 @@ pub fn estimate_with(
 ) -> Result<Estimate, CurvatureError> {
     mesh.validate_indices()?;
     let (positions, half_side) = normalise_positions(&mesh.positions)?;
-    let faces = face_terms(&positions, &mesh.faces, params);
-    let sums = vertex_sums(&mesh.faces, &faces, topo);
+    let sums = vertex_sums(&mesh.faces, &positions, params, topo);
 
     let mut counts = Counts::default();
     for s in &sums {
@@ -276,45 +276,35 @@ fn normalise_positions(positions: &[DVec3]) -> Result<(Vec<DVec3>, f64), Curvatu
     Ok((normalised, half_side))
 }
 
-/// Corner angles, corner areas and corner area-gradients of every face.
-fn face_terms(positions: &[DVec3], faces: &[[u32; 3]], params: &CurvatureParams) -> Vec<FaceTerms> {
-    faces
-        .par_iter()
-        .with_min_len(MIN_CHUNK)
-        .map(|f| {
-            let [a, b, c] = f.map(|i| positions[i as usize]);
-            one_face(a, b, c, params)
-        })
-        .collect()
-}
-
-/// The terms of triangle `abc`.
-fn one_face(a: DVec3, b: DVec3, c: DVec3, params: &CurvatureParams) -> FaceTerms {
+/// The terms of corner `corner` (0 for `a`, 1 for `b`, 2 for `c`) of triangle `abc`.
+fn corner_terms(
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+    corner: usize,
+    params: &CurvatureParams,
+) -> CornerTerms {
     let normal = (b - a).cross(c - a);
     // |u × v| is twice the area at every corner, so one cross product serves all three.
     let n2 = normal.length();
     let area = 0.5 * n2;
     let dots = [(b - a).dot(c - a), (c - b).dot(a - b), (a - c).dot(b - c)];
     // atan2(0, 0) = 0: a corner on a zero-length edge has angle 0, as in `coarsen_geom`.
-    let angle = dots.map(|d| n2.atan2(d));
+    let angle = n2.atan2(dots[corner]);
     let area_share = match params.method {
-        Method::Meyer => mixed_areas(a, b, c, dots, n2),
+        Method::Meyer => mixed_areas(a, b, c, dots, n2)[corner],
         Method::AngleDeficit => match params.deficit_area {
-            DeficitArea::Barycentric => [area / 3.0; 3],
-            DeficitArea::IncidentSum => [area; 3],
+            DeficitArea::Barycentric => area / 3.0,
+            DeficitArea::IncidentSum => area,
         },
     };
     let grad = if n2 > 0.0 {
         let u = normal / n2;
-        [
-            0.5 * u.cross(c - b),
-            0.5 * u.cross(a - c),
-            0.5 * u.cross(b - a),
-        ]
+        0.5 * u.cross([c - b, a - c, b - a][corner])
     } else {
-        [DVec3::ZERO; 3]
+        DVec3::ZERO
     };
-    FaceTerms {
+    CornerTerms {
         angle,
         area: area_share,
         grad,
@@ -355,7 +345,12 @@ fn mixed_areas(a: DVec3, b: DVec3, c: DVec3, dots: [f64; 3], n2: f64) -> [f64; 3
 }
 
 /// Every vertex's corner sums and class.
-fn vertex_sums(faces: &[[u32; 3]], terms: &[FaceTerms], topo: &Topology) -> Vec<VertexSums> {
+fn vertex_sums(
+    faces: &[[u32; 3]],
+    positions: &[DVec3],
+    params: &CurvatureParams,
+    topo: &Topology,
+) -> Vec<VertexSums> {
     (0..topo.n_vertices() as u32)
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
@@ -368,13 +363,14 @@ fn vertex_sums(faces: &[[u32; 3]], terms: &[FaceTerms], topo: &Topology) -> Vec<
                 normal: DVec3::ZERO,
             };
             for &f in topo.vertex_faces(v) {
-                let t = &terms[f as usize];
                 let Some(corner) = faces[f as usize].iter().position(|&x| x == v) else {
                     continue;
                 };
-                s.angle += t.angle[corner];
-                s.area += t.area[corner];
-                s.grad += t.grad[corner];
+                let [a, b, c] = faces[f as usize].map(|i| positions[i as usize]);
+                let t = corner_terms(a, b, c, corner, params);
+                s.angle += t.angle;
+                s.area += t.area;
+                s.grad += t.grad;
                 s.normal += t.normal;
             }
             s.class = if topo.is_isolated_vertex(v) {
@@ -489,11 +485,26 @@ mod tests {
     /// Per-vertex area as the estimators sum it.
     fn vertex_areas(mesh: &Mesh, params: &CurvatureParams) -> Vec<f64> {
         let topo = Topology::build(mesh);
-        let terms = face_terms(&mesh.positions, &mesh.faces, params);
-        vertex_sums(&mesh.faces, &terms, &topo)
+        vertex_sums(&mesh.faces, &mesh.positions, params, &topo)
             .iter()
             .map(|s| s.area)
             .collect()
+    }
+
+    /// The corner terms of triangle `abc`, corner by corner.
+    struct FaceTerms {
+        angle: [f64; 3],
+        area: [f64; 3],
+        grad: [DVec3; 3],
+    }
+
+    fn one_face(a: DVec3, b: DVec3, c: DVec3, params: &CurvatureParams) -> FaceTerms {
+        let t = [0, 1, 2].map(|k| corner_terms(a, b, c, k, params));
+        FaceTerms {
+            angle: t.map(|x| x.angle),
+            area: t.map(|x| x.area),
+            grad: t.map(|x| x.grad),
+        }
     }
 
     #[test]
