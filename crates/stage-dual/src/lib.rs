@@ -297,253 +297,236 @@ impl Repaired {
             stats,
             boundary,
         } = self;
-        place_and_mend(
-            mesh, labels, n, faces, stats, &boundary, placement, surface, fix_facing,
-        )
-    }
-}
-
-/// [`Repaired::finish`].
-#[allow(clippy::too_many_arguments)]
-fn place_and_mend(
-    mesh: &Mesh,
-    labels: &[u32],
-    n: usize,
-    faces: Vec<[u32; 3]>,
-    stats: DualStats,
-    boundary: &Boundary,
-    placement: Placement,
-    surface: Option<&Facing<'_>>,
-    fix_facing: bool,
-) -> Result<Dual, DualError> {
-    // One index of the surface serves the placement and the flipped-face test.
-    let own;
-    let facing = match surface {
-        Some(f) => f,
-        None => {
-            own = Facing::new(mesh);
-            &own
-        }
-    };
-    // Each cluster's faces, ascending: for the centroids and the vertex origins.
-    let (start, members) = faces_by_cluster(labels, n);
-    let centroids = cluster_centroids(mesh, &start, &members);
-    let (mut positions, on_boundary, quadric_fallbacks) =
-        place(mesh, boundary, labels, &centroids, placement, facing.bvh());
-    let boundary_clusters = on_boundary.iter().filter(|&&b| b).count();
-    // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
-    // one facing away from the input surface nearest its centroid (closest-vertex placement
-    // on a curved part), gets its clusters' vertices moved to the projected centroids, the
-    // most central choice (the report's `degenerate_fixes`).
-    let diag2 = mesh.bbox().diagonal().powi(2);
-    let flat = |f: &[u32; 3], positions: &[DVec3]| {
-        let [a, b, c] = f.map(|i| positions[i as usize]);
-        coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
-    };
-    let away = |f: &[u32; 3], positions: &[DVec3]| {
-        let [a, b, c] = f.map(|i| positions[i as usize]);
-        facing.faces_away(a, b, c)
-    };
-    // Per output face: whether it faces away (the costly test, run in parallel, and again
-    // only for faces whose vertices move).
-    let mut turned: Vec<bool> = faces.par_iter().map(|f| away(f, &positions)).collect();
-    // The clusters (output vertices) of the faces `pick` selects, ascending.
-    let clusters_of = |pick: &dyn Fn(usize) -> bool| -> Vec<u32> {
-        let mut v: Vec<u32> = (0..faces.len())
-            .filter(|&i| pick(i))
-            .flat_map(|i| faces[i])
-            .collect();
-        v.sort_unstable();
-        v.dedup();
-        v
-    };
-    // With `fix_facing`, clusters on the input boundary (whose vertices the placement put
-    // on it) stay out of this first move: they try points of their boundary edges first
-    // below, and leave the boundary only when none of those will do.
-    let rim = |c: usize| fix_facing && on_boundary[c];
-    let mut bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
-    bad.retain(|&c| !rim(c as usize));
-    if !bad.is_empty() {
-        // Unsnapped: a boundary cluster between two others on a straight boundary would
-        // otherwise give a flat triangle; its vertex then stays just inside the boundary.
-        let projected: Vec<DVec3> = bad
-            .par_iter()
-            .map(|&c| {
-                let g = centroids[c as usize];
-                facing.bvh().closest_point(g).map_or(g, |h| h.point)
-            })
-            .collect();
-        let mut changed = vec![false; n];
-        for (&c, p) in bad.iter().zip(projected) {
-            positions[c as usize] = p;
-            changed[c as usize] = true;
-        }
-        turned
-            .par_iter_mut()
-            .zip(&faces)
-            .filter(|(_, f)| f.iter().any(|&c| changed[c as usize]))
-            .for_each(|(t, f)| *t = away(f, &positions));
-    }
-    let mut moved = bad.len();
-    let still = clusters_of(&|i| flat(&faces[i], &positions) || (fix_facing && turned[i]));
-    if !still.is_empty() {
-        // Centroids in a row (e.g. thin clusters along a straight strip), or a face across a
-        // part thinner than a cluster (nearest the opposite sheet): each vertex of such a
-        // triangle tries points of its cluster's faces. Against flat triangles it takes, of
-        // those that leave none of its triangles flat, the one with the fewest facing away
-        // (nearest first); against faces facing away, one that leaves fewer facing away and
-        // none flat, the one whose triangles keep the largest smallest angle.
-        let mut involved = vec![false; n];
-        still.iter().for_each(|&c| involved[c as usize] = true);
-        let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for (f, &c) in labels.iter().enumerate() {
-            if involved[c as usize] {
-                members[c as usize].push(f as u32);
+        let boundary = &boundary;
+        // One index of the surface serves the placement and the flipped-face test.
+        let own;
+        let facing = match surface {
+            Some(f) => f,
+            None => {
+                own = Facing::new(mesh);
+                &own
             }
-        }
-        // The boundary edges of the involved clusters kept on the boundary above.
-        let mut edges_of: Vec<Vec<[DVec3; 2]>> = vec![Vec::new(); n];
-        for &(f, ends) in &boundary.edges {
-            let c = labels[f as usize] as usize;
-            if involved[c] && rim(c) {
-                edges_of[c].push(ends.map(|v| mesh.positions[v as usize]));
-            }
-        }
-        let mut around: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for (i, f) in faces.iter().enumerate() {
-            f.iter()
-                .filter(|&&c| involved[c as usize])
-                .for_each(|&c| around[c as usize].push(i));
-        }
-        for &c in &still {
-            // (flat, facing away) triangles around c.
-            let score = |positions: &[DVec3]| {
-                around[c as usize].iter().fold((0, 0), |(fl, aw), &i| {
-                    let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
-                    (
-                        fl + flat(&faces[i], positions) as usize,
-                        aw + facing.faces_away(a, b, cc) as usize,
-                    )
+        };
+        // Each cluster's faces, ascending: for the centroids and the vertex origins.
+        let (start, members) = faces_by_cluster(labels, n);
+        let centroids = cluster_centroids(mesh, &start, &members);
+        let (mut positions, on_boundary, quadric_fallbacks) =
+            place(mesh, boundary, labels, &centroids, placement, facing.bvh());
+        let boundary_clusters = on_boundary.iter().filter(|&&b| b).count();
+        // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
+        // one facing away from the input surface nearest its centroid (closest-vertex placement
+        // on a curved part), gets its clusters' vertices moved to the projected centroids, the
+        // most central choice (the report's `degenerate_fixes`).
+        let diag2 = mesh.bbox().diagonal().powi(2);
+        let flat = |f: &[u32; 3], positions: &[DVec3]| {
+            let [a, b, c] = f.map(|i| positions[i as usize]);
+            coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
+        };
+        let away = |f: &[u32; 3], positions: &[DVec3]| {
+            let [a, b, c] = f.map(|i| positions[i as usize]);
+            facing.faces_away(a, b, c)
+        };
+        // Per output face: whether it faces away (the costly test, run in parallel, and again
+        // only for faces whose vertices move).
+        let mut turned: Vec<bool> = faces.par_iter().map(|f| away(f, &positions)).collect();
+        // The clusters (output vertices) of the faces `pick` selects, ascending.
+        let clusters_of = |pick: &dyn Fn(usize) -> bool| -> Vec<u32> {
+            let mut v: Vec<u32> = (0..faces.len())
+                .filter(|&i| pick(i))
+                .flat_map(|i| faces[i])
+                .collect();
+            v.sort_unstable();
+            v.dedup();
+            v
+        };
+        // With `fix_facing`, clusters on the input boundary (whose vertices the placement put
+        // on it) stay out of this first move: they try points of their boundary edges first
+        // below, and leave the boundary only when none of those will do.
+        let rim = |c: usize| fix_facing && on_boundary[c];
+        let mut bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
+        bad.retain(|&c| !rim(c as usize));
+        if !bad.is_empty() {
+            // Unsnapped: a boundary cluster between two others on a straight boundary would
+            // otherwise give a flat triangle; its vertex then stays just inside the boundary.
+            let projected: Vec<DVec3> = bad
+                .par_iter()
+                .map(|&c| {
+                    let g = centroids[c as usize];
+                    facing.bvh().closest_point(g).map_or(g, |h| h.point)
                 })
-            };
-            // The smallest angle of the triangles around c.
-            let smallest_angle = |positions: &[DVec3]| {
-                around[c as usize]
-                    .iter()
-                    .map(|&i| {
+                .collect();
+            let mut changed = vec![false; n];
+            for (&c, p) in bad.iter().zip(projected) {
+                positions[c as usize] = p;
+                changed[c as usize] = true;
+            }
+            turned
+                .par_iter_mut()
+                .zip(&faces)
+                .filter(|(_, f)| f.iter().any(|&c| changed[c as usize]))
+                .for_each(|(t, f)| *t = away(f, &positions));
+        }
+        let mut moved = bad.len();
+        let still = clusters_of(&|i| flat(&faces[i], &positions) || (fix_facing && turned[i]));
+        if !still.is_empty() {
+            // Centroids in a row (e.g. thin clusters along a straight strip), or a face across a
+            // part thinner than a cluster (nearest the opposite sheet): each vertex of such a
+            // triangle tries points of its cluster's faces. Against flat triangles it takes, of
+            // those that leave none of its triangles flat, the one with the fewest facing away
+            // (nearest first); against faces facing away, one that leaves fewer facing away and
+            // none flat, the one whose triangles keep the largest smallest angle.
+            let mut involved = vec![false; n];
+            still.iter().for_each(|&c| involved[c as usize] = true);
+            let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
+            for (f, &c) in labels.iter().enumerate() {
+                if involved[c as usize] {
+                    members[c as usize].push(f as u32);
+                }
+            }
+            // The boundary edges of the involved clusters kept on the boundary above.
+            let mut edges_of: Vec<Vec<[DVec3; 2]>> = vec![Vec::new(); n];
+            for &(f, ends) in &boundary.edges {
+                let c = labels[f as usize] as usize;
+                if involved[c] && rim(c) {
+                    edges_of[c].push(ends.map(|v| mesh.positions[v as usize]));
+                }
+            }
+            let mut around: Vec<Vec<usize>> = vec![Vec::new(); n];
+            for (i, f) in faces.iter().enumerate() {
+                f.iter()
+                    .filter(|&&c| involved[c as usize])
+                    .for_each(|&c| around[c as usize].push(i));
+            }
+            for &c in &still {
+                // (flat, facing away) triangles around c.
+                let score = |positions: &[DVec3]| {
+                    around[c as usize].iter().fold((0, 0), |(fl, aw), &i| {
                         let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
-                        coarsen_geom::triangle::min_angle(a, b, cc)
+                        (
+                            fl + flat(&faces[i], positions) as usize,
+                            aw + facing.faces_away(a, b, cc) as usize,
+                        )
                     })
-                    .fold(f64::INFINITY, f64::min)
-            };
-            let here = positions[c as usize];
-            let now = score(&positions);
-            if now.0 == 0 && now.1 == 0 {
-                continue;
-            }
-            // A cluster kept on the boundary first tries the ends and middles of its
-            // boundary edges (nearest first): of those that leave none of its triangles
-            // flat or facing away, the one with the largest smallest angle.
-            let mut on_rim: Vec<(f64, u64, DVec3)> = edges_of[c as usize]
-                .iter()
-                .enumerate()
-                .flat_map(|(i, &[a, b])| {
-                    [a, a.lerp(b, 0.5), b]
-                        .into_iter()
-                        .enumerate()
-                        .map(move |(k, p)| {
-                            (p.distance_squared(here), (i as u64) << 2 | k as u64, p)
-                        })
-                })
-                .collect();
-            on_rim.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let mut kept = None;
-            for (_, _, p) in on_rim {
-                positions[c as usize] = p;
-                if score(&positions) != (0, 0) {
-                    continue;
-                }
-                let shape = smallest_angle(&positions);
-                if kept.is_none_or(|(_, w)| shape > w) {
-                    kept = Some((p, shape));
-                }
-            }
-            if let Some((p, _)) = kept {
-                positions[c as usize] = p;
-                moved += 1;
-                continue;
-            }
-            positions[c as usize] = here;
-            // Each face's centroid, and the points halfway from it to the face's corners
-            // (the centroids alone are in a row too under a fan of faces on a straight line).
-            let mut cand: Vec<(f64, u64, DVec3)> = members[c as usize]
-                .iter()
-                .flat_map(|&f| {
-                    let g = mesh.face_centroid(f as usize);
-                    let [a, b, cc] = mesh.corners(f as usize);
-                    [g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(cc, 0.5)]
-                        .into_iter()
-                        .enumerate()
-                        .map(move |(k, p)| {
-                            (p.distance_squared(here), (u64::from(f) << 2) | k as u64, p)
-                        })
-                })
-                .collect();
-            // And the nearest point of the surface's side the cluster faces: across a
-            // part thinner than a cluster, the side its triangles belong on.
-            if now.1 > 0 {
-                let normal = mesh.faces_cross(&members[c as usize]);
-                if let Some(p) = facing.project_facing(centroids[c as usize], normal) {
-                    cand.push((p.distance_squared(here), u64::MAX, p));
-                }
-            }
-            cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let mut best: Option<((usize, usize), DVec3, f64)> = None;
-            for (_, _, p) in cand {
-                positions[c as usize] = p;
-                let sc = score(&positions);
-                if sc.0 > 0 || (now.0 == 0 && sc.1 >= now.1) {
-                    continue;
-                }
-                // Flat triangles: the nearest of the fewest facing away (angles not looked at).
-                let shape = match now.0 {
-                    0 => smallest_angle(&positions),
-                    _ => 0.0,
                 };
-                if best.is_none_or(|(b, _, w)| sc.1 < b.1 || (sc.1 == b.1 && shape > w)) {
-                    best = Some((sc, p, shape));
+                // The smallest angle of the triangles around c.
+                let smallest_angle = |positions: &[DVec3]| {
+                    around[c as usize]
+                        .iter()
+                        .map(|&i| {
+                            let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
+                            coarsen_geom::triangle::min_angle(a, b, cc)
+                        })
+                        .fold(f64::INFINITY, f64::min)
+                };
+                let here = positions[c as usize];
+                let now = score(&positions);
+                if now.0 == 0 && now.1 == 0 {
+                    continue;
                 }
+                // A cluster kept on the boundary first tries the ends and middles of its
+                // boundary edges (nearest first): of those that leave none of its triangles
+                // flat or facing away, the one with the largest smallest angle.
+                let mut on_rim: Vec<(f64, u64, DVec3)> = edges_of[c as usize]
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(i, &[a, b])| {
+                        [a, a.lerp(b, 0.5), b]
+                            .into_iter()
+                            .enumerate()
+                            .map(move |(k, p)| {
+                                (p.distance_squared(here), (i as u64) << 2 | k as u64, p)
+                            })
+                    })
+                    .collect();
+                on_rim.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let mut kept = None;
+                for (_, _, p) in on_rim {
+                    positions[c as usize] = p;
+                    if score(&positions) != (0, 0) {
+                        continue;
+                    }
+                    let shape = smallest_angle(&positions);
+                    if kept.is_none_or(|(_, w)| shape > w) {
+                        kept = Some((p, shape));
+                    }
+                }
+                if let Some((p, _)) = kept {
+                    positions[c as usize] = p;
+                    moved += 1;
+                    continue;
+                }
+                positions[c as usize] = here;
+                // Each face's centroid, and the points halfway from it to the face's corners
+                // (the centroids alone are in a row too under a fan of faces on a straight line).
+                let mut cand: Vec<(f64, u64, DVec3)> = members[c as usize]
+                    .iter()
+                    .flat_map(|&f| {
+                        let g = mesh.face_centroid(f as usize);
+                        let [a, b, cc] = mesh.corners(f as usize);
+                        [g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(cc, 0.5)]
+                            .into_iter()
+                            .enumerate()
+                            .map(move |(k, p)| {
+                                (p.distance_squared(here), (u64::from(f) << 2) | k as u64, p)
+                            })
+                    })
+                    .collect();
+                // And the nearest point of the surface's side the cluster faces: across a
+                // part thinner than a cluster, the side its triangles belong on.
+                if now.1 > 0 {
+                    let normal = mesh.faces_cross(&members[c as usize]);
+                    if let Some(p) = facing.project_facing(centroids[c as usize], normal) {
+                        cand.push((p.distance_squared(here), u64::MAX, p));
+                    }
+                }
+                cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let mut best: Option<((usize, usize), DVec3, f64)> = None;
+                for (_, _, p) in cand {
+                    positions[c as usize] = p;
+                    let sc = score(&positions);
+                    if sc.0 > 0 || (now.0 == 0 && sc.1 >= now.1) {
+                        continue;
+                    }
+                    // Flat triangles: the nearest of the fewest facing away (angles not looked at).
+                    let shape = match now.0 {
+                        0 => smallest_angle(&positions),
+                        _ => 0.0,
+                    };
+                    if best.is_none_or(|(b, _, w)| sc.1 < b.1 || (sc.1 == b.1 && shape > w)) {
+                        best = Some((sc, p, shape));
+                    }
+                }
+                positions[c as usize] = best.map_or(here, |(_, p, _)| p);
+                moved += best.is_some() as usize;
             }
-            positions[c as usize] = best.map_or(here, |(_, p, _)| p);
-            moved += best.is_some() as usize;
         }
-    }
-    let degenerate = faces.iter().find(|f| flat(f, &positions));
-    if let Some(f) = degenerate {
-        return Err(DualError::Unrepaired(format!(
-            "the output vertex of cluster {} lies on a degenerate triangle",
-            f[0]
-        )));
-    }
-    // Origins serve only to carry vertex attributes: none, none to gather.
-    let origins = match mesh.vertex_attrs.is_empty() {
-        true => {
-            let mut o = VertexOrigins::with_capacity(n);
-            (0..n).for_each(|_| o.push_unknown());
-            o
+        let degenerate = faces.iter().find(|f| flat(f, &positions));
+        if let Some(f) = degenerate {
+            return Err(DualError::Unrepaired(format!(
+                "the output vertex of cluster {} lies on a degenerate triangle",
+                f[0]
+            )));
         }
-        false => vertex_origins(mesh, &start, &members),
-    };
-    let mut fo = FaceOrigins::with_capacity(faces.len());
-    faces.iter().for_each(|_| fo.push_unknown());
-    let (out, _) = mesh.rebuilt(positions, faces, &origins, &fo);
-    Ok(Dual {
-        mesh: out,
-        stats,
-        boundary_clusters,
-        quadric_fallbacks,
-        degenerate_fixes: moved,
-    })
+        // Origins serve only to carry vertex attributes: none, none to gather.
+        let origins = match mesh.vertex_attrs.is_empty() {
+            true => {
+                let mut o = VertexOrigins::with_capacity(n);
+                (0..n).for_each(|_| o.push_unknown());
+                o
+            }
+            false => vertex_origins(mesh, &start, &members),
+        };
+        let mut fo = FaceOrigins::with_capacity(faces.len());
+        faces.iter().for_each(|_| fo.push_unknown());
+        let (out, _) = mesh.rebuilt(positions, faces, &origins, &fo);
+        Ok(Dual {
+            mesh: out,
+            stats,
+            boundary_clusters,
+            quadric_fallbacks,
+            degenerate_fixes: moved,
+        })
+    }
 }
 
 /// Why `n` vertices cannot make a valid mesh of `topo`'s topology, if they cannot: every
