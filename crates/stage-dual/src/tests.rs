@@ -585,3 +585,40 @@ const THREE_PASSES: Repair = Repair {
     relax_passes: 3,
     fold_guard: false,
 };
+
+#[test]
+fn the_stage_lets_the_adjacency_go_and_leaves_the_input_index_built() {
+    let mesh = icosphere(1.0, 3).unwrap();
+    let shared = coarsen_stage::shared::Shared::new();
+    let mut r1 = StageReport::default();
+    let mut cx = Context::new(&mesh, &mut r1);
+    cx.shared = Some(&shared);
+    let p = CvtParams {
+        clusters: 60,
+        ..CvtParams::default()
+    };
+    let clustered = ClusterCvt::new(p).run(mesh.clone(), &mut cx).unwrap();
+    // The clustering left the input's adjacency for the stages after it.
+    assert!(shared.topology_at_hand(&clustered).is_some());
+    let mut report = StageReport::default();
+    let mut cx = Context::new(&mesh, &mut report);
+    cx.shared = Some(&shared);
+    let out = DualStage::new(DualParams::default())
+        .run(clustered.clone(), &mut cx)
+        .unwrap();
+    assert_eq!(out.n_vertices(), 60);
+    assert!(
+        shared.topology_at_hand(&clustered).is_none(),
+        "the adjacency outlived the dual"
+    );
+    let index = shared.input_index_at_hand::<SurfaceIndex>().unwrap();
+    // The index built from the parts taken before the adjacency went is the one the
+    // adjacency would give.
+    let (kept, whole) = (Facing::with_index(&mesh, index), Facing::new(&mesh));
+    for q in [DVec3::new(0.3, -0.2, 0.9), DVec3::new(-1.2, 0.4, 0.1)] {
+        assert_eq!(
+            kept.bvh().closest_point(q).map(|h| (h.face, h.point)),
+            whole.bvh().closest_point(q).map(|h| (h.face, h.point))
+        );
+    }
+}
