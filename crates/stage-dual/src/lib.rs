@@ -874,25 +874,23 @@ impl Stage for DualStage {
         // The input's index takes what it needs of the adjacency (the clustered mesh's, when
         // the clustering ran on the input) before the adjacency goes and the index's face
         // hierarchy is built: at millions of faces the two together set the run's peak.
-        let index = match cx.original.n_faces() {
-            0 => None,
-            _ => match cx.input_index_at_hand::<SurfaceIndex>() {
-                Some(index) => Some(Ok(index)),
-                None => Some(Err(SurfaceParts::of(
-                    cx.original,
-                    &*cx.input_topology().map_err(|e| {
-                        StageError::Input(format!("`{}`: the input: {e}", Self::KIND))
-                    })?,
-                ))),
-            },
+        let has_input = cx.original.n_faces() > 0;
+        let parts = match has_input && cx.input_index_at_hand::<SurfaceIndex>().is_none() {
+            false => None,
+            true => Some(SurfaceParts::of(
+                cx.original,
+                &*cx.input_topology()
+                    .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?,
+            )),
         };
         drop(topo);
         cx.release_topology();
-        let facing = index.map(|index| {
-            let index = match index {
-                Ok(index) => index,
-                Err(parts) => cx.input_index(|original| parts.build(original)),
-            };
+        // Built from those parts unless a stage before built it.
+        let facing = has_input.then(|| {
+            let index = cx.input_index(|original| match parts {
+                Some(parts) => parts.build(original),
+                None => SurfaceIndex::new(original),
+            });
             Facing::with_index(cx.original, index)
         });
         let d = repaired
