@@ -3,17 +3,52 @@
 //! (reused while its faces stay the same).
 
 use coarsen_mesh::{Mesh, Topology, TopologyError};
+use rayon::prelude::*;
 use std::any::{Any, TypeId};
 use std::sync::{Arc, Mutex, PoisonError, Weak};
 
 /// A value derived from the run's input.
 type Entry = Arc<dyn Any + Send + Sync>;
 
-/// The adjacency last built, and the faces it was built from.
+/// The adjacency last built, and what tells the faces it was built from.
 struct Adjacency {
-    n_vertices: usize,
-    faces: Vec<[u32; 3]>,
+    /// The faces the adjacency skips (repeated or out-of-range index), with their corners:
+    /// it keeps none of its own for them (usually empty).
+    skipped: Vec<(u32, [u32; 3])>,
     topology: Arc<Topology>,
+}
+
+impl Adjacency {
+    /// The adjacency `topology` of `mesh`.
+    fn new(mesh: &Mesh, topology: Arc<Topology>) -> Adjacency {
+        let skipped = (0..mesh.n_faces() as u32)
+            .filter(|&f| topology.is_skipped_face(f))
+            .map(|f| (f, mesh.faces[f as usize]))
+            .collect();
+        Adjacency { skipped, topology }
+    }
+
+    /// Whether `mesh` has the vertex count and the faces the adjacency was built from,
+    /// read off its own edges instead of a copy of the faces: a face whose three edges
+    /// join its corners in turn is the face they were made from (its corners differ).
+    fn is_of(&self, mesh: &Mesh) -> bool {
+        let t = &self.topology;
+        t.n_vertices() == mesh.n_vertices()
+            && t.n_faces() == mesh.n_faces()
+            && self
+                .skipped
+                .iter()
+                .all(|&(f, corners)| mesh.faces[f as usize] == corners)
+            && mesh.faces.par_iter().enumerate().all(|(f, c)| {
+                let edges = t.face_edges(f as u32);
+                // Skipped faces are the ones listed above.
+                edges[0] == coarsen_mesh::topology::NONE
+                    || (0..3).all(|i| {
+                        let (a, b) = (c[i], c[(i + 1) % 3]);
+                        t.edge(edges[i]) == [a.min(b), a.max(b)]
+                    })
+            })
+    }
 }
 
 /// Values built once per run and handed to every stage that asks: see
@@ -85,7 +120,7 @@ impl Shared {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .as_ref()
-            .filter(|a| a.n_vertices == input.n_vertices() && a.faces == input.faces)
+            .filter(|a| a.is_of(input))
             .map(|a| Arc::clone(&a.topology));
         let t = match kept {
             Some(t) => t,
@@ -111,7 +146,7 @@ impl Shared {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .as_ref()
-            .filter(|a| a.n_vertices == mesh.n_vertices() && a.faces == mesh.faces)
+            .filter(|a| a.is_of(mesh))
             .map(|a| Arc::clone(&a.topology))
     }
 
@@ -123,19 +158,14 @@ impl Shared {
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
         if let Some(a) = slot.as_ref()
-            && a.n_vertices == mesh.n_vertices()
-            && a.faces == mesh.faces
+            && a.is_of(mesh)
         {
             return Ok(Arc::clone(&a.topology));
         }
         // Drop the old one first: at millions of faces both would not fit comfortably.
         *slot = None;
         let topology = Arc::new(Topology::try_build(mesh)?);
-        *slot = Some(Adjacency {
-            n_vertices: mesh.n_vertices(),
-            faces: mesh.faces.clone(),
-            topology: Arc::clone(&topology),
-        });
+        *slot = Some(Adjacency::new(mesh, Arc::clone(&topology)));
         Ok(topology)
     }
 }
@@ -167,6 +197,29 @@ mod tests {
         });
         let c = shared.input_index(|| "other type");
         assert_eq!((*a, *b, *c, builds), (7, 7, "other type", 1));
+    }
+
+    #[test]
+    fn the_kept_adjacency_serves_only_the_faces_it_was_built_from() {
+        let shared = Shared::new();
+        let mut mesh = two_triangles();
+        mesh.faces.push([3, 3, 1]);
+        let kept = shared.topology(&mesh).unwrap();
+        assert!(Arc::ptr_eq(&shared.topology(&mesh.clone()).unwrap(), &kept));
+        // The same triangle from another corner, the other way round, a skipped face
+        // changed, one vertex more: each another mesh.
+        let variants: [fn(&mut Mesh); 4] = [
+            |m| m.faces[1] = [1, 3, 2],
+            |m| m.faces[0] = [0, 2, 1],
+            |m| m.faces[2] = [2, 2, 1],
+            |m| m.positions.push(DVec3::Z),
+        ];
+        for change in variants {
+            let mut other = mesh.clone();
+            change(&mut other);
+            assert!(shared.topology_at_hand(&other).is_none());
+        }
+        assert!(Arc::ptr_eq(&shared.topology_at_hand(&mesh).unwrap(), &kept));
     }
 
     #[test]
