@@ -607,12 +607,7 @@ impl Bvh {
             let node = self.node(ni);
             if node.count > 0 {
                 let first = node.first as usize;
-                // Every corner of the leaf loaded before any is measured: the loads overlap.
-                let count = node.count as usize;
-                let mut leaf = [[DVec3::ZERO; 3]; MAX_LEAF];
-                for (i, t) in leaf[..count].iter_mut().enumerate() {
-                    *t = self.tris.get(first + i);
-                }
+                let (leaf, count) = (self.tris.leaf(first, node.count), node.count as usize);
                 for (i, &[a, b, c]) in leaf[..count].iter().enumerate() {
                     if !accept(first + i) {
                         continue;
@@ -674,11 +669,7 @@ impl Bvh {
             let node = self.node(ni);
             if node.count > 0 {
                 let first = node.first as usize;
-                let count = node.count as usize;
-                let mut leaf = [[DVec3::ZERO; 3]; MAX_LEAF];
-                for (i, t) in leaf[..count].iter_mut().enumerate() {
-                    *t = self.tris.get(first + i);
-                }
+                let (leaf, count) = (self.tris.leaf(first, node.count), node.count as usize);
                 for (i, &[a, b, c]) in leaf[..count].iter().enumerate() {
                     let (q, _) = closest_point_on_triangle(center, a, b, c);
                     let d2 = (center - q).length_squared();
@@ -832,6 +823,18 @@ impl Tris {
     #[inline]
     pub(crate) fn get(&self, i: usize) -> [DVec3; 3] {
         self.corners[i].map(|v| self.points[v as usize])
+    }
+
+    /// The corners of the `count` (at most [`MAX_LEAF`]) triangles of a leaf from
+    /// triangle `first` on, all loaded before any is measured, so that the loads overlap;
+    /// the entries past `count` are zero.
+    #[inline]
+    pub(crate) fn leaf(&self, first: usize, count: u32) -> [[DVec3; 3]; MAX_LEAF] {
+        let mut leaf = [[DVec3::ZERO; 3]; MAX_LEAF];
+        for (i, t) in leaf[..count as usize].iter_mut().enumerate() {
+            *t = self.get(first + i);
+        }
+        leaf
     }
 
     /// The number of triangles.
