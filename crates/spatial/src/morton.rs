@@ -1,7 +1,7 @@
 //! The Morton build of [`Bvh`] for big meshes: the faces sorted by the Morton code of
 //! their box centres (21 bits per axis, quantised in the box of the positions), each range
 //! split where its highest differing bit turns (a range of equal codes in the middle),
-//! leaves of at most [`MAX_LEAF`] faces, boxes gathered from the leaves up.
+//! leaves of at most [`MORTON_LEAF`] faces, boxes gathered from the leaves up.
 //!
 //! Sorting 64-bit keys and cutting sorted ranges costs far less than binning and
 //! partitioning boxes level by level. The key ties are broken by face index, so the tree
@@ -10,7 +10,7 @@
 //! heuristic build does.
 
 use crate::bvh::{
-    Bvh, MAX_LEAF, Node, PARALLEL_MIN, Subtree, Tris, corners, f32_at_least, f32_at_most, max3,
+    Bvh, MORTON_LEAF, Node, PARALLEL_MIN, Subtree, Tris, corners, f32_at_least, f32_at_most, max3,
     min3,
 };
 use coarsen_geom::Aabb;
@@ -78,7 +78,7 @@ fn subtree(codes: &[u64], tris: &Tris, start: usize) -> Subtree {
         let mut nodes = vec![Node::BLANK];
         let mut work = vec![(0usize, 0usize, n)];
         while let Some((node, lo, hi)) = work.pop() {
-            if hi - lo <= MAX_LEAF {
+            if hi - lo <= MORTON_LEAF {
                 nodes[node].first = (start + lo) as u32;
                 nodes[node].count = (hi - lo) as u32;
                 (nodes[node].min, nodes[node].max) = leaf_box(tris, start + lo..start + hi);
