@@ -17,7 +17,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Rounds per case; the table gives medians.
+/// Runs of each tool per case, one after another; the table gives medians.
 const ROUNDS: usize = 3;
 
 /// The Python script that runs pyacvd once.
@@ -77,8 +77,10 @@ pub fn section<'m>(bunny: &Path, big: impl FnOnce() -> Result<Cow<'m, Mesh>>) ->
     let _ = writeln!(
         s,
         "pyacvd {version} (uniform ACVD on the mesh's points) and coarsen's CVT pipelines on the \
-         same inputs, {ROUNDS} rounds taken in turns; the outputs of the last round measured \
-         by the same metrics against the input. *Clustering*: for pyacvd its `Clustering` \
+         same inputs, {ROUNDS} runs of each tool in a row (on this machine a process pays for \
+         memory the host has taken back: in runs taken in turns each tool would pay for what \
+         the other's peak left cold); the outputs of the last run measured by the same \
+         metrics against the input. *Clustering*: for pyacvd its `Clustering` \
          set-up (point weights, neighbour lists; after a subdivision, the subdivided mesh's \
          set-up is part of the subdivision and left out) and `cluster` call; for coarsen \
          the `cluster.cvt` stage (its adjacency included). *Total*: for pyacvd from reading the \
@@ -121,9 +123,9 @@ pub fn section<'m>(bunny: &Path, big: impl FnOnce() -> Result<Cow<'m, Mesh>>) ->
         let outputs: Vec<PathBuf> = (0..tools.len())
             .map(|i| dir.path().join(format!("out-{i}.ply")))
             .collect();
-        for round in 0..ROUNDS {
-            for (i, tool) in tools.iter().enumerate() {
-                eprintln!("pyacvd · {name} · round {} · {}", round + 1, tool.label());
+        for (i, tool) in tools.iter().enumerate() {
+            for round in 0..ROUNDS {
+                eprintln!("pyacvd · {name} · {} · run {}", tool.label(), round + 1);
                 let t = run(&python, *tool, file, *n, &outputs[i], dir.path())
                     .with_context(|| format!("{} on {name}", tool.label()))?;
                 timings[i].push(t);
