@@ -19,9 +19,9 @@
 //!
 //! Meshes of at least [`MORTON_MIN`] faces are built the Morton way instead (the
 //! `morton` module: faces sorted by the Morton code of their box centres, ranges split
-//! where the highest differing bit turns, boxes gathered from the leaves up), into the
-//! same layout: half the time on big scans, whose even triangles the heuristic gains
-//! little on.
+//! where the highest differing bit turns, boxes gathered from the leaves up, leaves of up
+//! to [`MORTON_LEAF`] triangles), into the same layout: half the time on big scans, whose
+//! even triangles the heuristic gains little on.
 //!
 //! Query: depth-first, nearer child first, skipping any box farther than the best
 //! distance so far (the box distance is a lower bound of every triangle inside).
