@@ -51,6 +51,15 @@ impl Adjacency {
     }
 }
 
+/// The value of type `T` among the values derived from the run input, if there is one.
+fn entry<T: Any + Send + Sync>(input: &[(TypeId, Entry)]) -> Option<Arc<T>> {
+    let key = TypeId::of::<T>();
+    input
+        .iter()
+        .find(|(k, _)| *k == key)
+        .and_then(|(_, v)| Arc::clone(v).downcast::<T>().ok())
+}
+
 /// Values built once per run and handed to every stage that asks: see
 /// [`crate::Context::input_index`] and [`crate::Context::topology`].
 #[derive(Default)]
@@ -82,26 +91,18 @@ impl Shared {
         &self,
         build: impl FnOnce() -> Result<T, E>,
     ) -> Result<Arc<T>, E> {
-        let key = TypeId::of::<T>();
         let mut input = self.input.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((_, v)) = input.iter().find(|(k, _)| *k == key)
-            && let Ok(v) = Arc::clone(v).downcast::<T>()
-        {
+        if let Some(v) = entry::<T>(&input) {
             return Ok(v);
         }
         let v = Arc::new(build()?);
-        input.push((key, Arc::clone(&v) as Entry));
+        input.push((TypeId::of::<T>(), Arc::clone(&v) as Entry));
         Ok(v)
     }
 
     /// The value of type `T` derived from the run input when it is built already.
     pub fn input_index_at_hand<T: Any + Send + Sync>(&self) -> Option<Arc<T>> {
-        let key = TypeId::of::<T>();
-        let input = self.input.lock().unwrap_or_else(PoisonError::into_inner);
-        input
-            .iter()
-            .find(|(k, _)| *k == key)
-            .and_then(|(_, v)| Arc::clone(v).downcast::<T>().ok())
+        entry::<T>(&self.input.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
     /// The adjacency of the run input `input`: the one built before while something still
