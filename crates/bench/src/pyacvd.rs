@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Runs of each tool per case, one after another; the table gives medians.
-const ROUNDS: usize = 3;
+const RUNS: usize = 3;
 
 /// The Python script that runs pyacvd once.
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/pyacvd_run.py");
@@ -77,7 +77,7 @@ pub fn section<'m>(bunny: &Path, big: impl FnOnce() -> Result<Cow<'m, Mesh>>) ->
     let _ = writeln!(
         s,
         "pyacvd {version} (uniform ACVD on the mesh's points) and coarsen's CVT pipelines on the \
-         same inputs, {ROUNDS} runs of each tool in a row (on this machine a process pays for \
+         same inputs, {RUNS} runs of each tool in a row (on this machine a process pays for \
          memory the host has taken back: in runs taken in turns each tool would pay for what \
          the other's peak left cold); the outputs of the last run measured by the same \
          metrics against the input. *Clustering*: for pyacvd its `Clustering` \
@@ -124,8 +124,8 @@ pub fn section<'m>(bunny: &Path, big: impl FnOnce() -> Result<Cow<'m, Mesh>>) ->
             .map(|i| dir.path().join(format!("out-{i}.ply")))
             .collect();
         for (i, tool) in tools.iter().enumerate() {
-            for round in 0..ROUNDS {
-                eprintln!("pyacvd · {name} · {} · run {}", tool.label(), round + 1);
+            for k in 1..=RUNS {
+                eprintln!("pyacvd · {name} · {} · run {}", tool.label(), k);
                 let t = run(&python, *tool, file, *n, &outputs[i], dir.path())
                     .with_context(|| format!("{} on {name}", tool.label()))?;
                 timings[i].push(t);
