@@ -3,7 +3,7 @@
 //! Every energy is a sum over clusters of a term computed from the cluster's running sums
 //! ([`Sums`]), so moving one face between two clusters changes the energy in O(1).
 
-use coarsen_geom::DVec3;
+use coarsen_geom::{DVec3, triangle};
 
 /// Running sums of one cluster's faces: count, mass, Σ w·y and Σ w·‖y‖².
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -90,6 +90,73 @@ impl FacePoint {
     #[inline]
     pub fn sums(&self) -> Sums {
         Sums::of(self.mass, self.centroid)
+    }
+}
+
+/// Every face's [`FacePoint`], kept in a table or worked out from its corners when asked.
+pub(crate) enum FaceData<'a> {
+    /// One entry per face (layout numbering).
+    Kept(Vec<FacePoint>),
+    /// Worked out from the corners.
+    Derived(Derived<'a>),
+}
+
+impl FaceData<'_> {
+    /// Face `f`'s mass (by `energy`) and centroid.
+    #[inline]
+    pub(crate) fn point<E: Energy + ?Sized>(&self, f: usize, energy: &E) -> FacePoint {
+        match self {
+            FaceData::Kept(table) => table[f],
+            FaceData::Derived(d) => d.point(f, energy),
+        }
+    }
+}
+
+/// Faces in the mesh's own order at density 1, their [`FacePoint`]s worked out from the
+/// corners: face `f` is `corners[f]`, its corners' positions normalised as
+/// `(p - center) * scale`, the same arithmetic as a table's. For a few passes over many
+/// faces (the post-process's finest level), where a table of 32 bytes a face would set
+/// the run's peak memory.
+pub(crate) struct Derived<'a> {
+    pub corners: &'a [[u32; 3]],
+    pub positions: &'a [DVec3],
+    pub center: DVec3,
+    pub scale: f64,
+}
+
+impl Derived<'_> {
+    /// Face `f`'s mass (by `energy`) and centroid.
+    #[inline]
+    pub(crate) fn point<E: Energy + ?Sized>(&self, f: usize, energy: &E) -> FacePoint {
+        let [a, b, c] =
+            self.corners[f].map(|v| (self.positions[v as usize] - self.center) * self.scale);
+        FacePoint {
+            mass: energy.face_mass(triangle::area(a, b, c), 1.0),
+            centroid: triangle::centroid(a, b, c),
+        }
+    }
+}
+
+/// Where the passes read each face's [`FacePoint`]: a table, or corners and an energy.
+pub(crate) trait FacePoints: Sync {
+    /// Face `f`'s mass and centroid.
+    fn point(&self, f: usize) -> FacePoint;
+}
+
+impl FacePoints for [FacePoint] {
+    #[inline]
+    fn point(&self, f: usize) -> FacePoint {
+        self[f]
+    }
+}
+
+/// [`Derived`] with the energy that gives the masses.
+pub(crate) struct WithEnergy<'a, E: ?Sized>(pub &'a Derived<'a>, pub &'a E);
+
+impl<E: Energy + ?Sized> FacePoints for WithEnergy<'_, E> {
+    #[inline]
+    fn point(&self, f: usize) -> FacePoint {
+        self.0.point(f, self.1)
     }
 }
 

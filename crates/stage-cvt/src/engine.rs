@@ -4,7 +4,7 @@
 //! separate, like boundary edges). Clusters keep running [`Sums`], so a move test is O(1)
 //! in the energy plus a look at the fans of the moved face's three corners.
 
-use crate::energy::{Energy, FacePoint, Sums};
+use crate::energy::{Derived, Energy, FaceData, FacePoint, Sums, WithEnergy};
 use crate::sweep;
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::order::{CurveOrder, morton, unit_box};
@@ -192,7 +192,7 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     /// Per layout vertex: its faces form one closed fan.
     closed: Vec<bool>,
     /// Per layout face: its mass and centroid.
-    face_sums: Vec<FacePoint>,
+    face_sums: FaceData<'a>,
     /// Per layout vertex: its position (the mesh's own when the layout is its order, else
     /// normalised), for the fold guard's face normals.
     pos: Cow<'a, [DVec3]>,
@@ -223,29 +223,33 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         density: Option<&[f64]>,
     ) -> Result<Self, ClusterError> {
         let curve = mesh.n_faces() >= LAYOUT_MIN_FACES;
-        Self::with_layout(mesh, topo, energy, density, curve)
+        Self::with_layout(mesh, topo, energy, density, curve, false)
     }
 
     /// [`Clusterer::new`] in the mesh's own order at every size: for a few passes from a
     /// clustering at hand (a warm start, a local repair), where the curve layout would
-    /// cost about what it saves.
+    /// cost about what it saves. Without a density, each face's mass and centroid are
+    /// worked out from its corners when asked instead of kept in a table (32 bytes a face,
+    /// read only by the few faces a pass prices).
     pub fn for_few_passes(
         mesh: &'a Mesh,
         topo: &'a Topology,
         energy: &'a E,
         density: Option<&[f64]>,
     ) -> Result<Self, ClusterError> {
-        Self::with_layout(mesh, topo, energy, density, false)
+        Self::with_layout(mesh, topo, energy, density, false, true)
     }
 
     /// [`Clusterer::new`] with the layout along the Morton curve (`curve`) or in the
-    /// mesh's own order.
+    /// mesh's own order; with `derive`, face masses and centroids worked out when asked
+    /// where the layout is the mesh's order and there is no density.
     pub(crate) fn with_layout(
         mesh: &'a Mesh,
         topo: &'a Topology,
         energy: &'a E,
         density: Option<&[f64]>,
         curve: bool,
+        derive: bool,
     ) -> Result<Self, ClusterError> {
         let nf = mesh.n_faces();
         if let Some(face) = (0..nf).find(|&f| topo.is_skipped_face(f as u32)) {
@@ -298,36 +302,51 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             ),
         };
         drop(vmap);
-        // Face sums from the vertices in layout order (reads close in memory).
-        let pos: Vec<DVec3> = vorder.par_iter().map(|&v| pos_of(v)).collect();
-        let face_sums: Vec<FacePoint> = corners
-            .par_iter()
-            .enumerate()
-            .map(|(i, c)| {
-                let f = perm.order(i);
-                let [a, b, c] = c.map(|v| pos[v as usize]);
-                let rho = density.map_or(1.0, |d| {
-                    mesh.faces[f as usize]
-                        .iter()
-                        .map(|&v| d[v as usize])
-                        .sum::<f64>()
-                        / 3.0
-                });
-                let w = energy.face_mass(triangle::area(a, b, c), rho);
-                FacePoint {
-                    mass: w,
-                    centroid: triangle::centroid(a, b, c),
-                }
-            })
-            .collect();
+        let face_point = |i: usize, [a, b, c]: [DVec3; 3]| {
+            let rho = density.map_or(1.0, |d| {
+                mesh.faces[perm.order(i) as usize]
+                    .iter()
+                    .map(|&v| d[v as usize])
+                    .sum::<f64>()
+                    / 3.0
+            });
+            FacePoint {
+                mass: energy.face_mass(triangle::area(a, b, c), rho),
+                centroid: triangle::centroid(a, b, c),
+            }
+        };
         // The fold guard's normals need only directions: the mesh's own positions serve
         // when the layout is its order.
-        let pos = match own_tables {
-            true => {
-                drop(pos);
-                Cow::Borrowed(&mesh.positions[..])
+        let (face_sums, pos) = match own_tables {
+            true if derive && density.is_none() => (
+                FaceData::Derived(Derived {
+                    corners: &mesh.faces,
+                    positions: &mesh.positions,
+                    center,
+                    scale,
+                }),
+                Cow::Borrowed(&mesh.positions[..]),
+            ),
+            true => (
+                FaceData::Kept(
+                    corners
+                        .par_iter()
+                        .enumerate()
+                        .map(|(i, c)| face_point(i, c.map(pos_of)))
+                        .collect(),
+                ),
+                Cow::Borrowed(&mesh.positions[..]),
+            ),
+            false => {
+                // Face sums from the vertices in layout order (reads close in memory).
+                let pos: Vec<DVec3> = vorder.par_iter().map(|&v| pos_of(v)).collect();
+                let sums = corners
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, c)| face_point(i, c.map(|v| pos[v as usize])))
+                    .collect();
+                (FaceData::Kept(sums), Cow::Owned(pos))
             }
-            false => Cow::Owned(pos),
         };
         let (fan_off, fan) = match own_tables {
             true => {
@@ -373,6 +392,12 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             fold_guard: false,
             topo,
         })
+    }
+
+    /// Whether face masses and centroids are worked out when asked (no table).
+    #[cfg(test)]
+    pub(crate) fn derives_face_data(&self) -> bool {
+        matches!(self.face_sums, FaceData::Derived(_))
     }
 
     /// Makes [`Clusterer::minimize`] stop after a pass that lowers the energy by less than
@@ -497,7 +522,11 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             let mut keyed: Vec<(u32, u64, u32)> = (0..nf)
                 .into_par_iter()
                 .map(|f| {
-                    let y = self.face_sums[f].sums().centroid_or_zero();
+                    let y = self
+                        .face_sums
+                        .point(f, self.energy)
+                        .sums()
+                        .centroid_or_zero();
                     (comp[f], morton(y), f as u32)
                 })
                 .collect();
@@ -515,7 +544,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             members
         };
         drop(comp);
-        let mass_of = |f: u32| self.face_sums[f as usize].mass.max(0.0);
+        let mass_of = |f: u32| self.face_sums.point(f as usize, self.energy).mass.max(0.0);
         let mass: Vec<f64> = (0..nc)
             .map(|c| {
                 members[off[c]..off[c + 1]]
@@ -574,7 +603,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let mut sums = vec![Sums::default(); n];
         for i in 0..self.perm.len() {
             let l = labels[self.perm.order(i) as usize] as usize;
-            sums[l] = sums[l].plus(self.face_sums[i].sums());
+            sums[l] = sums[l].plus(self.face_sums.point(i, self.energy).sums());
         }
         self.labels = labels;
         self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
@@ -587,7 +616,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let mut sums = vec![Sums::default(); n];
         let mut own = vec![0u32; labels.len()];
         for (i, &l) in labels.iter().enumerate() {
-            sums[l as usize] = sums[l as usize].plus(self.face_sums[i].sums());
+            sums[l as usize] = sums[l as usize].plus(self.face_sums.point(i, self.energy).sums());
             own[self.perm.order(i) as usize] = l;
         }
         self.labels = own;
@@ -623,7 +652,10 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// Moves face `t` to cluster `to` (no checks).
     pub fn apply_move(&mut self, t: u32, to: u32) {
         let from = self.labels[t as usize] as usize;
-        let ft = self.face_sums[self.perm.rank(t as usize) as usize].sums();
+        let ft = self
+            .face_sums
+            .point(self.perm.rank(t as usize) as usize, self.energy)
+            .sums();
         self.sums[from] = self.sums[from].minus(ft);
         self.sums[to as usize] = self.sums[to as usize].plus(ft);
         self.terms[from] = self.energy.cluster(&self.sums[from]);
@@ -725,35 +757,43 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         for pass in 1..=max_passes {
             let may_sleep = (changed as f64) < self.sleep_share * n as f64;
             sleeping |= may_sleep;
-            let view = sweep::View {
-                corners: &self.corners,
-                fan_off: &self.fan_off,
-                fan: &self.fan,
-                nbr: &self.nbr,
-                closed: &self.closed,
-                face_sums: &self.face_sums,
-                pos: guard.then_some(&self.pos[..]),
-                energy: self.energy,
-                labels: &labels,
-                cur: &cur,
-                next: &next,
-                asleep: &asleep,
-                may_sleep,
-                sleeping,
+            // One sweep per way of reading the face data, each compiled for its own.
+            macro_rules! pass_over {
+                ($faces:expr) => {
+                    sweep::pass(
+                        &sweep::View {
+                            corners: &self.corners,
+                            fan_off: &self.fan_off,
+                            fan: &self.fan,
+                            nbr: &self.nbr,
+                            closed: &self.closed,
+                            face_sums: $faces,
+                            pos: guard.then_some(&self.pos[..]),
+                            energy: self.energy,
+                            labels: &labels,
+                            cur: &cur,
+                            next: &next,
+                            asleep: &asleep,
+                            may_sleep,
+                            sleeping,
+                        },
+                        &starts,
+                        &mut own,
+                        sweep::State {
+                            sums: &mut sums,
+                            terms: &mut terms,
+                            normals: &mut normals,
+                            last_mod: &mut last_mod,
+                            sleepers: &mut sleepers,
+                        },
+                        pass,
+                    )
+                };
+            }
+            let (moves, refused, slept) = match &self.face_sums {
+                FaceData::Kept(table) => pass_over!(&table[..]),
+                FaceData::Derived(d) => pass_over!(&WithEnergy(d, self.energy)),
             };
-            let (moves, refused, slept) = sweep::pass(
-                &view,
-                &starts,
-                &mut own,
-                sweep::State {
-                    sums: &mut sums,
-                    terms: &mut terms,
-                    normals: &mut normals,
-                    last_mod: &mut last_mod,
-                    sleepers: &mut sleepers,
-                },
-                pass,
-            );
             log.refused += refused;
             log.slept += slept;
             changed = last_mod.iter().filter(|&&m| m == pass).count();

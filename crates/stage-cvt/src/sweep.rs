@@ -17,7 +17,7 @@
 //! changes, in time for the visit the plain sweep would have made count. The moves are
 //! the same, in the same order.
 
-use crate::energy::{Energy, FacePoint, Sums};
+use crate::energy::{Energy, FacePoints, Sums};
 use crate::engine::fan_runs;
 use coarsen_geom::DVec3;
 use coarsen_mesh::topology::NONE;
@@ -27,7 +27,7 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 
 /// What every part reads (faces and vertices in the clusterer's layout): the adjacency, the face sums, and the shared state that
 /// parts change only in their own label range (labels, active-face bitsets).
-pub(crate) struct View<'v, E: Energy + ?Sized> {
+pub(crate) struct View<'v, E: Energy + ?Sized, F: FacePoints + ?Sized> {
     /// Per face: its corners.
     pub corners: &'v [[u32; 3]],
     /// Per vertex `v`: its faces in fan order, `fan[fan_off[v]..fan_off[v + 1]]`.
@@ -35,7 +35,7 @@ pub(crate) struct View<'v, E: Energy + ?Sized> {
     pub fan: &'v [u32],
     pub nbr: &'v [[u32; 3]],
     pub closed: &'v [bool],
-    pub face_sums: &'v [FacePoint],
+    pub face_sums: &'v F,
     /// Per layout vertex: its position, when moves are checked against folds.
     pub pos: Option<&'v [DVec3]>,
     pub energy: &'v E,
@@ -108,7 +108,7 @@ enum Visit {
     Moved,
 }
 
-impl<E: Energy + ?Sized> View<'_, E> {
+impl<E: Energy + ?Sized, F: FacePoints + ?Sized> View<'_, E, F> {
     #[inline]
     fn label(&self, f: u32) -> u32 {
         self.labels[f as usize].load(Relaxed)
@@ -151,7 +151,7 @@ impl<E: Energy + ?Sized> View<'_, E> {
         if !(fresh(from) || cands[..k].iter().any(|&c| fresh(c))) {
             return Visit::Unchanged;
         }
-        let ft = self.face_sums[t as usize].sums();
+        let ft = self.face_sums.point(t as usize).sums();
         let fi = (from - lo) as usize;
         let a = part.sums[fi];
         let after_from = self.energy.cluster(&a.minus(ft));
@@ -393,8 +393,8 @@ pub(crate) fn owners(labels: &[AtomicU32], starts: &[u32]) -> Vec<Vec<u64>> {
 
 /// One pass over all parts (in parallel) and then the border faces: `(moves, refused,
 /// slept)`.
-pub(crate) fn pass<E: Energy + ?Sized>(
-    view: &View<'_, E>,
+pub(crate) fn pass<E: Energy + ?Sized, F: FacePoints + ?Sized>(
+    view: &View<'_, E, F>,
     starts: &[u32],
     own: &mut [Vec<u64>],
     state: State<'_>,

@@ -335,7 +335,7 @@ fn the_layout_is_invisible_in_the_public_numbering() {
     }
     let topo = Topology::build(&m);
     let e = Valette2004;
-    let mut c = Clusterer::with_layout(&m, &topo, &e, None, true).unwrap();
+    let mut c = Clusterer::with_layout(&m, &topo, &e, None, true, false).unwrap();
     // Components come back in the mesh's numbering: the same partition as found directly.
     let (comp, nc) = c.components();
     assert_eq!(nc, 2);
@@ -366,11 +366,41 @@ fn the_layout_is_invisible_in_the_public_numbering() {
     // Minimising from scratch gives valid clusters back in the mesh's numbering, with the
     // layout along the curve and without.
     for curve in [true, false] {
-        let mut c = Clusterer::with_layout(&m, &topo, &e, None, curve).unwrap();
+        let mut c = Clusterer::with_layout(&m, &topo, &e, None, curve, false).unwrap();
         c.seed(40, 5).unwrap();
         let log = c.minimize(50, None, |_, _, _| {});
         assert!(log.energy.last().unwrap() < &log.initial_energy);
         check_invariant(&m, c.labels(), 40);
+    }
+}
+
+#[test]
+fn face_data_worked_out_when_asked_clusters_as_the_table_does() {
+    // Both energies, a seeded start and a few passes as the post-process runs them: the
+    // same clusters, moves and energies to the bit.
+    let m = torus(2.0, 0.7, 48, 24).unwrap();
+    let topo = Topology::build(&m);
+    let shu = Shu2009 { r: 2.0 };
+    let energies: [&dyn Energy; 2] = [&Valette2004, &shu];
+    for e in energies {
+        let run = |derive: bool| {
+            let mut c = Clusterer::with_layout(&m, &topo, e, None, false, derive).unwrap();
+            assert_eq!(c.derives_face_data(), derive);
+            c.seed(50, 4).unwrap();
+            let sums = c.cluster_sums().to_vec();
+            let log = c.minimize(12, None, |_, _, _| {});
+            let moved = (0..m.n_faces() as u32)
+                .find(|&t| (0..50).any(|to| c.may_move(t, to)))
+                .map(|t| {
+                    let to = (0..50).find(|&to| c.may_move(t, to)).unwrap();
+                    c.apply_move(t, to);
+                    c.total_energy()
+                });
+            (c.into_labels(), sums, log, moved)
+        };
+        let kept = run(false);
+        assert!(kept.2.moves.iter().sum::<u64>() > 0 && kept.3.is_some());
+        assert_eq!(run(true), kept);
     }
 }
 
@@ -403,7 +433,7 @@ fn a_mesh_already_along_the_curve_is_laid_out_as_it_is_and_clusters_the_same() {
     let e = Valette2004;
     let run = |mesh: &Mesh| {
         let topo = Topology::build(mesh);
-        let mut c = Clusterer::with_layout(mesh, &topo, &e, None, true).unwrap();
+        let mut c = Clusterer::with_layout(mesh, &topo, &e, None, true, false).unwrap();
         let borrowed = matches!(c.corners, std::borrow::Cow::Borrowed(_));
         c.seed(60, 9).unwrap();
         let log = c.minimize(200, None, |_, _, _| {});
@@ -468,7 +498,7 @@ fn the_curve_layout_gives_the_same_clusters_with_any_thread_count() {
     let e = Valette2004;
     let on = |threads: usize| {
         coarsen_testdata::on_threads(threads, || {
-            let mut c = Clusterer::with_layout(&mesh, &topo, &e, None, true).unwrap();
+            let mut c = Clusterer::with_layout(&mesh, &topo, &e, None, true, false).unwrap();
             c.seed(1500, 1).unwrap();
             let log = c.minimize(200, None, |_, _, _| {});
             (c.into_labels(), log)
