@@ -11,7 +11,8 @@
 //! for a peak of 1.6 GB. With these settings (no mappings; up to [`KEEP_TOP`] of free
 //! space kept at the top of the heap) it touches 1.7 GB, and runs 7 % faster (`qem` 7 %,
 //! `adaptive-cvt` 9 %), for a peak 2 % higher (`adaptive-cvt`: 15 %, the free space
-//! between live blocks of the heap). A thread's own malloc arena still hands a heap that
+//! between live blocks of the heap; those figures kept 256 MiB at the top, all is kept
+//! since). A thread's own malloc arena still hands a heap that
 //! falls empty back to the system; one arena for all threads would keep those too, but
 //! its lock cost more than that saved.
 //!
@@ -123,8 +124,14 @@ mod linux {
 }
 
 /// Free space at the top of the heap that `free` keeps instead of handing back to the
-/// system.
-pub const KEEP_TOP: usize = 256 << 20;
+/// system: all of a run's (2 GiB, the most malloc's setting takes).
+///
+/// Memory handed back in the middle of a run and taken again later costs as much as
+/// memory never touched on the machines we measure on, whose host takes back what the
+/// guest frees within seconds: with 256 MiB, `uniform-cvt` on the bunny subdivided three
+/// times gave back 480 MB after `cluster.cvt` and faulted it in again at the post-process's
+/// finest level, 0.3–0.4 s of kernel time on both cores.
+pub const KEEP_TOP: usize = (2 << 30) - 1;
 
 /// Sets glibc's malloc to serve every block from its heap and to keep up to [`KEEP_TOP`]
 /// of free space at its top; true when both settings took (false elsewhere than on Linux
