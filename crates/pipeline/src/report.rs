@@ -17,6 +17,10 @@ pub struct StageRecord {
     pub params: serde_json::Value,
     /// Wall time in seconds.
     pub seconds: f64,
+    /// Wall time in seconds the runner spent readying the mesh before the stage (the
+    /// adjacency it builds to check the mesh, which the next stage that needs one takes
+    /// over; edges cut, vertices split).
+    pub ready_seconds: f64,
     /// Vertex count before the stage.
     pub vertices_before: usize,
     /// Face count before the stage.

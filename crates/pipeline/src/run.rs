@@ -181,6 +181,7 @@ impl Pipeline {
         };
         let shared = coarsen_stage::Shared::new();
         for (i, s) in self.stages.iter().enumerate() {
+            let readying = Instant::now();
             let index = i + 1;
             let contract = s.stage.contract();
             let mut notes = Vec::new();
@@ -277,6 +278,7 @@ impl Pipeline {
                 // add to their peak (350 MiB at 4.4M faces).
                 shared.forget_topology();
             }
+            let ready_seconds = readying.elapsed().as_secs_f64();
             let (vb, fb) = (mesh.n_vertices(), mesh.n_faces());
             tracing::info!(
                 stage = index,
@@ -338,6 +340,7 @@ impl Pipeline {
                 id: s.id.clone(),
                 params: serde_json::to_value(s.stage.params()).unwrap_or_default(),
                 seconds,
+                ready_seconds,
                 vertices_before: vb,
                 faces_before: fb,
                 vertices_after: mesh.n_vertices(),

@@ -194,6 +194,9 @@ fn a_good_file_parses_and_runs_with_a_report() {
     );
     assert_eq!(report.output_faces, 1);
     assert!(report.to_json().contains("\"kind\": \"test.drop-high\""));
+    // The runner's own time before each stage is on record, apart from the stage's.
+    assert!(report.stages.iter().all(|s| s.ready_seconds >= 0.0));
+    assert!(report.to_json().contains("\"ready_seconds\": "));
 }
 
 #[test]
