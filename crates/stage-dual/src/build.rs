@@ -156,8 +156,17 @@ pub(crate) fn diagnose(
             let c = c as u32;
             let mut pieces = 0;
             let mut stack = Vec::new();
+            // Only this cluster's task reads or writes the marks of its faces: plain loads
+            // and stores, no read-modify-write.
+            let mark = |g: u32| {
+                let fresh = !seen[g as usize].load(Relaxed);
+                if fresh {
+                    seen[g as usize].store(true, Relaxed);
+                }
+                fresh
+            };
             for &s in own {
-                if seen[s as usize].swap(true, Relaxed) {
+                if !mark(s) {
                     continue;
                 }
                 pieces += 1;
@@ -165,7 +174,7 @@ pub(crate) fn diagnose(
                 while let Some(f) = stack.pop() {
                     for e in topo.face_edges(f) {
                         for &g in topo.edge_faces(e) {
-                            if labels[g as usize] == c && !seen[g as usize].swap(true, Relaxed) {
+                            if labels[g as usize] == c && mark(g) {
                                 stack.push(g);
                             }
                         }
