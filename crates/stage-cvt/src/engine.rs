@@ -600,11 +600,35 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 clusters: n,
             });
         }
-        let mut sums = vec![Sums::default(); n];
-        for i in 0..self.perm.len() {
-            let l = labels[self.perm.order(i) as usize] as usize;
-            sums[l] = sums[l].plus(self.face_sums.point(i, self.energy).sums());
-        }
+        let sums = if self.perm.len() < PARALLEL_MIN_FACES {
+            let mut sums = vec![Sums::default(); n];
+            for i in 0..self.perm.len() {
+                let l = labels[self.perm.order(i) as usize] as usize;
+                sums[l] = sums[l].plus(self.face_sums.point(i, self.energy).sums());
+            }
+            sums
+        } else {
+            // The clusters in parallel, each summed in layout order: the same sums, to the
+            // bit, as the one pass above.
+            let layout: Cow<'_, [u32]> = match &self.perm {
+                FacePerm::Identity(_) => Cow::Borrowed(&labels),
+                FacePerm::Map { order, .. } => {
+                    Cow::Owned(order.par_iter().map(|&f| labels[f as usize]).collect())
+                }
+            };
+            let (start, members) = faces_by_cluster(&layout, n);
+            drop(layout);
+            (0..n)
+                .into_par_iter()
+                .map(|c| {
+                    members[start[c]..start[c + 1]]
+                        .iter()
+                        .fold(Sums::default(), |s, &i| {
+                            s.plus(self.face_sums.point(i as usize, self.energy).sums())
+                        })
+                })
+                .collect()
+        };
         self.labels = labels;
         self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
         self.sums = sums;

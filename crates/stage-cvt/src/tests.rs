@@ -683,3 +683,31 @@ fn the_fold_guard_keeps_clusters_off_the_far_side_of_a_thin_sheet() {
         "{with} with the guard, {without} without"
     );
 }
+
+#[test]
+fn a_warm_start_on_a_big_mesh_sums_each_cluster_in_face_order() {
+    // Above the size from which the sums are taken per cluster in parallel: the same
+    // sums, to the bit, as one pass over the faces in order.
+    use crate::energy::Derived;
+    let m = torus(2.0, 0.7, 160, 80).unwrap();
+    assert!(m.n_faces() >= 20_000);
+    let topo = Topology::build(&m);
+    let e = Valette2004;
+    let mut seeded = Clusterer::new(&m, &topo, &e, None).unwrap();
+    seeded.seed(300, 7).unwrap();
+    let labels = seeded.into_labels();
+    let (center, scale) = coarsen_mesh::order::unit_box(&m);
+    let faces = Derived {
+        corners: &m.faces,
+        positions: &m.positions,
+        center,
+        scale,
+    };
+    let mut want = vec![Sums::default(); 300];
+    for (f, &l) in labels.iter().enumerate() {
+        want[l as usize] = want[l as usize].plus(faces.point(f, &e).sums());
+    }
+    let mut c = Clusterer::for_few_passes(&m, &topo, &e, None).unwrap();
+    c.set_labels(labels, 300).unwrap();
+    assert_eq!(c.cluster_sums(), &want[..]);
+}
