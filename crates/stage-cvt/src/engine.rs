@@ -600,47 +600,47 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 clusters: n,
             });
         }
-        let sums = if self.perm.len() < PARALLEL_MIN_FACES {
-            let mut sums = vec![Sums::default(); n];
-            for i in 0..self.perm.len() {
-                let l = labels[self.perm.order(i) as usize] as usize;
-                sums[l] = sums[l].plus(self.face_sums.point(i, self.energy).sums());
+        let layout: Cow<'_, [u32]> = match &self.perm {
+            FacePerm::Identity(_) => Cow::Borrowed(&labels),
+            FacePerm::Map { order, .. } => {
+                Cow::Owned(order.par_iter().map(|&f| labels[f as usize]).collect())
             }
-            sums
-        } else {
-            // The clusters in parallel, each summed in layout order: the same sums, to the
-            // bit, as the one pass above.
-            let layout: Cow<'_, [u32]> = match &self.perm {
-                FacePerm::Identity(_) => Cow::Borrowed(&labels),
-                FacePerm::Map { order, .. } => {
-                    Cow::Owned(order.par_iter().map(|&f| labels[f as usize]).collect())
-                }
-            };
-            let (start, members) = faces_by_cluster(&layout, n);
-            drop(layout);
-            (0..n)
-                .into_par_iter()
-                .map(|c| {
-                    members[start[c]..start[c + 1]]
-                        .iter()
-                        .fold(Sums::default(), |s, &i| {
-                            s.plus(self.face_sums.point(i as usize, self.energy).sums())
-                        })
-                })
-                .collect()
         };
+        let sums = self.sums_by_cluster(&layout, n);
+        drop(layout);
         self.labels = labels;
         self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
         self.sums = sums;
         Ok(())
     }
 
+    /// Each cluster's sums from labels in the layout's numbering (all below `n`), each
+    /// summed in layout order; big meshes sum the clusters in parallel, to the same bits.
+    fn sums_by_cluster(&self, labels: &[u32], n: usize) -> Vec<Sums> {
+        let point = |i: usize| self.face_sums.point(i, self.energy).sums();
+        if labels.len() < PARALLEL_MIN_FACES {
+            let mut sums = vec![Sums::default(); n];
+            for (i, &l) in labels.iter().enumerate() {
+                sums[l as usize] = sums[l as usize].plus(point(i));
+            }
+            return sums;
+        }
+        let (start, members) = faces_by_cluster(labels, n);
+        (0..n)
+            .into_par_iter()
+            .map(|c| {
+                members[start[c]..start[c + 1]]
+                    .iter()
+                    .fold(Sums::default(), |s, &i| s.plus(point(i as usize)))
+            })
+            .collect()
+    }
+
     /// [`Clusterer::set_labels`] from labels in the layout's numbering (all below `n`).
     fn set_layout_labels(&mut self, labels: &[u32], n: usize) {
-        let mut sums = vec![Sums::default(); n];
+        let sums = self.sums_by_cluster(labels, n);
         let mut own = vec![0u32; labels.len()];
         for (i, &l) in labels.iter().enumerate() {
-            sums[l as usize] = sums[l as usize].plus(self.face_sums.point(i, self.energy).sums());
             own[self.perm.order(i) as usize] = l;
         }
         self.labels = own;
