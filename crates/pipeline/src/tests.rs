@@ -194,8 +194,7 @@ fn a_good_file_parses_and_runs_with_a_report() {
     );
     assert_eq!(report.output_faces, 1);
     assert!(report.to_json().contains("\"kind\": \"test.drop-high\""));
-    // The runner's own time before each stage is on record, apart from the stage's.
-    assert!(report.stages.iter().all(|s| s.ready_seconds >= 0.0));
+    // The runner's own time before each stage is in the report.
     assert!(report.to_json().contains("\"ready_seconds\": "));
 }
 
@@ -478,6 +477,8 @@ fn a_stage_that_needs_a_manifold_mesh_gets_edges_of_three_faces_cut_apart() {
             "1 faces split 1-to-4 in pieces whose boundary runs along fewer than three faces (a dual needs three)"
         ]
     );
+    // That work is the runner's, on record apart from the stage's own time.
+    assert!(report.stages[0].ready_seconds > 0.0);
     // A collapse stage gets the same mesh as it is.
     let (_, report) = parse(GOOD, &Overrides::default())
         .unwrap()
