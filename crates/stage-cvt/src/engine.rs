@@ -191,6 +191,9 @@ pub struct Clusterer<'a, E: Energy + ?Sized = dyn Energy> {
     fan: Cow<'a, [u32]>,
     /// Per layout vertex: its faces form one closed fan.
     closed: Vec<bool>,
+    /// Whether the passes' move test may walk fans across edges ([`walk_fan`]): the mesh
+    /// is manifold and consistently oriented.
+    walk_fans: bool,
     /// Per layout face: its mass and centroid.
     face_sums: FaceData<'a>,
     /// Per layout vertex: its position (the mesh's own when the layout is its order, else
@@ -381,6 +384,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             fan_off,
             fan,
             closed,
+            walk_fans: topo.is_manifold() && topo.is_consistently_oriented(),
             face_sums,
             pos,
             curve,
@@ -791,6 +795,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                             fan: &self.fan,
                             nbr: &self.nbr,
                             closed: &self.closed,
+                            walk_fans: self.walk_fans,
                             face_sums: $faces,
                             pos: guard.then_some(&self.pos[..]),
                             energy: self.energy,
@@ -971,6 +976,71 @@ fn csr<'l>(
         }
     });
     (off, values)
+}
+
+/// Most faces [`walk_fan`] lists around a vertex (more: it gives up).
+pub(crate) const FAN_WALK: usize = 48;
+
+/// The faces around corner `i` of face `t`, found by stepping across the faces' edges
+/// (`nbr`, [`NONE`] across a boundary) and written to `buf` in fan order: `Some((len,
+/// closed))`, or `None` when the fan has more than [`FAN_WALK`] faces or the adjacency is
+/// not that of a manifold vertex. For a manifold mesh this is the vertex's one fan, as
+/// the vertex's row of the fan table gives it up to rotation and direction (which
+/// [`fan_runs`] does not see), read from the faces near `t` that the sweep has just read.
+#[inline]
+pub(crate) fn walk_fan(
+    nbr: &[[u32; 3]],
+    t: u32,
+    i: usize,
+    buf: &mut [u32; FAN_WALK],
+) -> Option<(usize, bool)> {
+    // The edge of face `g` back to `f`, when there is exactly one.
+    let back = |g: u32, f: u32| -> Option<usize> {
+        let n = nbr[g as usize];
+        let k = n.iter().position(|&x| x == f)?;
+        (n.iter().filter(|&&x| x == f).count() == 1).then_some(k)
+    };
+    buf[0] = t;
+    let mut n = 1;
+    // One way round: out across each face's edge that ends at the vertex.
+    let (mut f, mut e) = (t, (i + 2) % 3);
+    loop {
+        let g = nbr[f as usize][e];
+        if g == NONE {
+            break;
+        }
+        if g == t {
+            return Some((n, true));
+        }
+        if n == FAN_WALK {
+            return None;
+        }
+        buf[n] = g;
+        n += 1;
+        e = (back(g, f)? + 2) % 3;
+        f = g;
+    }
+    // Open: the other way round from t (out across the edge that starts at the vertex),
+    // put in front, reversed.
+    let first = n;
+    let (mut f, mut e) = (t, i);
+    loop {
+        let g = nbr[f as usize][e];
+        if g == NONE {
+            break;
+        }
+        if g == t || n == FAN_WALK {
+            return None;
+        }
+        buf[n] = g;
+        n += 1;
+        e = (back(g, f)? + 1) % 3;
+        f = g;
+    }
+    // buf = [t, a1..ak, b1..bm]: rotate to [b1..bm, t, a1..ak], then reverse the b's.
+    buf[..n].rotate_left(first);
+    buf[..n - first].reverse();
+    Some((n, false))
 }
 
 /// Around a vertex whose faces are `fan` (in fan order; `closed` when they form one closed

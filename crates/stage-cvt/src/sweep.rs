@@ -18,7 +18,7 @@
 //! the same, in the same order.
 
 use crate::energy::{Energy, FacePoints, Sums};
-use crate::engine::fan_runs;
+use crate::engine::{FAN_WALK, fan_runs, walk_fan};
 use coarsen_geom::DVec3;
 use coarsen_mesh::topology::NONE;
 use rayon::prelude::*;
@@ -35,6 +35,10 @@ pub(crate) struct View<'v, E: Energy + ?Sized, F: FacePoints + ?Sized> {
     pub fan: &'v [u32],
     pub nbr: &'v [[u32; 3]],
     pub closed: &'v [bool],
+    /// Whether the move test finds the faces round a corner by stepping across edges
+    /// (`nbr`) rather than in the fan table: the same fans on a manifold, consistently
+    /// oriented mesh, from memory the sweep has just read.
+    pub walk_fans: bool,
     pub face_sums: &'v F,
     /// Per layout vertex: its position, when moves are checked against folds.
     pub pos: Option<&'v [DVec3]>,
@@ -178,15 +182,26 @@ impl<E: Energy + ?Sized, F: FacePoints + ?Sized> View<'_, E, F> {
             *refused += 1;
             return Visit::Stayed;
         }
+        let mut buf = [0u32; FAN_WALK];
         let allowed = a.count >= 1.5
-            && self.corners[t as usize].iter().all(|&v| {
-                let fan = &self.fan
-                    [self.fan_off[v as usize] as usize..self.fan_off[v as usize + 1] as usize];
-                fan_runs(fan, self.closed[v as usize], [from, to, t], |g| {
-                    self.label(g)
-                })
-                .iter()
-                .all(|&r| r <= 1)
+            && (0..3).all(|i| {
+                let walked = match self.walk_fans {
+                    true => walk_fan(self.nbr, t, i, &mut buf),
+                    false => None,
+                };
+                let (fan, closed) = match walked {
+                    Some((n, closed)) => (&buf[..n], closed),
+                    None => {
+                        let v = self.corners[t as usize][i] as usize;
+                        (
+                            &self.fan[self.fan_off[v] as usize..self.fan_off[v + 1] as usize],
+                            self.closed[v],
+                        )
+                    }
+                };
+                fan_runs(fan, closed, [from, to, t], |g| self.label(g))
+                    .iter()
+                    .all(|&r| r <= 1)
             });
         if !allowed {
             *refused += 1;

@@ -711,3 +711,52 @@ fn a_warm_start_on_a_big_mesh_sums_each_cluster_in_face_order() {
     c.set_labels(labels, 300).unwrap();
     assert_eq!(c.cluster_sums(), &want[..]);
 }
+
+#[test]
+fn fans_walked_across_edges_are_the_fan_table_s() {
+    // Each pole of a sphere of 60 meridians has 60 faces: more than a walk lists.
+    let mut meshes = shapes();
+    meshes.push(("uv sphere", coarsen_shapes::uv_sphere(1.0, 12, 60).unwrap()));
+    let (mut walked, mut gave_up, mut open) = (0, 0, 0);
+    for (name, mesh) in meshes {
+        let topo = Topology::build(&mesh);
+        assert!(
+            topo.is_manifold() && topo.is_consistently_oriented(),
+            "{name}"
+        );
+        let nbr = engine::face_neighbors(&topo, mesh.n_faces());
+        let mut buf = [0u32; engine::FAN_WALK];
+        for (t, corners) in mesh.faces.iter().enumerate() {
+            for (i, &v) in corners.iter().enumerate() {
+                let table = topo.vertex_faces(v);
+                let Some((n, closed)) = engine::walk_fan(&nbr, t as u32, i, &mut buf) else {
+                    assert!(
+                        table.len() > engine::FAN_WALK,
+                        "{name}: face {t} corner {i}"
+                    );
+                    gave_up += 1;
+                    continue;
+                };
+                walked += 1;
+                assert_eq!(closed, !topo.is_boundary_vertex(v), "{name}: vertex {v}");
+                // The same faces in the same cyclic order (a closed fan) or along the
+                // same path (an open one), either way round.
+                let got = &buf[..n];
+                let same = |way: &[u32]| match closed {
+                    true => (0..n).any(|r| way.iter().cycle().skip(r).take(n).eq(got)),
+                    false => way == got,
+                };
+                let back: Vec<u32> = table.iter().rev().copied().collect();
+                assert!(
+                    got.len() == table.len() && (same(table) || same(&back)),
+                    "{name}: face {t} corner {i}: walked {got:?}, table {table:?}"
+                );
+                open += usize::from(!closed);
+            }
+        }
+    }
+    assert!(
+        walked > 10_000 && gave_up == 2 * 60 && open > 100,
+        "{walked} {gave_up} {open}"
+    );
+}
