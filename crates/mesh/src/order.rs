@@ -29,16 +29,8 @@ impl CurveOrder {
         mesh.validate_indices().ok()?;
         let (center, scale) = unit_box(mesh);
         let nv = mesh.n_vertices();
-        let mut keyed: Vec<(u64, Index)> = mesh
-            .positions
-            .par_iter()
-            .enumerate()
-            .map(|(v, &p)| (morton((p - center) * scale), v as Index))
-            .collect();
         // Already in order (a mesh the runner renumbered): no sort needed to tell.
-        let sorted = keyed.par_windows(2).all(|w| w[0].0 <= w[1].0)
-            && mesh.faces.par_windows(2).all(|w| min3(w[0]) <= min3(w[1]));
-        if sorted {
+        if in_order(mesh, center, scale) {
             let identity = |n: usize| (0..n as Index).collect::<Vec<_>>();
             return Some(CurveOrder {
                 vertices: identity(nv),
@@ -46,6 +38,12 @@ impl CurveOrder {
                 faces: identity(mesh.n_faces()),
             });
         }
+        let mut keyed: Vec<(u64, Index)> = mesh
+            .positions
+            .par_iter()
+            .enumerate()
+            .map(|(v, &p)| (morton((p - center) * scale), v as Index))
+            .collect();
         keyed.par_sort_unstable();
         let vertices: Vec<Index> = keyed.into_par_iter().map(|k| k.1).collect();
         let mut vertex_rank = vec![0 as Index; nv];
@@ -82,6 +80,26 @@ impl CurveOrder {
         let same = |order: &[Index]| order.iter().enumerate().all(|(i, &x)| i as Index == x);
         same(&self.vertices) && same(&self.faces)
     }
+}
+
+/// True when `mesh` is already in its curve order ([`CurveOrder::of`] would give every
+/// vertex and face its own index back), told without building the order.
+pub fn is_along_curve(mesh: &Mesh) -> bool {
+    if mesh.validate_indices().is_err() {
+        return false;
+    }
+    let (center, scale) = unit_box(mesh);
+    in_order(mesh, center, scale)
+}
+
+/// True when the vertices' Morton codes in the box `center`, `scale` ascend and the faces'
+/// first corners do.
+fn in_order(mesh: &Mesh, center: DVec3, scale: f64) -> bool {
+    let key = |p: DVec3| morton((p - center) * scale);
+    mesh.positions
+        .par_windows(2)
+        .all(|w| key(w[0]) <= key(w[1]))
+        && mesh.faces.par_windows(2).all(|w| min3(w[0]) <= min3(w[1]))
 }
 
 /// The centre of `mesh`'s box and the scale that gives the box a unit diagonal (1 for a
@@ -263,8 +281,26 @@ mod tests {
         let broken = Mesh::new(vec![DVec3::ZERO, DVec3::X, DVec3::Y], vec![[0, 1, 7]]);
         assert!(CurveOrder::of(&broken).is_none());
         assert_eq!(along_curve(broken.clone()), broken);
+        assert!(!is_along_curve(&broken));
         let empty = Mesh::default();
         assert!(CurveOrder::of(&empty).unwrap().is_identity());
+        assert!(is_along_curve(&empty));
         assert_eq!(along_curve(empty.clone()), empty);
+    }
+
+    #[test]
+    fn a_mesh_is_along_the_curve_exactly_when_its_order_is_the_identity() {
+        let shuffled = shuffled_grid(32);
+        assert!(!is_along_curve(&shuffled));
+        assert!(!CurveOrder::of(&shuffled).unwrap().is_identity());
+        let ordered = along_curve(shuffled);
+        assert!(is_along_curve(&ordered));
+        assert!(CurveOrder::of(&ordered).unwrap().is_identity());
+        // Vertices in order but two faces swapped out of it.
+        let mut faces_out = ordered.clone();
+        let last = faces_out.faces.len() - 1;
+        faces_out.faces.swap(0, last);
+        assert!(!is_along_curve(&faces_out));
+        assert!(!CurveOrder::of(&faces_out).unwrap().is_identity());
     }
 }

@@ -7,7 +7,7 @@
 use crate::energy::{Derived, Energy, FaceData, FacePoint, Sums, WithEnergy};
 use crate::sweep;
 use coarsen_geom::{DVec3, triangle};
-use coarsen_mesh::order::{CurveOrder, morton, unit_box};
+use coarsen_mesh::order::{CurveOrder, is_along_curve, morton, unit_box};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
@@ -274,17 +274,20 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         // The layout: vertices along a Morton curve of their positions, faces by their
         // first corner on that curve (`coarsen_mesh::order`). A mesh already in that order (the runner renumbers large inputs so)
         // is laid out as it is, its own tables borrowed.
-        let layout = if curve { CurveOrder::of(mesh) } else { None };
-        let curve = layout.is_some();
-        let own_tables = layout.as_ref().is_none_or(CurveOrder::is_identity);
+        let along = curve && is_along_curve(mesh);
+        let layout = match curve && !along {
+            true => CurveOrder::of(mesh),
+            false => None,
+        };
+        let curve = along || layout.is_some();
+        let own_tables = layout.is_none();
+        // Layout position → vertex, vertex → layout position, layout position → face;
+        // empty when the layout is the mesh's own order.
         let (vorder, vmap, order) = match layout {
             Some(o) => (o.vertices, o.vertex_rank, o.faces),
-            None => (
-                (0..nv as u32).collect(),
-                (0..nv as u32).collect(),
-                (0..nf as u32).collect(),
-            ),
+            None => (Vec::new(), Vec::new(), Vec::new()),
         };
+        let vertex_at = |i: usize| if own_tables { i as u32 } else { vorder[i] };
         let perm = match own_tables {
             true => FacePerm::Identity(nf),
             false => {
@@ -361,9 +364,12 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 (Cow::Owned(off), Cow::Owned(fan))
             }
         };
-        let closed = vorder
-            .par_iter()
-            .map(|&v| topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v))
+        let closed = (0..nv)
+            .into_par_iter()
+            .map(|i| {
+                let v = vertex_at(i);
+                topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v)
+            })
             .collect();
         let nbr: Vec<[u32; 3]> = (0..nf)
             .into_par_iter()
