@@ -505,6 +505,8 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// seeds are stratified by mass along it — one in each of the
     /// component's equal-mass stretches, at a point jittered by a [`SplitMix64`] from
     /// `seed` — so the seeds start evenly spread and the minimisation has little to move.
+    /// A mesh laid out along the curve (big) grows in blocks of the layout at once
+    /// ([`grow_in_blocks`]).
     pub fn seed(&mut self, n: usize, seed: u64) -> Result<(), ClusterError> {
         let nf = self.nbr.len();
         if n > nf {
@@ -582,14 +584,10 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 },
             );
         }
-        while let Some(f) = queue.pop_front() {
-            let l = labels[f as usize];
-            for g in self.nbr[f as usize] {
-                if g != NONE && labels[g as usize] == NONE {
-                    labels[g as usize] = l;
-                    queue.push_back(g);
-                }
-            }
+        // A big mesh (laid out along the curve) grows in blocks of the layout at once.
+        match self.curve {
+            true => grow_in_blocks(&self.nbr, &mut labels, queue.into(), BLOCK),
+            false => grow(&self.nbr, &mut labels, queue),
         }
         self.set_layout_labels(&labels, n);
         Ok(())
@@ -982,6 +980,70 @@ fn csr<'l>(
         }
     });
     (off, values)
+}
+
+/// Faces in each block of the layout that [`grow_in_blocks`] grows on its own: at 4.4M
+/// faces, the growing 0.13–0.18 s → 0.042–0.045 s (2¹⁷ and 2¹⁸ as fast, 2²⁰ slower).
+const BLOCK: usize = 1 << 19;
+
+/// Grows the labelled faces of `queue` breadth-first (in queue order) over `nbr` into every
+/// face they reach that has no label yet.
+fn grow(nbr: &[[u32; 3]], labels: &mut [u32], mut queue: VecDeque<u32>) {
+    while let Some(f) = queue.pop_front() {
+        let l = labels[f as usize];
+        for g in nbr[f as usize] {
+            if g != NONE && labels[g as usize] == NONE {
+                labels[g as usize] = l;
+                queue.push_back(g);
+            }
+        }
+    }
+}
+
+/// Like [`grow`] from the seed faces `seeds` (in order), but each block of `block` faces
+/// in parallel, from its own seeds and within itself (along the Morton layout a block is
+/// a compact piece of the surface, and its tables fit in cache); then the faces no seed
+/// of their block reached are grown into from the labelled faces next to them (in face
+/// order). The blocks depend on the face count alone, never on the thread count.
+pub(crate) fn grow_in_blocks(nbr: &[[u32; 3]], labels: &mut [u32], seeds: Vec<u32>, block: usize) {
+    let nf = labels.len();
+    let mut by_block = vec![Vec::new(); nf.div_ceil(block)];
+    for &f in &seeds {
+        by_block[f as usize / block].push(f);
+    }
+    labels
+        .par_chunks_mut(block)
+        .zip(by_block)
+        .enumerate()
+        .for_each(|(k, (mine, mut queue))| {
+            let lo = (k * block) as u32;
+            let mut head = 0;
+            while let Some(&f) = queue.get(head) {
+                head += 1;
+                let l = mine[(f - lo) as usize];
+                for g in nbr[f as usize] {
+                    if g != NONE
+                        && let Some(slot) = mine.get_mut(g.wrapping_sub(lo) as usize)
+                        && *slot == NONE
+                    {
+                        *slot = l;
+                        queue.push(g);
+                    }
+                }
+            }
+        });
+    let labels_ro: &[u32] = labels;
+    let rim: VecDeque<u32> = (0..nf as u32)
+        .into_par_iter()
+        .filter(|&f| {
+            labels_ro[f as usize] != NONE
+                && nbr[f as usize]
+                    .iter()
+                    .any(|&g| g != NONE && labels_ro[g as usize] == NONE)
+        })
+        .collect::<Vec<u32>>()
+        .into();
+    grow(nbr, labels, rim);
 }
 
 /// Most faces [`walk_fan`] lists around a vertex (more: it gives up).

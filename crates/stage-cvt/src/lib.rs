@@ -24,7 +24,9 @@
 //!    a Morton curve of their centroids (on meshes of 2²⁰ faces or more: vertices along the
 //!    curve of their positions, faces by their first corner on it) and one seed is drawn
 //!    in each equal-mass stretch (jittered by SplitMix64 from `seed`), then grown
-//!    breadth-first until every face belongs to a cluster.
+//!    breadth-first until every face belongs to a cluster (on meshes of 2²⁰ faces or more
+//!    each block of 2¹⁹ faces along the curve from its own seeds, in parallel, then the
+//!    faces left from the regions next to them).
 //! 2. **Minimisation** (the ACVD loop, over faces): each pass sweeps the faces on cluster
 //!    borders in index order (on meshes of 2²⁰ faces or more the clusterer renumbers faces
 //!    and vertices along that curve, so the faces a test reads lie close in memory, and

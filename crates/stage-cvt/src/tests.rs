@@ -760,3 +760,35 @@ fn fans_walked_across_edges_are_the_fan_table_s() {
         "{walked} {gave_up} {open}"
     );
 }
+
+#[test]
+fn regions_grown_in_blocks_cover_every_face_each_region_connected() {
+    // A torus laid out along the curve, cut into blocks of 500 faces; seeds in some
+    // blocks only, so the faces of the others are grown into from their neighbours.
+    let mesh = coarsen_mesh::order::along_curve(torus(2.0, 0.7, 96, 48).unwrap());
+    let topo = Topology::build(&mesh);
+    let nf = mesh.n_faces();
+    let nbr = engine::face_neighbors(&topo, nf);
+    for (every, block) in [(97, 500), (331, 500), (97, 4096), (2003, 1000)] {
+        let seeds: Vec<u32> = (0..nf as u32)
+            .filter(|f| f % every == 7 && (f / 1500) % 3 != 1)
+            .collect();
+        let mut labels = vec![coarsen_mesh::topology::NONE; nf];
+        for (l, &f) in seeds.iter().enumerate() {
+            labels[f as usize] = l as u32;
+        }
+        engine::grow_in_blocks(&nbr, &mut labels, seeds.clone(), block);
+        assert!(labels.iter().all(|&l| (l as usize) < seeds.len()));
+        for (l, &f) in seeds.iter().enumerate() {
+            assert_eq!(labels[f as usize], l as u32, "seed {f} lost its region");
+        }
+        check_invariant(&mesh, &labels, seeds.len());
+        // The same labels again (and so with any thread count: blocks are fixed).
+        let mut again = vec![coarsen_mesh::topology::NONE; nf];
+        for (l, &f) in seeds.iter().enumerate() {
+            again[f as usize] = l as u32;
+        }
+        engine::grow_in_blocks(&nbr, &mut again, seeds, block);
+        assert_eq!(labels, again);
+    }
+}
