@@ -721,8 +721,12 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let set =
             |bits: &[AtomicU64], f: u32| bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
         match start {
-            None => (0..nf as u32).for_each(|f| {
-                set(&cur, f);
+            // Every face: whole words at once.
+            None => cur.iter_mut().enumerate().for_each(|(w, word)| {
+                *word.get_mut() = match nf - 64 * w {
+                    64.. => u64::MAX,
+                    left => (1 << left) - 1,
+                }
             }),
             Some(faces) => faces.iter().filter(|&&f| (f as usize) < nf).for_each(|&f| {
                 set(&cur, self.perm.rank(f as usize));
