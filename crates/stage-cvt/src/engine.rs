@@ -589,7 +589,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             true => grow_in_blocks(&self.nbr, &mut labels, queue.into(), BLOCK),
             false => grow(&self.nbr, &mut labels, queue),
         }
-        self.set_layout_labels(&labels, n);
+        self.set_layout_labels(labels, n);
         Ok(())
     }
 
@@ -645,13 +645,12 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     }
 
     /// [`Clusterer::set_labels`] from labels in the layout's numbering (all below `n`).
-    fn set_layout_labels(&mut self, labels: &[u32], n: usize) {
-        let sums = self.sums_by_cluster(labels, n);
-        let mut own = vec![0u32; labels.len()];
-        for (i, &l) in labels.iter().enumerate() {
-            own[self.perm.order(i) as usize] = l;
-        }
-        self.labels = own;
+    fn set_layout_labels(&mut self, labels: Vec<u32>, n: usize) {
+        let sums = self.sums_by_cluster(&labels, n);
+        self.labels = match &self.perm {
+            FacePerm::Identity(_) => labels,
+            FacePerm::Map { rank, .. } => rank.par_iter().map(|&i| labels[i as usize]).collect(),
+        };
         self.terms = sums.iter().map(|s| self.energy.cluster(s)).collect();
         self.sums = sums;
     }

@@ -398,12 +398,26 @@ pub(crate) fn split_parts<'p>(starts: &[u32], state: State<'p>) -> Vec<Part<'p>>
 /// Per part, the faces whose cluster is in it, as bitsets over the faces.
 pub(crate) fn owners(labels: &[AtomicU32], starts: &[u32]) -> Vec<Vec<u64>> {
     let words = labels.len().div_ceil(64);
-    let mut own = vec![vec![0u64; words]; starts.len().saturating_sub(1)];
-    for (t, l) in labels.iter().enumerate() {
-        let p = starts.partition_point(|&s| s <= l.load(Relaxed)) - 1;
-        own[p][t / 64] |= 1 << (t % 64);
+    let n_parts = starts.len().saturating_sub(1);
+    if n_parts == 0 {
+        return Vec::new();
     }
-    own
+    // Word by word in parallel (each word's bits for every part side by side), then
+    // gathered part by part.
+    let mut by_word = vec![0u64; words * n_parts];
+    by_word
+        .par_chunks_mut(n_parts)
+        .zip(labels.par_chunks(64))
+        .for_each(|(bits, word)| {
+            for (b, l) in word.iter().enumerate() {
+                let p = starts.partition_point(|&s| s <= l.load(Relaxed)) - 1;
+                bits[p] |= 1 << b;
+            }
+        });
+    (0..n_parts)
+        .into_par_iter()
+        .map(|p| (0..words).map(|w| by_word[w * n_parts + p]).collect())
+        .collect()
 }
 
 /// One pass over all parts (in parallel) and then the border faces: `(moves, refused,
