@@ -655,10 +655,16 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         self.sums = sums;
     }
 
-    /// The faces of layout vertex `v`, in fan order (layout numbering).
-    #[inline]
-    fn fan(&self, v: u32) -> &[u32] {
-        &self.fan[self.fan_off[v as usize] as usize..self.fan_off[v as usize + 1] as usize]
+    /// Where the move test finds the faces round a corner (layout numbering).
+    fn fans(&self) -> Fans<'_> {
+        Fans {
+            corners: &self.corners,
+            nbr: &self.nbr,
+            fan_off: &self.fan_off,
+            fan: &self.fan,
+            closed: &self.closed,
+            walk: self.walk_fans,
+        }
     }
 
     /// True when face `t` may leave its cluster for cluster `to`: its cluster keeps a face
@@ -671,8 +677,10 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             return false;
         }
         let tl = self.perm.rank(t as usize);
-        self.corners[tl as usize].iter().all(|&v| {
-            fan_runs(self.fan(v), self.closed[v as usize], [from, to, tl], |g| {
+        let (fans, mut buf) = (self.fans(), [0u32; FAN_WALK]);
+        (0..3).all(|i| {
+            let (fan, closed) = fans.around(tl, i, &mut buf);
+            fan_runs(fan, closed, [from, to, tl], |g| {
                 self.labels[self.perm.order(g as usize) as usize]
             })
             .iter()
@@ -798,11 +806,8 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                     sweep::pass(
                         &sweep::View {
                             corners: &self.corners,
-                            fan_off: &self.fan_off,
-                            fan: &self.fan,
                             nbr: &self.nbr,
-                            closed: &self.closed,
-                            walk_fans: self.walk_fans,
+                            fans: self.fans(),
                             face_sums: $faces,
                             pos: guard.then_some(&self.pos[..]),
                             energy: self.energy,
@@ -1051,6 +1056,48 @@ pub(crate) fn grow_in_blocks(nbr: &[[u32; 3]], labels: &mut [u32], seeds: Vec<u3
 
 /// Most faces [`walk_fan`] lists around a vertex (more: it gives up).
 pub(crate) const FAN_WALK: usize = 48;
+
+/// Where the move test finds the faces round a corner (a clusterer's layout tables).
+#[derive(Clone, Copy)]
+pub(crate) struct Fans<'f> {
+    /// Per face: its corners.
+    pub corners: &'f [[u32; 3]],
+    /// Per face: the face across each edge (corner i → i + 1), or [`NONE`].
+    pub nbr: &'f [[u32; 3]],
+    /// Per vertex `v`: its faces in fan order, `fan[fan_off[v]..fan_off[v + 1]]`.
+    pub fan_off: &'f [u32],
+    pub fan: &'f [u32],
+    /// Per vertex: its faces form one closed fan.
+    pub closed: &'f [bool],
+    /// Whether corners may be walked round across `nbr` ([`walk_fan`]; the mesh is
+    /// manifold and consistently oriented): the same fans as the table's, from memory a
+    /// sweep has just read.
+    pub walk: bool,
+}
+
+impl<'f> Fans<'f> {
+    /// The faces round corner `i` of face `t` in fan order, and whether they close
+    /// round it: walked (into `buf`) when allowed and short enough, else the table's row.
+    #[inline]
+    pub(crate) fn around<'b>(
+        &self,
+        t: u32,
+        i: usize,
+        buf: &'b mut [u32; FAN_WALK],
+    ) -> (&'b [u32], bool)
+    where
+        'f: 'b,
+    {
+        if self.walk
+            && let Some((n, closed)) = walk_fan(self.nbr, t, i, buf)
+        {
+            return (&buf[..n], closed);
+        }
+        let v = self.corners[t as usize][i] as usize;
+        let (a, b) = (self.fan_off[v] as usize, self.fan_off[v + 1] as usize);
+        (&self.fan[a..b], self.closed[v])
+    }
+}
 
 /// The faces around corner `i` of face `t`, found by stepping across the faces' edges
 /// (`nbr`, [`NONE`] across a boundary) and written to `buf` in fan order: `Some((len,

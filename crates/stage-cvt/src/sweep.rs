@@ -18,7 +18,7 @@
 //! the same, in the same order.
 
 use crate::energy::{Energy, FacePoints, Sums};
-use crate::engine::{FAN_WALK, fan_runs, walk_fan};
+use crate::engine::{FAN_WALK, Fans, fan_runs};
 use coarsen_geom::DVec3;
 use coarsen_mesh::topology::NONE;
 use rayon::prelude::*;
@@ -30,15 +30,9 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 pub(crate) struct View<'v, E: Energy + ?Sized, F: FacePoints + ?Sized> {
     /// Per face: its corners.
     pub corners: &'v [[u32; 3]],
-    /// Per vertex `v`: its faces in fan order, `fan[fan_off[v]..fan_off[v + 1]]`.
-    pub fan_off: &'v [u32],
-    pub fan: &'v [u32],
     pub nbr: &'v [[u32; 3]],
-    pub closed: &'v [bool],
-    /// Whether the move test finds the faces round a corner by stepping across edges
-    /// (`nbr`) rather than in the fan table: the same fans on a manifold, consistently
-    /// oriented mesh, from memory the sweep has just read.
-    pub walk_fans: bool,
+    /// The faces round each corner, for the move test.
+    pub fans: Fans<'v>,
     pub face_sums: &'v F,
     /// Per layout vertex: its position, when moves are checked against folds.
     pub pos: Option<&'v [DVec3]>,
@@ -185,20 +179,7 @@ impl<E: Energy + ?Sized, F: FacePoints + ?Sized> View<'_, E, F> {
         let mut buf = [0u32; FAN_WALK];
         let allowed = a.count >= 1.5
             && (0..3).all(|i| {
-                let walked = match self.walk_fans {
-                    true => walk_fan(self.nbr, t, i, &mut buf),
-                    false => None,
-                };
-                let (fan, closed) = match walked {
-                    Some((n, closed)) => (&buf[..n], closed),
-                    None => {
-                        let v = self.corners[t as usize][i] as usize;
-                        (
-                            &self.fan[self.fan_off[v] as usize..self.fan_off[v + 1] as usize],
-                            self.closed[v],
-                        )
-                    }
-                };
+                let (fan, closed) = self.fans.around(t, i, &mut buf);
                 fan_runs(fan, closed, [from, to, t], |g| self.label(g))
                     .iter()
                     .all(|&r| r <= 1)
