@@ -12,7 +12,6 @@ use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use rayon::prelude::*;
 use std::borrow::Cow;
-use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 
 /// Meshes with fewer faces keep their own face order inside the clusterer; bigger ones
@@ -568,7 +567,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         let quota = allocate(n, &mass, |c| off[c + 1] - off[c]);
         let mut rng = SplitMix64::new(seed);
         let mut labels = vec![NONE; nf];
-        let mut queue = VecDeque::with_capacity(nf);
+        let mut seeds = Vec::with_capacity(n);
         let mut next = 0u32;
         for c in 0..nc {
             stratified(
@@ -579,15 +578,15 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 &mut rng,
                 |f| {
                     labels[f as usize] = next;
-                    queue.push_back(f);
+                    seeds.push(f);
                     next += 1;
                 },
             );
         }
         // A big mesh (laid out along the curve) grows in blocks of the layout at once.
         match self.curve {
-            true => grow_in_blocks(&self.nbr, &mut labels, queue.into(), BLOCK),
-            false => grow(&self.nbr, &mut labels, queue),
+            true => grow_in_blocks(&self.nbr, &mut labels, seeds, BLOCK),
+            false => grow(&self.nbr, &mut labels, 0, seeds),
         }
         self.set_layout_labels(labels, n);
         Ok(())
@@ -995,14 +994,22 @@ fn csr<'l>(
 const BLOCK: usize = 1 << 19;
 
 /// Grows the labelled faces of `queue` breadth-first (in queue order) over `nbr` into every
-/// face they reach that has no label yet.
-fn grow(nbr: &[[u32; 3]], labels: &mut [u32], mut queue: VecDeque<u32>) {
-    while let Some(f) = queue.pop_front() {
-        let l = labels[f as usize];
+/// face of `labels` (faces `lo..lo + labels.len()`) they reach that has no label yet,
+/// never stepping outside those faces.
+fn grow(nbr: &[[u32; 3]], labels: &mut [u32], lo: u32, mut queue: Vec<u32>) {
+    // Each face joins the queue at most once.
+    queue.reserve(labels.len().saturating_sub(queue.len()));
+    let mut head = 0;
+    while let Some(&f) = queue.get(head) {
+        head += 1;
+        let l = labels[(f - lo) as usize];
         for g in nbr[f as usize] {
-            if g != NONE && labels[g as usize] == NONE {
-                labels[g as usize] = l;
-                queue.push_back(g);
+            if g != NONE
+                && let Some(slot) = labels.get_mut(g.wrapping_sub(lo) as usize)
+                && *slot == NONE
+            {
+                *slot = l;
+                queue.push(g);
             }
         }
     }
@@ -1023,25 +1030,9 @@ pub(crate) fn grow_in_blocks(nbr: &[[u32; 3]], labels: &mut [u32], seeds: Vec<u3
         .par_chunks_mut(block)
         .zip(by_block)
         .enumerate()
-        .for_each(|(k, (mine, mut queue))| {
-            let lo = (k * block) as u32;
-            let mut head = 0;
-            while let Some(&f) = queue.get(head) {
-                head += 1;
-                let l = mine[(f - lo) as usize];
-                for g in nbr[f as usize] {
-                    if g != NONE
-                        && let Some(slot) = mine.get_mut(g.wrapping_sub(lo) as usize)
-                        && *slot == NONE
-                    {
-                        *slot = l;
-                        queue.push(g);
-                    }
-                }
-            }
-        });
+        .for_each(|(k, (mine, queue))| grow(nbr, mine, (k * block) as u32, queue));
     let labels_ro: &[u32] = labels;
-    let rim: VecDeque<u32> = (0..nf as u32)
+    let rim: Vec<u32> = (0..nf as u32)
         .into_par_iter()
         .filter(|&f| {
             labels_ro[f as usize] != NONE
@@ -1049,9 +1040,8 @@ pub(crate) fn grow_in_blocks(nbr: &[[u32; 3]], labels: &mut [u32], seeds: Vec<u3
                     .iter()
                     .any(|&g| g != NONE && labels_ro[g as usize] == NONE)
         })
-        .collect::<Vec<u32>>()
-        .into();
-    grow(nbr, labels, rim);
+        .collect();
+    grow(nbr, labels, 0, rim);
 }
 
 /// Most faces [`walk_fan`] lists around a vertex (more: it gives up).
