@@ -1599,6 +1599,8 @@ impl Topology {
     /// The one-ring of vertex `v`: distinct neighbours in the order met along
     /// [`Topology::vertex_faces`]; for a manifold vertex counter-clockwise, from the
     /// boundary neighbour `next` of the first face when `v` is on the boundary.
+    ///
+    /// Panics on an adjacency made without them ([`Topology::of_split_lean`]).
     #[inline]
     pub fn vertex_neighbors(&self, v: u32) -> &[u32] {
         let v = v as usize;
@@ -1607,6 +1609,13 @@ impl Topology {
             self.vertex_neighbor_offsets[v + 1] as usize,
         );
         &self.vertex_neighbors[a..b]
+    }
+
+    /// True when [`Topology::vertex_neighbors`] may be asked: every adjacency but a lean
+    /// one ([`Topology::of_split_lean`]).
+    #[inline]
+    pub fn has_vertex_neighbors(&self) -> bool {
+        !self.vertex_neighbor_offsets.is_empty()
     }
 
     /// True when vertex `v` lies on an edge with exactly one face.

@@ -142,7 +142,12 @@ impl Stage for Postprocess {
                     let next = coarsen_stage_refine::split_once_with(&fine, &all, topo)
                         .map_err(|e| StageError::Input(e.to_string()))?
                         .0;
-                    derived = topo.and_then(|t| t.of_split(&fine, &next));
+                    // The finest level's readers (the clusterer, the dual) never ask for
+                    // the vertex neighbours.
+                    derived = topo.and_then(|t| match done + 1 == p.times {
+                        true => t.of_split_lean(&fine, &next),
+                        false => t.of_split(&fine, &next),
+                    });
                     fine = next;
                     done += 1;
                 }
