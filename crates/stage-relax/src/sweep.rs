@@ -120,13 +120,20 @@ impl Sweep<'_> {
             }
             moved += k;
         }
-        let mut sc = Scratch::default();
-        for v in 0..positions.len() as u32 {
-            if border[v as usize]
-                && let Some(q) = self.best_move(v, |w| positions[w as usize], &mut sc)
-            {
+        // The border vertices class by class, each class's at once: no two of a class are
+        // neighbours, so none reads where another of its class goes.
+        for class in border_classes(self.topo, &border) {
+            let to: Vec<(u32, DVec3)> = class
+                .par_iter()
+                .map_init(Scratch::default, |sc, &v| {
+                    self.best_move(v, |w| positions[w as usize], sc)
+                        .map(|q| (v, q))
+                })
+                .flatten_iter()
+                .collect();
+            moved += to.len();
+            for (v, q) in to {
                 positions[v as usize] = q;
-                moved += 1;
             }
         }
         moved
@@ -290,6 +297,31 @@ impl Sweep<'_> {
     }
 }
 
+/// The vertices marked in `border` in classes of which no two are neighbours (in `topo`):
+/// each, in ascending order, takes the first class none of its smaller neighbours took.
+fn border_classes(topo: &Topology, border: &[bool]) -> Vec<Vec<u32>> {
+    const NONE: u32 = u32::MAX;
+    let mut class = vec![NONE; border.len()];
+    let mut classes: Vec<Vec<u32>> = Vec::new();
+    let mut taken: Vec<bool> = Vec::new();
+    for v in (0..border.len() as u32).filter(|&v| border[v as usize]) {
+        taken.clear();
+        taken.resize(classes.len() + 1, false);
+        for &w in topo.vertex_neighbors(v) {
+            if let Some(&c) = class.get(w as usize).filter(|&&c| c != NONE) {
+                taken[c as usize] = true;
+            }
+        }
+        let c = taken.iter().position(|&t| !t).unwrap_or(classes.len());
+        if c == classes.len() {
+            classes.push(Vec::new());
+        }
+        class[v as usize] = c as u32;
+        classes[c].push(v);
+    }
+    classes
+}
+
 /// Where the targets of a vertex's moves are placed (see [`Sweep::place`]).
 pub(crate) struct Place {
     /// The vertex's position.
@@ -372,6 +404,30 @@ impl Parts {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// No two vertices of a class are neighbours, every marked vertex is in one class,
+    /// and the classes are few (a vertex takes a class its neighbours left).
+    #[test]
+    fn border_classes_hold_no_two_neighbours() {
+        let m = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        let topo = Topology::build(&m);
+        let border: Vec<bool> = (0..m.n_vertices()).map(|v| v % 3 != 0).collect();
+        let classes = border_classes(&topo, &border);
+        let mut seen = vec![0; m.n_vertices()];
+        for class in &classes {
+            assert!(class.windows(2).all(|w| w[0] < w[1]));
+            for &v in class {
+                seen[v as usize] += 1;
+                let nbrs = topo.vertex_neighbors(v);
+                assert!(
+                    class.iter().all(|w| !nbrs.contains(w)),
+                    "{v} beside a classmate"
+                );
+            }
+        }
+        assert!((0..m.n_vertices()).all(|v| seen[v] == usize::from(border[v])));
+        assert!(classes.len() <= 7, "{} classes", classes.len());
+    }
 
     #[test]
     fn parts_cover_every_vertex_once_and_split_evenly() {
