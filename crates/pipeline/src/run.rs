@@ -207,7 +207,9 @@ impl Pipeline {
             let check = contract.needs.manifold
                 || cut_first
                 || (contract.needs.split_fans && !coarsen_mesh::ring::one_fan_everywhere(&mesh));
-            if check {
+            // A manifold mesh has nothing to split, cut or refuse: its summary (the
+            // components and loops counted, every face's area measured) is not needed.
+            if check && !topology_of(&mesh)?.is_manifold() {
                 let mut summary = summary_of(&mesh)?;
                 // Edges of three or more faces are cut only for a stage that cannot work
                 // with them, or before one: a collapse stage keeps them joined (its
