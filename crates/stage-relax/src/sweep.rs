@@ -153,7 +153,16 @@ impl Sweep<'_> {
             return None;
         }
         let p = pos(v);
-        self.moves(v, pos, &mut sc.normals, &mut sc.cands)?;
+        let place = self.targets(v, pos, &mut sc.normals, &mut sc.cands)?;
+        // Inside, the targets are ranked where they are (off the input by its sag alone)
+        // and placed on it one by one as they are tried: a projection is a walk of the
+        // input's index, and most vertices keep their first candidate.
+        let lazy = place.slide.is_none() && self.projects();
+        if !lazy {
+            for q in sc.cands.iter_mut() {
+                *q = self.place(&place, *q);
+            }
+        }
         let shape = |q: DVec3, cos: f64, normals: &[DVec3]| {
             fan_shape(self.faces, fan, v, q, pos, normals, cos)
         };
@@ -184,11 +193,22 @@ impl Sweep<'_> {
                 y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1))
             }
         });
-        let tris = &mut sc.tris;
-        sc.ranked
-            .iter()
-            .find(|(_, q)| self.admits(v, *q, pos, tris))
-            .map(|&(_, q)| q)
+        for &(_, t) in &sc.ranked {
+            let q = if lazy { self.place(&place, t) } else { t };
+            let still = !lazy
+                || (q.is_finite()
+                    && q != p
+                    && shape(q, cos_turn, &sc.normals).is_some_and(|a| better(a)));
+            if still && self.admits(v, q, pos, &mut sc.tris) {
+                return Some(q);
+            }
+        }
+        None
+    }
+
+    /// True when moves are placed on the input surface.
+    fn projects(&self) -> bool {
+        self.surface.is_some() && self.params.project
     }
 
     /// The moves offered to vertex `v` (one fan, `pos` the positions of it and its ring):
@@ -198,6 +218,21 @@ impl Sweep<'_> {
     /// when `v` cannot move: a boundary vertex without two boundary neighbours, or an
     /// interior one whose faces have no area or no normal.
     pub(crate) fn moves(
+        &self,
+        v: u32,
+        pos: impl Fn(u32) -> DVec3 + Copy,
+        normals: &mut Vec<DVec3>,
+        cands: &mut Vec<DVec3>,
+    ) -> Option<Place> {
+        let place = self.targets(v, pos, normals, cands)?;
+        for q in cands.iter_mut() {
+            *q = self.place(&place, *q);
+        }
+        Some(place)
+    }
+
+    /// [`Sweep::moves`] with the candidates left where they aim, not yet placed.
+    fn targets(
         &self,
         v: u32,
         pos: impl Fn(u32) -> DVec3 + Copy,
@@ -252,9 +287,6 @@ impl Sweep<'_> {
                 slide: None,
             }
         };
-        for q in cands.iter_mut() {
-            *q = self.place(&place, *q);
-        }
         Some(place)
     }
 
