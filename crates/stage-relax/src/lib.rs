@@ -4,7 +4,8 @@
 //! In each sweep every vertex, in index order, is offered a few moves: an interior vertex
 //! towards the area-weighted centroid of its ring of faces, within its tangent plane
 //! (`step`, half and a quarter of the way), then onto the nearest point of the run's input
-//! surface when `project` is on; a boundary vertex towards the middle (or the thirds) of
+//! surface when `project` is on (the moves ranked where they aim, then placed on the input
+//! one by one as they are tried, and each judged again where it lands); a boundary vertex towards the middle (or the thirds) of
 //! the segment between its two boundary neighbours, then onto the nearest point of the
 //! input's boundary edges along the loop it is on (within twice its two edges' length of
 //! where it is, so that it neither jumps to another loop nor across a bay of its own). The
@@ -13,7 +14,8 @@
 //! from the input normal nearest its centroid — so the mesh's minimum angle never drops, no
 //! face flips, and every vertex stays on the input surface. Meshes of 2¹¹ vertices or more
 //! sweep in eight fixed spatial parts at once, the vertices on the borders between parts
-//! last; the result does not depend on the thread count.
+//! last (in classes of which no two are neighbours, each class at once); the result does
+//! not depend on the thread count.
 //!
 //! With `flips`, each sweep first flips the interior edges whose two faces get a larger
 //! smallest angle that way (same guards: no new edge duplicating one, no face turned by

@@ -3,8 +3,9 @@
 //! Big meshes sweep in [`PARTS`] spatial parts at once: each part's vertices whose whole
 //! ring lies in the part move in index order, in parallel with the other parts (a move
 //! reads and writes only the vertex's ring), then the vertices on the borders between
-//! parts move one by one. The parts do not depend on the thread count, so neither does
-//! the result.
+//! parts, a class of non-neighbours at a time (each class in parallel; the classes are
+//! taken in vertex order). Neither the parts nor the classes depend on the thread count,
+//! so neither does the result.
 
 use super::*;
 
