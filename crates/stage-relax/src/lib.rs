@@ -5,11 +5,11 @@
 //! towards the area-weighted centroid of its ring of faces, within its tangent plane
 //! (`step`, half and a quarter of the way), then onto the nearest point of the run's input
 //! surface when `project` is on (the moves ranked where they aim, then placed on the input
-//! one by one as they are tried, and each judged again where it lands); a boundary vertex towards the middle (or the thirds) of
-//! the segment between its two boundary neighbours, then onto the nearest point of the
-//! input's boundary edges along the loop it is on (within twice its two edges' length of
-//! where it is, so that it neither jumps to another loop nor across a bay of its own). The
-//! best move is kept only when the smallest angle of the vertex's faces grows, none of
+//! one by one as they are tried, and each judged again where it lands); a boundary vertex
+//! towards the middle (or the thirds) of the segment between its two boundary neighbours,
+//! then onto the nearest point of the input's boundary edges along the loop it is on
+//! (within twice its two edges' length of where it is, so that it neither jumps to another
+//! loop nor across a bay of its own). The best move is kept only when the smallest angle of the vertex's faces grows, none of
 //! them turns by more than `max_turn_deg`, and (when projecting) none faces away
 //! from the input normal nearest its centroid — so the mesh's minimum angle never drops, no
 //! face flips, and every vertex stays on the input surface. Meshes of 2¹¹ vertices or more
