@@ -199,7 +199,7 @@ impl Sweep<'_> {
             let still = !lazy
                 || (q.is_finite()
                     && q != p
-                    && shape(q, cos_turn, &sc.normals).is_some_and(|a| better(a)));
+                    && shape(q, cos_turn, &sc.normals).is_some_and(&better));
             if still && self.admits(v, q, pos, &mut sc.tris) {
                 return Some(q);
             }
