@@ -546,12 +546,9 @@ fn too_few_vertices(topo: &Topology, n: usize) -> Option<String> {
             loops[c] += 1;
         }
     }
-    // χ of each component, worked out once by the adjacency with the rest of its summary
-    // (at 4.4M faces 20–40 ms): only asked for when a component has no boundary.
-    let chi = loops
-        .contains(&0)
-        .then(|| topo.component_euler())
-        .unwrap_or_default();
+    // χ of each component, worked out once by the adjacency (the runner's manifold check
+    // has usually asked for it already).
+    let chi = topo.component_euler();
     let mut need = 0usize;
     let mut worst = (0usize, 0usize);
     for c in 0..nc {
