@@ -158,11 +158,9 @@ impl Sweep<'_> {
         // Inside, the targets are ranked where they are (off the input by its sag alone)
         // and placed on it one by one as they are tried: a projection is a walk of the
         // input's index, and most vertices keep their first candidate.
-        let lazy = place.slide.is_none() && self.projects();
+        let lazy = place.slide.is_none() && self.projecting().is_some();
         if !lazy {
-            for q in sc.cands.iter_mut() {
-                *q = self.place(&place, *q);
-            }
+            self.place_all(&place, &mut sc.cands);
         }
         let shape = |q: DVec3, cos: f64, normals: &[DVec3]| {
             fan_shape(self.faces, fan, v, q, pos, normals, cos)
@@ -207,9 +205,9 @@ impl Sweep<'_> {
         None
     }
 
-    /// True when moves are placed on the input surface.
-    fn projects(&self) -> bool {
-        self.surface.is_some() && self.params.project
+    /// The input surface moves are placed on, when projecting.
+    fn projecting(&self) -> Option<&Surface<'_>> {
+        self.surface.filter(|_| self.params.project)
     }
 
     /// The moves offered to vertex `v` (one fan, `pos` the positions of it and its ring):
@@ -226,10 +224,15 @@ impl Sweep<'_> {
         cands: &mut Vec<DVec3>,
     ) -> Option<Place> {
         let place = self.targets(v, pos, normals, cands)?;
-        for q in cands.iter_mut() {
-            *q = self.place(&place, *q);
-        }
+        self.place_all(&place, cands);
         Some(place)
+    }
+
+    /// Places every target of `cands` (see [`Sweep::place`]).
+    fn place_all(&self, place: &Place, cands: &mut [DVec3]) {
+        for q in cands.iter_mut() {
+            *q = self.place(place, *q);
+        }
     }
 
     /// [`Sweep::moves`] with the candidates left where they aim, not yet placed.
@@ -295,7 +298,7 @@ impl Sweep<'_> {
     /// or along the input's boundary (on it) when projecting, else `target` itself (NaN
     /// where a boundary projection finds nothing).
     pub(crate) fn place(&self, place: &Place, target: DVec3) -> DVec3 {
-        match (self.surface.filter(|_| self.params.project), place.slide) {
+        match (self.projecting(), place.slide) {
             (None, _) => target,
             (Some(sf), None) => sf.project(target).unwrap_or(target),
             (Some(sf), Some(reach)) => sf
