@@ -28,8 +28,7 @@ use coarsen_stage::{Registry, StageError, Target};
 use libfuzzer_sys::fuzz_target;
 use std::sync::LazyLock;
 
-static REGISTRY: LazyLock<Registry> =
-    LazyLock::new(|| coarsen_builtin::registry().expect("the built-in registry builds"));
+static REGISTRY: LazyLock<Registry> = LazyLock::new(coarsen_builtin::registry);
 
 /// With `COARSEN_FUZZ_STRICT` set, a stage's `StageError::Internal` (an error the stage
 /// itself calls a bug) is a crash too; by default only panics and invalid outputs are.

@@ -5,7 +5,7 @@ use coarsen_stage::Target;
 
 #[test]
 fn every_shipped_pipeline_checks_and_runs_on_a_sphere() {
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     let overrides = Overrides {
         target: Some(Target::Vertices(200)),
         ..Default::default()
@@ -51,7 +51,7 @@ fn shipped_pipelines_are_the_files_in_pipelines() {
 
 #[test]
 fn every_stage_example_toml_round_trips_to_its_defaults() {
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     for d in registry.iter() {
         // Declare whatever the stage reads with its defaults, so the example stands alone.
         let inputs: Vec<String> = (d.default_contract)()
@@ -82,7 +82,7 @@ fn every_stage_example_toml_round_trips_to_its_defaults() {
 /// several seconds in the test profile.)
 #[test]
 fn simplifiers_collapse_a_big_mesh_in_parts_and_keep_it_sound() {
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     // 655,360 faces, bumped so that costs vary.
     let mut sphere = coarsen_shapes::icosphere(1.0, 8).unwrap();
     for p in &mut sphere.positions {

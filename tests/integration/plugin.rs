@@ -6,7 +6,7 @@ use coarsen_stage_smooth as _;
 
 #[test]
 fn the_example_plugin_is_registered_at_link_time_next_to_the_builtins() {
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     let smooth = registry
         .get("smooth.taubin")
         .expect("the linked plug-in is registered");
@@ -32,7 +32,7 @@ iterations = 5
 [[stage]]
 kind = "metrics"
 "#;
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     let p = Pipeline::parse(text, "smooth.toml", &registry, &Overrides::default()).unwrap();
     let mut noisy = coarsen_shapes::icosphere(1.0, 3).unwrap();
     for (i, v) in noisy.positions.iter_mut().enumerate() {
@@ -59,7 +59,7 @@ kind = "metrics"
 
 #[test]
 fn plugin_parameters_are_checked_like_builtin_ones() {
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     let text = "[[stage]]\nkind = \"smooth.taubin\"\nmu = 0.3\nlamda = 0.5\n";
     let e = Pipeline::parse(text, "s.toml", &registry, &Overrides::default())
         .unwrap_err()

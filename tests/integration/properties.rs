@@ -57,7 +57,7 @@ fn shape(kind: u8, seed: u64) -> Mesh {
 
 fn run(name: &str, mesh: &Mesh, vertices: u64) -> Option<(Mesh, String)> {
     let text = coarsen_builtin::pipeline(name)?;
-    let registry = coarsen_builtin::registry().unwrap();
+    let registry = coarsen_builtin::registry();
     let overrides = Overrides {
         target: Some(Target::Vertices(vertices)),
         ..Default::default()

@@ -181,7 +181,7 @@ fn tables(data: &Path, out: &Path, with: Sections) -> Result<()> {
             data.display()
         );
     }
-    let registry = coarsen_builtin::registry()?;
+    let registry = coarsen_builtin::registry();
     let mut inputs: BTreeMap<&str, (Mesh, Validity, f64)> = BTreeMap::new();
     let mut done: BTreeMap<(String, String, String), usize> = BTreeMap::new();
     let mut outcomes: Vec<Outcome> = Vec::new();
@@ -250,7 +250,7 @@ fn pyacvd_section(data: &Path) -> Result<String> {
 
 /// The feature-edge section (issue #6) on the fandisk of `data`.
 fn feature_section(data: &Path) -> Result<String> {
-    let registry = coarsen_builtin::registry()?;
+    let registry = coarsen_builtin::registry();
     let input = load(&data.join(features::MESH))?;
     features::section(&registry, &input)
 }
@@ -659,7 +659,7 @@ mod tests {
 
     #[test]
     fn paper2_claims_compare_the_measured_rows_pair_by_pair() {
-        let registry = coarsen_builtin::registry().unwrap();
+        let registry = coarsen_builtin::registry();
         let mesh = coarsen_shapes::demo();
         let validity = coarsen_metrics::validity(None, &mesh).unwrap();
         let case = |pipeline| Case {

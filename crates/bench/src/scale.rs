@@ -173,7 +173,7 @@ pub fn child(pipeline: &str, target: &str, file: &Path) -> Result<()> {
         };
         let text = coarsen_builtin::pipeline(pipeline)
             .with_context(|| format!("no shipped pipeline `{pipeline}`"))?;
-        let registry = coarsen_builtin::registry()?;
+        let registry = coarsen_builtin::registry();
         let overrides = Overrides {
             target: Some(target),
             ..Default::default()

@@ -261,16 +261,24 @@ impl Pipeline {
                 }),
                 Err(issues) => {
                     for issue in issues {
-                        let origin = match issue.key.as_deref() {
-                            Some(k) if overridden.contains_key(k) => {
-                                format!("--set {}", overridden[k])
-                            }
-                            Some(k) => loc.at(spans.get(k).cloned().or(Some(stage_span.clone()))),
-                            None => loc.at(Some(stage_span.clone())),
+                        let (origin, message) = match issue.key.as_deref() {
+                            // `--set kind.key=value` already names the key: not twice.
+                            Some(k) if overridden.contains_key(k) => (
+                                format!("--set {}", overridden[k]),
+                                issue
+                                    .message
+                                    .strip_prefix(&format!("{k}: "))
+                                    .unwrap_or(&issue.message),
+                            ),
+                            Some(k) => (
+                                loc.at(spans.get(k).cloned().or(Some(stage_span.clone()))),
+                                issue.message.as_str(),
+                            ),
+                            None => (loc.at(Some(stage_span.clone())), issue.message.as_str()),
                         };
                         diags.push(Diagnostic {
                             origin,
-                            message: format!("{}: {}", descriptor.kind, issue.message),
+                            message: format!("{}: {message}", descriptor.kind),
                         });
                     }
                 }

@@ -141,7 +141,6 @@ fn registry() -> Registry {
         drop_high::descriptor(),
         needs_manifold::descriptor(),
     ])
-    .unwrap()
 }
 
 fn parse(text: &str, overrides: &Overrides) -> Result<Pipeline, Vec<String>> {
@@ -231,14 +230,54 @@ scale = 20.0
         errs[1]
     );
     assert!(
-        errs[2].starts_with("p.toml:10:1: test.mark: invalid type"),
+        errs[2].starts_with("p.toml:10:1: test.mark: scale: invalid type"),
         "{}",
         errs[2]
     );
+    assert_eq!(
+        errs[3],
+        "p.toml:14:1: test.mark: scale: must be in 0..=10, got 20"
+    );
+}
+
+#[test]
+fn an_unknown_kind_like_no_known_one_says_how_plugins_are_linked_at_its_line() {
+    let text = "[pipeline]\nname = \"p\"\n\n[[stage]]\nkind = \"smooth.taubin\"\n";
+    let errs = parse(text, &Overrides::default()).unwrap_err();
+    assert_eq!(errs.len(), 1, "{errs:#?}");
     assert!(
-        errs[3].starts_with("p.toml:14:1: test.mark: must be in 0..=10, got 20"),
+        errs[0].starts_with("p.toml:5:8: unknown stage kind `smooth.taubin`; known kinds: "),
         "{}",
-        errs[3]
+        errs[0]
+    );
+    assert!(
+        errs[0].ends_with(
+            "linked into the binary and named there (`use my_stage as _;`): see docs/writing-a-stage.md"
+        ),
+        "{}",
+        errs[0]
+    );
+}
+
+/// A kind registered by two packages fails the pipelines that use it, and only those.
+#[test]
+fn a_kind_registered_twice_fails_only_the_pipelines_that_use_it() {
+    let mut registry = registry();
+    let mut rogue = mark::descriptor();
+    rogue.crate_name = "rogue-mark";
+    registry.add(rogue);
+    assert_eq!(registry.conflicts().len(), 1);
+    let unaffected = "[pipeline]\ntarget = { faces = 1 }\ninputs = [{ domain = \"vertex\", name = \"height\", kind = \"scalar\" }]\n[[stage]]\nkind = \"test.drop-high\"\n";
+    let p = Pipeline::parse(unaffected, "ok.toml", &registry, &Overrides::default()).unwrap();
+    assert_eq!(p.stages[0].kind, "test.drop-high");
+    let errs = Pipeline::parse(GOOD, "p.toml", &registry, &Overrides::default())
+        .unwrap_err()
+        .0;
+    assert_eq!(errs.len(), 1, "{errs:#?}");
+    assert_eq!(
+        errs[0].to_string(),
+        "p.toml:8:8: stage kind `test.mark` is registered twice: by `coarsen-pipeline` and by \
+         `rogue-mark`; link only one of them into this binary"
     );
 }
 
@@ -303,7 +342,7 @@ fn set_overrides_apply_by_kind_or_id_and_are_checked_like_the_file() {
     };
     let errs = parse(GOOD, &o).unwrap_err();
     assert!(
-        errs[0].starts_with("--set test.mark.scale=99: test.mark: must be in"),
+        errs[0] == "--set test.mark.scale=99: test.mark: must be in 0..=10, got 99",
         "{}",
         errs[0]
     );

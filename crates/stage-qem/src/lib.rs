@@ -67,7 +67,7 @@ use coarsen_collapse::{
     QemOptions, QuadricModel, Summary,
 };
 use coarsen_metrics::LazyGridFacing;
-use coarsen_stage::params::check_range;
+use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     TargetCount, params,
@@ -103,14 +103,8 @@ params! {
 impl Params for QemParams {
     fn validate(&self) -> Vec<ParamIssue> {
         let mut issues = Vec::new();
-        check_range(&mut issues, "max_error", self.max_error, 0.0, f64::MAX);
-        check_range(
-            &mut issues,
-            "boundary_weight",
-            self.boundary_weight,
-            0.0,
-            f64::MAX,
-        );
+        check_finite_min(&mut issues, "max_error", self.max_error, 0.0);
+        check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         issues
     }

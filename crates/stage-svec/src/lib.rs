@@ -153,7 +153,7 @@ use coarsen_collapse::{
     StopReason, Summary, Unit,
 };
 use coarsen_metrics::LazyGridFacing;
-use coarsen_stage::params::check_range;
+use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
     Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
     TargetCount, params,
@@ -201,21 +201,14 @@ impl Params for SvecParams {
     fn validate(&self) -> Vec<ParamIssue> {
         let mut issues = Vec::new();
         check_range(&mut issues, "feature_sigma", self.feature_sigma, -1e6, 1e6);
-        check_range(
+        check_finite_min(
             &mut issues,
             "feature_threshold",
             self.feature_threshold,
             0.0,
-            f64::MAX,
         );
-        check_range(&mut issues, "max_error", self.max_error, 0.0, f64::MAX);
-        check_range(
-            &mut issues,
-            "boundary_weight",
-            self.boundary_weight,
-            0.0,
-            f64::MAX,
-        );
+        check_finite_min(&mut issues, "max_error", self.max_error, 0.0);
+        check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         check_range(&mut issues, "target_scale", self.target_scale, 1.0, 1e6);
         issues

@@ -39,7 +39,7 @@
 //! // Makes `descriptor()` public and registers the stage at link time.
 //! coarsen_stage::export_stage!(Scale);
 //! # fn main() {
-//! let reg = coarsen_stage::Registry::from_descriptors([descriptor()]).unwrap();
+//! let reg = coarsen_stage::Registry::from_descriptors([descriptor()]);
 //! assert_eq!(reg.get("scale").unwrap().summary, "Scale every coordinate by a factor.");
 //! # }
 //! ```
@@ -69,7 +69,7 @@ pub use context::{Context, Handback, NoProgress, Progress, StageReport, Target, 
 pub use contract::{AttrRef, Contract, Needs};
 pub use error::StageError;
 pub use params::{FieldDoc, ParamIssue, Params};
-pub use registry::{DynStage, Registry, RegistryError, StageDescriptor};
+pub use registry::{Conflict, DynStage, Registry, RegistryError, StageDescriptor};
 pub use shared::Shared;
 
 pub use coarsen_mesh::{AttrKind, AttrValues, DVec3, Domain, Mesh};

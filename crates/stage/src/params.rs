@@ -23,6 +23,13 @@ pub struct ParamIssue {
     pub message: String,
 }
 
+/// "field: message", e.g. "amount: must be in 0..=0.1, got 0.5".
+impl std::fmt::Display for ParamIssue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.field, self.message)
+    }
+}
+
 impl ParamIssue {
     /// An issue with `field`.
     pub fn new(field: &'static str, message: impl Into<String>) -> Self {
@@ -63,6 +70,17 @@ pub fn check_range<T: PartialOrd + std::fmt::Display + Copy>(
         issues.push(ParamIssue::new(
             field,
             format!("must be in {min}..={max}, got {value}"),
+        ));
+    }
+}
+
+/// Pushes an issue when `value` is below `min`, infinite or NaN: the check of a parameter
+/// with no upper bound.
+pub fn check_finite_min(issues: &mut Vec<ParamIssue>, field: &'static str, value: f64, min: f64) {
+    if !(value.is_finite() && min <= value) {
+        issues.push(ParamIssue::new(
+            field,
+            format!("must be finite and at least {min}, got {value}"),
         ));
     }
 }
@@ -171,6 +189,26 @@ mod tests {
             }
         );
         assert!(toml::from_str::<P>("cuont = 7").is_err());
+    }
+
+    #[test]
+    fn range_issues_name_the_parameter_and_the_range() {
+        let mut v = Vec::new();
+        check_range(&mut v, "amount", 0.5, 0.0, 0.1);
+        check_range(&mut v, "count", 0u32, 1, 8);
+        check_finite_min(&mut v, "max_error", -1.0, 0.0);
+        check_finite_min(&mut v, "max_error", f64::INFINITY, 0.0);
+        check_finite_min(&mut v, "max_error", 3.0, 0.0);
+        let shown: Vec<String> = v.iter().map(|i| i.to_string()).collect();
+        assert_eq!(
+            shown,
+            [
+                "amount: must be in 0..=0.1, got 0.5",
+                "count: must be in 1..=8, got 0",
+                "max_error: must be finite and at least 0, got -1",
+                "max_error: must be finite and at least 0, got inf",
+            ]
+        );
     }
 
     #[test]

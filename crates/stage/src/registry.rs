@@ -49,7 +49,7 @@ impl<S: Stage> DynStage for Built<S> {
 pub struct KeyIssue {
     /// The offending key, when one is to blame.
     pub key: Option<String>,
-    /// What is wrong.
+    /// What is wrong; names the key, e.g. "amount: must be in 0..=0.1, got 0.5".
     pub message: String,
 }
 
@@ -145,7 +145,7 @@ fn build<S: Stage>(table: &toml::Table) -> BuildResult {
                 .to_string();
             issues.push(KeyIssue {
                 key: Some(key.clone()),
-                message: msg,
+                message: format!("{key}: {msg}"),
             });
         }
     }
@@ -164,7 +164,7 @@ fn build<S: Stage>(table: &toml::Table) -> BuildResult {
             .into_iter()
             .map(|p| KeyIssue {
                 key: Some(p.field.to_string()),
-                message: p.message,
+                message: p.to_string(),
             })
             .collect());
     }
@@ -189,21 +189,56 @@ pub struct Registration(pub fn() -> StageDescriptor);
 
 inventory::collect!(Registration);
 
-/// Why a registry could not be built or could not find a stage.
+/// Where a plug-in author learns how a third-party stage is linked into a binary.
+pub const PLUGIN_DOC: &str = "docs/writing-a-stage.md";
+
+/// A stage kind registered by more than one package.
+///
+/// The registry keeps every registration and reports the conflict instead of failing:
+/// commands and pipelines that do not use the kind keep working, and only a pipeline that
+/// uses it fails ([`Registry::lookup`] names every package).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Conflict {
+    /// The kind.
+    pub kind: &'static str,
+    /// The packages that register it, sorted.
+    pub packages: Vec<&'static str>,
+}
+
+impl Conflict {
+    /// "stage kind `k` is registered twice: by `a` and by `b`".
+    fn registered(&self) -> String {
+        let times = match self.packages.len() {
+            2 => "twice".to_string(),
+            n => format!("{n} times"),
+        };
+        let by: Vec<String> = self.packages.iter().map(|p| format!("by `{p}`")).collect();
+        let by = match by.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+            _ => by.join(""),
+        };
+        format!("stage kind `{}` is registered {times}: {by}", self.kind)
+    }
+}
+
+impl fmt::Display for Conflict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}; a pipeline that uses it fails until only one of them is linked",
+            self.registered()
+        )
+    }
+}
+
+/// Why the registry could not give a stage.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum RegistryError {
-    /// Two different packages register the same kind.
-    #[error("stage kind `{kind}` is registered twice: by `{first}` and by `{second}`")]
-    Duplicate {
-        /// The kind.
-        kind: &'static str,
-        /// The package registered first.
-        first: &'static str,
-        /// The other package.
-        second: &'static str,
-    },
+    /// Two or more packages register the kind (see [`Conflict`]).
+    #[error("{}; link only one of them into this binary", .0.registered())]
+    Duplicate(Conflict),
     /// No stage of that kind is registered.
-    #[error("unknown stage kind `{kind}`{}; known kinds: {}", suggestion.map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default(), known.join(", "))]
+    #[error("{}", unknown_message(kind, *suggestion, known))]
     Unknown {
         /// The kind asked for.
         kind: String,
@@ -214,9 +249,26 @@ pub enum RegistryError {
     },
 }
 
-/// Every stage kind a run can use, sorted by kind.
+/// A typo gets the nearest kind; a kind like no known one most often is a plug-in the
+/// binary links but never names, so that case says how plug-ins are linked.
+fn unknown_message(kind: &str, suggestion: Option<&str>, known: &[&str]) -> String {
+    let known = known.join(", ");
+    match suggestion {
+        Some(s) => {
+            format!("unknown stage kind `{kind}` (did you mean `{s}`?); known kinds: {known}")
+        }
+        None => format!(
+            "unknown stage kind `{kind}`; known kinds: {known}. A third-party stage must be \
+             linked into the binary and named there (`use my_stage as _;`): see {PLUGIN_DOC}"
+        ),
+    }
+}
+
+/// Every stage kind a run can use, sorted by kind, and the kinds registered twice.
 #[derive(Clone, Debug, Default)]
 pub struct Registry {
+    /// One record per (kind, package), sorted by kind then package; a kind with more than
+    /// one record is a [`Conflict`].
     stages: Vec<StageDescriptor>,
 }
 
@@ -226,73 +278,97 @@ impl Registry {
         Self::default()
     }
 
-    /// A registry of exactly these descriptors.
-    pub fn from_descriptors(
-        descriptors: impl IntoIterator<Item = StageDescriptor>,
-    ) -> Result<Self, RegistryError> {
+    /// A registry of exactly these descriptors (a kind given by two packages is a
+    /// [`Conflict`], kept and reported by [`Registry::conflicts`]).
+    pub fn from_descriptors(descriptors: impl IntoIterator<Item = StageDescriptor>) -> Self {
         let mut r = Self::new();
         for d in descriptors {
-            r.add(d)?;
+            r.add(d);
         }
-        Ok(r)
+        r
     }
 
     /// Adds one stage. The same kind from the same package again is a no-op (a built-in
-    /// named explicitly and also found at link time); from another package it is an error.
-    pub fn add(&mut self, d: StageDescriptor) -> Result<(), RegistryError> {
-        match self.stages.binary_search_by(|s| s.kind.cmp(d.kind)) {
-            Ok(i) if self.stages[i].crate_name == d.crate_name => Ok(()),
-            Ok(i) => Err(RegistryError::Duplicate {
-                kind: d.kind,
-                first: self.stages[i].crate_name,
-                second: d.crate_name,
-            }),
-            Err(i) => {
-                self.stages.insert(i, d);
-                Ok(())
-            }
+    /// named explicitly and also found at link time); from another package it makes the
+    /// kind a [`Conflict`]: listed, but refused by [`Registry::lookup`].
+    pub fn add(&mut self, d: StageDescriptor) {
+        let key = (d.kind, d.crate_name);
+        if let Err(i) = self
+            .stages
+            .binary_search_by(|s| (s.kind, s.crate_name).cmp(&key))
+        {
+            self.stages.insert(i, d);
         }
     }
 
     /// Adds every stage registered at link time by crates this binary links.
-    pub fn add_linked(&mut self) -> Result<(), RegistryError> {
-        let mut found: Vec<StageDescriptor> =
-            inventory::iter::<Registration>().map(|r| (r.0)()).collect();
-        // inventory's order is unspecified: sort so that errors are deterministic.
-        found.sort_by(|a, b| (a.kind, a.crate_name).cmp(&(b.kind, b.crate_name)));
-        found.into_iter().try_for_each(|d| self.add(d))
+    pub fn add_linked(&mut self) {
+        for r in inventory::iter::<Registration>() {
+            self.add((r.0)());
+        }
     }
 
-    /// The stage of kind `kind`.
+    /// Every record of kind `kind` (more than one for a conflict).
+    fn records(&self, kind: &str) -> &[StageDescriptor] {
+        let start = self.stages.partition_point(|s| s.kind < kind);
+        let end = start + self.stages[start..].partition_point(|s| s.kind == kind);
+        &self.stages[start..end]
+    }
+
+    /// The stage of kind `kind`; `None` when it is unknown or registered twice.
     pub fn get(&self, kind: &str) -> Option<&StageDescriptor> {
-        self.stages
-            .binary_search_by(|s| s.kind.cmp(kind))
-            .ok()
-            .map(|i| &self.stages[i])
+        match self.records(kind) {
+            [d] => Some(d),
+            _ => None,
+        }
     }
 
-    /// The stage of kind `kind`, or an error listing the known kinds.
+    /// The stage of kind `kind`, or an error: the known kinds and how plug-ins are linked
+    /// for an unknown kind, every package for a kind registered twice.
     pub fn lookup(&self, kind: &str) -> Result<&StageDescriptor, RegistryError> {
-        self.get(kind).ok_or_else(|| RegistryError::Unknown {
-            kind: kind.to_string(),
-            suggestion: closest(kind, self.kinds()),
-            known: self.kinds().collect(),
-        })
+        match self.records(kind) {
+            [d] => Ok(d),
+            [] => Err(RegistryError::Unknown {
+                kind: kind.to_string(),
+                suggestion: closest(kind, self.kinds()),
+                known: self.kinds().collect(),
+            }),
+            several => Err(RegistryError::Duplicate(Conflict {
+                kind: several[0].kind,
+                packages: several.iter().map(|d| d.crate_name).collect(),
+            })),
+        }
     }
 
-    /// Every kind, sorted.
+    /// The kinds registered by more than one package, sorted; empty when all is well.
+    /// Each one's `Display` is the warning to show.
+    pub fn conflicts(&self) -> Vec<Conflict> {
+        self.stages
+            .chunk_by(|a, b| a.kind == b.kind)
+            .filter(|c| c.len() > 1)
+            .map(|c| Conflict {
+                kind: c[0].kind,
+                packages: c.iter().map(|d| d.crate_name).collect(),
+            })
+            .collect()
+    }
+
+    /// Every kind once, sorted.
     pub fn kinds(&self) -> impl Iterator<Item = &'static str> + '_ {
-        self.stages.iter().map(|s| s.kind)
+        self.stages
+            .chunk_by(|a, b| a.kind == b.kind)
+            .map(|c| c[0].kind)
     }
 
-    /// Every descriptor, sorted by kind.
+    /// Every descriptor, sorted by kind then package: a kind in [`Registry::conflicts`]
+    /// comes once per package that registers it, so that a listing shows them all.
     pub fn iter(&self) -> impl Iterator<Item = &StageDescriptor> {
         self.stages.iter()
     }
 
     /// Number of kinds.
     pub fn len(&self) -> usize {
-        self.stages.len()
+        self.kinds().count()
     }
 
     /// True when no stage is registered.
@@ -382,29 +458,85 @@ mod tests {
     }
 
     #[test]
-    fn registry_dedups_same_crate_and_rejects_other_crates() {
-        let mut r = Registry::from_descriptors([descriptor()]).unwrap();
-        r.add_linked().unwrap(); // finds the same record through inventory: no error
+    fn a_kind_from_two_packages_is_kept_as_a_conflict_that_only_lookup_refuses() {
+        let mut r = Registry::from_descriptors([descriptor()]);
+        r.add_linked(); // finds the same record through inventory: no conflict
         assert_eq!(r.len(), 1);
+        assert!(r.conflicts().is_empty());
         let mut other = descriptor();
         other.crate_name = "someone-else";
-        let e = r.add(other).unwrap_err();
+        r.add(other);
         assert_eq!(
-            e.to_string(),
-            "stage kind `test.nudge` is registered twice: by `coarsen-stage` and by `someone-else`"
+            r.conflicts(),
+            [Conflict {
+                kind: "test.nudge",
+                packages: vec!["coarsen-stage", "someone-else"]
+            }]
+        );
+        assert_eq!(
+            r.conflicts()[0].to_string(),
+            "stage kind `test.nudge` is registered twice: by `coarsen-stage` and by \
+             `someone-else`; a pipeline that uses it fails until only one of them is linked"
+        );
+        // Still one kind, listed once per package; unusable by name.
+        assert_eq!(r.len(), 1);
+        assert_eq!(r.kinds().collect::<Vec<_>>(), ["test.nudge"]);
+        assert_eq!(r.iter().count(), 2);
+        assert!(r.get("test.nudge").is_none());
+        assert_eq!(
+            r.lookup("test.nudge").unwrap_err().to_string(),
+            "stage kind `test.nudge` is registered twice: by `coarsen-stage` and by \
+             `someone-else`; link only one of them into this binary"
+        );
+        // A third package: every one is named.
+        let mut third = descriptor();
+        third.crate_name = "a-third";
+        r.add(third);
+        assert_eq!(
+            r.lookup("test.nudge").unwrap_err().to_string(),
+            "stage kind `test.nudge` is registered 3 times: by `a-third`, by `coarsen-stage` \
+             and by `someone-else`; link only one of them into this binary"
         );
     }
 
     #[test]
-    fn unknown_kind_suggests_and_lists() {
-        let r = Registry::from_descriptors([descriptor()]).unwrap();
+    fn a_mistyped_kind_gets_the_nearest_one() {
+        let r = Registry::from_descriptors([descriptor()]);
         let e = r.lookup("test.nudg").unwrap_err().to_string();
-        assert!(e.contains("did you mean `test.nudge`"), "{e}");
-        assert!(e.ends_with("known kinds: test.nudge"), "{e}");
+        assert_eq!(
+            e,
+            "unknown stage kind `test.nudg` (did you mean `test.nudge`?); known kinds: test.nudge"
+        );
         assert!(
             descriptor()
                 .example_toml()
                 .contains("kind = \"test.nudge\"")
+        );
+    }
+
+    /// Most often a plug-in the binary links but never names (`use … as _;` forgotten).
+    #[test]
+    fn an_unknown_kind_like_no_known_one_says_how_plugins_are_linked() {
+        let r = Registry::from_descriptors([descriptor()]);
+        let e = r.lookup("smooth.taubin").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown stage kind `smooth.taubin`; known kinds: test.nudge. A third-party stage \
+             must be linked into the binary and named there (`use my_stage as _;`): see \
+             docs/writing-a-stage.md"
+        );
+    }
+
+    #[test]
+    fn every_issue_of_a_key_names_the_key() {
+        let d = descriptor();
+        let issues = (d.build)(&table("times = 11")).err().unwrap();
+        assert_eq!(issues[0].message, "times: must be in 1..=10, got 11");
+        let issues = (d.build)(&table("dx = true")).err().unwrap();
+        assert!(
+            issues[0].message.starts_with("dx: invalid type"),
+            "{}",
+            issues[0].message
         );
     }
 }

@@ -30,7 +30,13 @@ params! {
 impl Params for SmoothParams {
     fn validate(&self) -> Vec<ParamIssue> {
         let mut v = Vec::new();
-        coarsen_stage::params::check_range(&mut v, "lambda", self.lambda, f64::MIN_POSITIVE, 1.0);
+        // `!(a && b)` so that NaN is refused.
+        if !(self.lambda > 0.0 && self.lambda <= 1.0) {
+            v.push(ParamIssue::new(
+                "lambda",
+                format!("must be in (0, 1], got {}", self.lambda),
+            ));
+        }
         if !(self.mu < -self.lambda && self.mu >= -1.0) {
             v.push(ParamIssue::new(
                 "mu",
