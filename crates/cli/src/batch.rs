@@ -4,16 +4,20 @@
 use crate::Failure;
 use crate::load;
 use coarsen_io::Format;
-use coarsen_pipeline::{Pipeline, RunOptions};
+use coarsen_pipeline::Pipeline;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
-use std::time::Instant;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
 
-/// `--shard I/N`: this process handles the files whose stable hash is `I` modulo `N`.
+/// `--shard I/N`: this process handles the files whose stable hash is `I` modulo `N`; the
+/// hash is of a file's path relative to the input folder it was found in (its name for a
+/// file given by itself), so workers that spell the folder differently agree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shard {
     /// This shard, `0 ≤ index < count`.
@@ -62,7 +66,7 @@ pub struct Batch<'a> {
     /// Output folder.
     pub out: &'a Path,
     /// The checked pipeline.
-    pub pipeline: &'a Pipeline,
+    pub pipeline: &'a Arc<Pipeline>,
     /// Output format.
     pub format: Format,
     /// Redo outputs that are already up to date.
@@ -75,6 +79,8 @@ pub struct Batch<'a> {
     pub weld: bool,
     /// Hide progress.
     pub quiet: bool,
+    /// A file whose run takes longer is stopped and reported failed.
+    pub timeout: Option<Duration>,
 }
 
 /// One line of the summary.
@@ -125,13 +131,30 @@ impl Row {
     }
 }
 
+/// One file of a batch.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Job {
+    /// The input file.
+    pub input: PathBuf,
+    /// The output file it maps to.
+    pub output: PathBuf,
+    /// Its path relative to the input folder (its name when given by itself), `/`
+    /// between components: what `--shard` hashes.
+    pub key: String,
+}
+
 /// Every mesh file under the inputs, with the output path it maps to (sorted, stable).
-pub fn collect(
-    inputs: &[PathBuf],
-    out: &Path,
-    format: Format,
-) -> Result<Vec<(PathBuf, PathBuf)>, Failure> {
+pub fn collect(inputs: &[PathBuf], out: &Path, format: Format) -> Result<Vec<Job>, Failure> {
     let mut jobs = Vec::new();
+    let mut add = |input: PathBuf, rel: &Path| {
+        let key = rel
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy())
+            .collect::<Vec<_>>()
+            .join("/");
+        let output = out.join(rel).with_extension(format.extension());
+        jobs.push(Job { input, output, key });
+    };
     for input in inputs {
         if input.is_dir() {
             let mut files = Vec::new();
@@ -140,17 +163,14 @@ pub fn collect(
             files.sort();
             for f in files {
                 let rel = f.strip_prefix(input).unwrap_or(&f).to_path_buf();
-                jobs.push((f, out.join(rel).with_extension(format.extension())));
+                add(f, &rel);
             }
         } else if input.is_file() {
             let name = input
                 .file_name()
                 .map(PathBuf::from)
                 .unwrap_or_else(|| PathBuf::from("mesh"));
-            jobs.push((
-                input.clone(),
-                out.join(name).with_extension(format.extension()),
-            ));
+            add(input.clone(), &name);
         } else {
             return Err(Failure::Usage(format!(
                 "{}: no such file or folder",
@@ -182,7 +202,7 @@ fn up_to_date(input: &Path, output: &Path) -> bool {
 pub fn run(b: &Batch<'_>) -> Result<Vec<Row>, Failure> {
     let mut jobs = collect(b.inputs, b.out, b.format)?;
     if let Some(shard) = b.shard {
-        jobs.retain(|(input, _)| shard.takes(&input.to_string_lossy()));
+        jobs.retain(|job| shard.takes(&job.key));
     }
     let bar = if !b.quiet && std::io::stderr().is_terminal() {
         let style =
@@ -203,8 +223,8 @@ pub fn run(b: &Batch<'_>) -> Result<Vec<Row>, Failure> {
         .map_err(|e| Failure::Runtime(e.into()))?;
     let rows = pool.install(|| {
         jobs.par_iter()
-            .map(|(input, output)| {
-                let row = one(b, input, output);
+            .map(|job| {
+                let row = one(b, &job.input, &job.output);
                 bar.inc(1);
                 row
             })
@@ -214,41 +234,108 @@ pub fn run(b: &Batch<'_>) -> Result<Vec<Row>, Failure> {
     Ok(rows)
 }
 
+/// Loads, runs and writes one file; whatever happens (an error, a panic, the timeout) ends
+/// up in its row, never in the rest of the batch.
 fn one(b: &Batch<'_>, input: &Path, output: &Path) -> Row {
     if !b.force && up_to_date(input, output) {
         return Row::new(input, output, "skipped");
     }
     let mut row = Row::new(input, output, "ok");
     let t = Instant::now();
-    let result = (|| -> anyhow::Result<()> {
-        let loaded = load::load(input, b.weld)?;
-        row.vertices_in = Some(loaded.mesh.n_vertices());
-        row.faces_in = Some(loaded.mesh.n_faces());
-        let (mesh, report) = b.pipeline.run(loaded.mesh, RunOptions::default())?;
-        let mesh = load::restore(mesh, loaded.scale_exponent);
-        if let Some(parent) = output.parent() {
-            std::fs::create_dir_all(parent)?;
-        }
-        coarsen_io::write_path(&mesh, output, &Default::default())?;
-        row.vertices_out = Some(mesh.n_vertices());
-        row.faces_out = Some(mesh.n_faces());
-        if let Ok(q) = coarsen_metrics::quality(&mesh) {
-            row.alpha_min_deg = Some(q.alpha_min_deg);
-            row.alpha_avg_deg = Some(q.alpha_avg_deg);
-        }
-        row.hausdorff_pct = report.stages.iter().rev().find_map(|s| {
-            s.figures
-                .get("fidelity")
-                .and_then(|f| f["hausdorff_pct"].as_f64())
-        });
-        Ok(())
-    })();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        process(b, input, output, &mut row)
+    }))
+    .unwrap_or_else(|payload| {
+        let message = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic with no message".into());
+        Err(anyhow::anyhow!(
+            "internal error (a bug in coarsen; please report it with the input): {message}"
+        ))
+    });
     row.seconds = Some(t.elapsed().as_secs_f64());
     if let Err(e) = result {
         row.status = "failed";
         row.error = Some(format!("{e:#}"));
     }
     row
+}
+
+fn process(b: &Batch<'_>, input: &Path, output: &Path, row: &mut Row) -> anyhow::Result<()> {
+    let loaded = load::open(input)?;
+    let name = loaded.name.clone();
+    let cleaned = coarsen::clean(loaded, b.weld)?;
+    row.vertices_in = Some(cleaned.mesh.n_vertices());
+    row.faces_in = Some(cleaned.mesh.n_faces());
+    let done = match b.timeout {
+        None => coarsen::Remesher::new().run_cleaned(b.pipeline, &name, cleaned)?,
+        Some(limit) => with_timeout(b.pipeline, name, cleaned, limit)?,
+    };
+    let (mesh, report) = (done.mesh, done.report);
+    if let Some(parent) = output.parent() {
+        std::fs::create_dir_all(parent)?;
+    }
+    coarsen_io::write_path(&mesh, output, &Default::default())?;
+    row.vertices_out = Some(mesh.n_vertices());
+    row.faces_out = Some(mesh.n_faces());
+    if let Ok(q) = coarsen_metrics::quality(&mesh) {
+        row.alpha_min_deg = Some(q.alpha_min_deg);
+        row.alpha_avg_deg = Some(q.alpha_avg_deg);
+    }
+    row.hausdorff_pct = report.stages.iter().rev().find_map(|s| {
+        s.figures
+            .get("fidelity")
+            .and_then(|f| f["hausdorff_pct"].as_f64())
+    });
+    Ok(())
+}
+
+/// How long a run may go on after its timeout before the batch leaves it behind: a stage
+/// stops at its next progress report or at the next stage, which is usually at once.
+const GRACE: Duration = Duration::from_secs(5);
+
+/// Runs `pipeline` on its own thread and cancels it after `limit`. A run that does not
+/// stop within [`GRACE`] is left to finish on its own (its result is dropped), so that the
+/// batch goes on.
+fn with_timeout(
+    pipeline: &Arc<Pipeline>,
+    name: String,
+    cleaned: coarsen::Cleaned,
+    limit: Duration,
+) -> anyhow::Result<coarsen::Remeshed> {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let (send, receive) = std::sync::mpsc::channel();
+    let (flag, pipeline) = (Arc::clone(&cancel), Arc::clone(pipeline));
+    std::thread::Builder::new()
+        .name(format!("batch {name}"))
+        .spawn(move || {
+            let done = coarsen::Remesher::new()
+                .cancel(&flag)
+                .run_cleaned(&pipeline, &name, cleaned);
+            // The batch may have stopped waiting: then nobody reads this.
+            let _ = send.send(done);
+        })?;
+    let timed_out = || anyhow::anyhow!("timed out after {} s", limit.as_secs_f64());
+    match receive.recv_timeout(limit) {
+        Ok(done) => return Ok(done?),
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+            anyhow::bail!("the run's thread ended without a result")
+        }
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+    }
+    cancel.store(true, std::sync::atomic::Ordering::Relaxed);
+    match receive.recv_timeout(GRACE) {
+        // Finished just as the time ran out: the result is good.
+        Ok(Ok(done)) => Ok(done),
+        Ok(Err(e)) if e.is_cancelled() => Err(timed_out()),
+        Ok(Err(e)) => Err(e.into()),
+        Err(_) => Err(timed_out().context(format!(
+            "the run did not stop within {} s of being cancelled and was left behind",
+            GRACE.as_secs()
+        ))),
+    }
 }
 
 /// The summary as a table for people.

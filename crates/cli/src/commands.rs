@@ -1,61 +1,44 @@
 //! One function per subcommand.
 
-use crate::load::{self, Input};
+use crate::load;
 use crate::{BatchArgs, Failure, LodArgs, RunArgs, TargetArgs, batch, html, progress};
 use anyhow::Context as _;
 use coarsen_io::{PlyEncoding, WriteOptions};
 use coarsen_mesh::Mesh;
 use coarsen_mesh::Topology;
+use coarsen_pipeline::RunOptions;
 use coarsen_pipeline::StageRecord;
-use coarsen_pipeline::{Overrides, Pipeline, RunOptions, parse_set};
-use coarsen_stage::{Registry, Target};
+use coarsen_stage::Target;
 use std::path::{Path, PathBuf};
 
 type CmdResult = Result<(), Failure>;
 
-fn registry() -> Result<Registry, Failure> {
-    coarsen_builtin::registry().map_err(|e| Failure::Runtime(e.into()))
+/// A facade error as a failure: usage (exit 2) or runtime (exit 1).
+fn failure(e: coarsen::Error) -> Failure {
+    match e {
+        coarsen::Error::NoRecordingStage { .. } => Failure::Usage(format!("--progressive: {e}")),
+        coarsen::Error::RecordNotOfOutput { .. } => {
+            Failure::Runtime(anyhow::anyhow!("--progressive: {e} (nothing was written)"))
+        }
+        e if e.is_usage() => Failure::Usage(e.to_string()),
+        e => Failure::Runtime(e.into()),
+    }
 }
 
-fn overrides(target: &TargetArgs, sets: &[String]) -> Result<Overrides, Failure> {
+/// The run the command line asks for: a pipeline file or shipped pipeline's name, the
+/// target and the `--set` overrides.
+fn remesher<'a>(spec: &str, target: &TargetArgs, sets: &[String]) -> coarsen::Remesher<'a> {
     let target = match (target.vertices, target.faces, target.ratio) {
         (Some(n), _, _) => Some(Target::Vertices(n)),
         (_, Some(n), _) => Some(Target::Faces(n)),
         (_, _, Some(r)) => Some(Target::Ratio(r)),
         _ => None,
     };
-    let sets = sets
-        .iter()
-        .map(|s| parse_set(s))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(Failure::Usage)?;
-    Ok(Overrides { target, sets })
-}
-
-/// A pipeline from a file path, or from the shipped pipelines by name.
-fn load_pipeline(
-    spec: &str,
-    registry: &Registry,
-    overrides: &Overrides,
-) -> Result<Pipeline, Failure> {
-    let path = Path::new(spec);
-    let parsed = if path.exists() {
-        Pipeline::from_path(path, registry, overrides)
-    } else if let Some(text) = coarsen_builtin::pipeline(spec) {
-        Pipeline::parse(
-            text,
-            &format!("<shipped pipeline {spec}>"),
-            registry,
-            overrides,
-        )
-    } else {
-        let names: Vec<_> = coarsen_builtin::PIPELINES.iter().map(|(n, _)| *n).collect();
-        return Err(Failure::Usage(format!(
-            "no pipeline file `{spec}` and no shipped pipeline of that name (shipped: {})",
-            names.join(", ")
-        )));
-    };
-    parsed.map_err(|d| Failure::Usage(format!("pipeline has errors:\n{d}")))
+    let mut r = coarsen::Remesher::new().pipeline(spec);
+    if let Some(t) = target {
+        r = r.target(t);
+    }
+    sets.iter().fold(r, |r, s| r.assign(s))
 }
 
 fn write_options(ascii: bool) -> WriteOptions {
@@ -75,24 +58,27 @@ pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> 
 }
 
 pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
-    let registry = registry()?;
-    let overrides = overrides(&args.target, &args.sets)?;
-    let pipeline = load_pipeline(&args.pipeline, &registry, &overrides)?;
+    let remesher = remesher(&args.pipeline, &args.target, &args.sets)
+        .weld(args.weld)
+        .sanity(args.sanity || RunOptions::default().sanity)
+        .progressive(args.progressive.is_some());
+    let pipeline = remesher.check().map_err(failure)?;
     load::ensure_not_input(args.input.as_deref(), &args.output)?;
     if let Some(record) = &args.progressive {
-        check_progressive(&pipeline, record, args.input.as_deref(), &args.output)?;
+        if record == &args.output {
+            return Err(Failure::Usage(format!(
+                "--progressive and --output name the same file `{}`",
+                record.display()
+            )));
+        }
+        load::ensure_not_input(args.input.as_deref(), record)?;
     }
-    let (input, name) = match &args.input {
-        Some(path) => (load::load(path, args.weld)?, path.display().to_string()),
-        None => (
-            Input {
-                mesh: coarsen_shapes::demo(),
-                notes: vec!["built-in demo mesh".into()],
-                scale_exponent: 0,
-            },
-            "demo".into(),
-        ),
+    let input = match &args.input {
+        Some(path) => load::open(path)?,
+        None => coarsen::Input::demo(),
     };
+    let name = input.name.clone();
+    let input = coarsen::clean(input, args.weld).map_err(failure)?;
     let bars = progress::Bars::new(quiet);
     let pictures = args.html.is_some() || args.snapshots.is_some();
     let recorder = pictures.then(|| {
@@ -106,34 +92,16 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         }
     };
     let original = args.html.is_some().then(|| input.mesh.clone());
-    let slot = std::sync::Mutex::new(None);
-    let opts = RunOptions {
-        sanity: args.sanity || RunOptions::default().sanity,
-        progress: &bars,
-        after_stage: recorder
-            .as_ref()
-            .map(|_| &observe as &dyn Fn(&StageRecord, &Mesh)),
-        progressive: args.progressive.as_ref().map(|_| &slot),
-        ..RunOptions::default()
-    };
-    let (mesh, mut report) = pipeline
-        .run(input.mesh, opts)
-        .map_err(anyhow::Error::from)?;
-    report.input = name;
-    report.input_notes = input.notes;
-    let record = match &args.progressive {
-        Some(_) => Some(take_record(&pipeline, slot, &mesh)?),
-        None => None,
-    };
-    let mesh = load::restore(mesh, input.scale_exponent);
-    let record = record.map(|mut r| {
-        // The record speaks the input's units and describes the mesh as written.
-        r.scale_by_power_of_two(-input.scale_exponent);
-        r.coarse = coarsen_collapse::fingerprint(&mesh);
-        r
-    });
+    let mut remesher = remesher.progress(&bars);
+    if recorder.is_some() {
+        remesher = remesher.after_stage(&observe);
+    }
+    let done = remesher
+        .run_cleaned(&pipeline, &name, input)
+        .map_err(failure)?;
+    let (mesh, report) = (done.mesh, done.report);
     coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
-    if let (Some(path), Some(record)) = (&args.progressive, &record) {
+    if let (Some(path), Some(record)) = (&args.progressive, &done.progressive) {
         coarsen_lod::write(path, record).context("writing the progressive record")?;
     }
     if let Some(path) = &args.report {
@@ -157,7 +125,7 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     if !quiet {
         out!("{}", report.summary());
         outln!("wrote {}", args.output.display());
-        if let (Some(path), Some(record)) = (&args.progressive, &record) {
+        if let (Some(path), Some(record)) = (&args.progressive, &done.progressive) {
             outln!(
                 "wrote {} (levels 0 to {}: {} to {} vertices; `coarsen lod` rebuilds them)",
                 path.display(),
@@ -168,68 +136,6 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         }
     }
     Ok(())
-}
-
-/// Before any work: `--progressive` needs a stage that records its collapses, and a file
-/// of its own.
-fn check_progressive(
-    pipeline: &Pipeline,
-    record: &Path,
-    input: Option<&Path>,
-    output: &Path,
-) -> Result<(), Failure> {
-    if pipeline.recording_stage().is_none() {
-        let kinds: Vec<_> = pipeline.stages.iter().map(|s| s.kind).collect();
-        return Err(Failure::Usage(format!(
-            "--progressive needs a stage that records its collapses (simplify.qem, simplify.svec), \
-             but pipeline `{}` has none (stages: {})",
-            pipeline.name,
-            kinds.join(" → ")
-        )));
-    }
-    if record == output {
-        return Err(Failure::Usage(format!(
-            "--progressive and --output name the same file `{}`",
-            record.display()
-        )));
-    }
-    load::ensure_not_input(input, record)?;
-    Ok(())
-}
-
-/// The record the pipeline's last collapse stage handed back; an error when a later stage
-/// changed the mesh it describes.
-fn take_record(
-    pipeline: &Pipeline,
-    slot: std::sync::Mutex<Option<coarsen_stage::Handback>>,
-    out: &Mesh,
-) -> Result<coarsen_lod::Progressive, Failure> {
-    let (index, kind) = pipeline
-        .recording_stage()
-        .ok_or_else(|| anyhow::anyhow!("no stage records its collapses"))?;
-    let handed = slot.into_inner().unwrap_or_else(|e| e.into_inner());
-    let record = handed
-        .and_then(|b| b.downcast::<coarsen_lod::Progressive>().ok())
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "stage {} `{kind}` handed back no progressive record (a bug in coarsen)",
-                index + 1
-            )
-        })?;
-    if record.coarse != coarsen_collapse::fingerprint(out) {
-        let later: Vec<_> = pipeline.stages[index + 1..]
-            .iter()
-            .map(|s| format!("`{}`", s.kind))
-            .collect();
-        return Err(Failure::Runtime(anyhow::anyhow!(
-            "--progressive: the record of stage {} `{kind}` does not describe the run's output, \
-             because a later stage ({}) changed the mesh; end the pipeline with the collapse stage \
-             (nothing was written)",
-            index + 1,
-            later.join(", ")
-        )));
-    }
-    Ok(*record)
 }
 
 pub fn lod(args: LodArgs, quiet: bool) -> CmdResult {
@@ -267,12 +173,10 @@ pub fn lod(args: LodArgs, quiet: bool) -> CmdResult {
 }
 
 pub fn batch(args: BatchArgs, quiet: bool) -> CmdResult {
-    let registry = registry()?;
-    let pipeline = load_pipeline(
-        &args.pipeline,
-        &registry,
-        &overrides(&args.target, &args.sets)?,
-    )?;
+    let pipeline = remesher(&args.pipeline, &args.target, &args.sets)
+        .check()
+        .map_err(failure)?;
+    let pipeline = std::sync::Arc::new(pipeline);
     let format = batch::format_arg(&args.format)?;
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let jobs = args.jobs.unwrap_or_else(|| {
@@ -290,6 +194,7 @@ pub fn batch(args: BatchArgs, quiet: bool) -> CmdResult {
         jobs,
         weld: args.weld,
         quiet,
+        timeout: args.timeout.map(std::time::Duration::from_secs_f64),
     })?;
     let suffix = args
         .shard
@@ -337,7 +242,10 @@ pub fn render(
 }
 
 pub fn stages(markdown: bool) -> CmdResult {
-    let registry = registry()?;
+    let registry = coarsen::registry();
+    for conflict in registry.conflicts() {
+        eprintln!("warning: {conflict}");
+    }
     let mut out = String::new();
     for d in registry.iter() {
         let defaults = (d.defaults)();
@@ -385,8 +293,7 @@ pub fn stages(markdown: bool) -> CmdResult {
 }
 
 pub fn check(spec: &str, target: &TargetArgs, sets: &[String], quiet: bool) -> CmdResult {
-    let registry = registry()?;
-    let p = load_pipeline(spec, &registry, &overrides(target, sets)?)?;
+    let p = remesher(spec, target, sets).check().map_err(failure)?;
     if !quiet {
         let kinds: Vec<_> = p.stages.iter().map(|s| s.kind).collect();
         let target = p
@@ -515,19 +422,17 @@ pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResu
     } else {
         load::load_raw(input)?
     };
-    let mesh = load::restore(loaded.mesh, loaded.scale_exponent);
+    let mesh = loaded.restore(loaded.mesh.clone());
     coarsen_io::write_path(&mesh, output, &write_options(ascii))?;
     Ok(())
 }
 
 pub fn metrics(input: &Path, output: &Path, json: bool, samples_per_face: u32) -> CmdResult {
-    let a = load::load(input, false)?;
-    let b = load::load(output, false)?;
     let opts = coarsen_metrics::MetricsOptions {
         fidelity: coarsen_metrics::FidelityOptions { samples_per_face },
     };
     let report =
-        coarsen_metrics::measure(Some(&a.mesh), &b.mesh, &opts).map_err(anyhow::Error::from)?;
+        coarsen::measure(load::open(input)?, load::open(output)?, &opts).map_err(failure)?;
     if json {
         outln!(
             "{}",

@@ -271,6 +271,16 @@ struct BatchArgs {
     /// Weld exactly coincident vertices on load (always done for STL).
     #[arg(long)]
     weld: bool,
+    /// Stop a file's run after this many seconds and report it failed; the batch goes on.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_timeout)]
+    timeout: Option<f64>,
+}
+
+fn parse_timeout(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(t) if t > 0.0 && t.is_finite() && t < 1e9 => Ok(t),
+        _ => Err(format!("expected a number of seconds above 0, got `{s}`")),
+    }
 }
 
 /// A failure, sorted by its exit code.
@@ -295,7 +305,7 @@ impl From<anyhow::Error> for Failure {
 }
 
 /// The pipeline `coarsen [INPUT] -o OUT --vertices N` runs when no command is named.
-pub const DEFAULT_PIPELINE: &str = "adaptive-cvt";
+pub const DEFAULT_PIPELINE: &str = coarsen::DEFAULT_PIPELINE;
 
 /// `args` with `run adaptive-cvt` put in front of the first argument after the global
 /// options when that argument names no command but an option or a file (anything with a

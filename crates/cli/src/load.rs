@@ -1,8 +1,9 @@
-//! Loading meshes for the commands: read the file, then the reported load-time clean-up.
+//! Loading meshes for the commands: read the file under the `--max-faces` limits, then the
+//! facade's load-time clean-up.
 
-use anyhow::{Context as _, Result};
-use coarsen_io::{ErrorKind, Format, IoError, ReadOptions};
-use coarsen_mesh::{Mesh, hygiene, scale};
+use anyhow::Result;
+use coarsen::Cleaned;
+use coarsen_io::{ErrorKind, ReadOptions};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -36,83 +37,33 @@ pub fn read_options(max_faces: u64) -> ReadOptions {
 }
 
 /// Reads `path` under the `--max-faces` limits; an error from a limit says how to raise it.
-fn read(path: &Path) -> Result<coarsen_io::Loaded> {
+pub fn open(path: &Path) -> Result<coarsen::Input> {
     let max_faces = MAX_FACES.load(Ordering::Relaxed);
-    coarsen_io::read_path(path, &read_options(max_faces)).map_err(|e: IoError| {
-        if matches!(
-            e.kind,
-            ErrorKind::OverLimit { .. } | ErrorKind::FileTooLarge { .. }
-        ) {
+    coarsen::open(path, &read_options(max_faces)).map_err(|e| match e {
+        coarsen::Error::Io(e)
+            if matches!(
+                e.kind,
+                ErrorKind::OverLimit { .. } | ErrorKind::FileTooLarge { .. }
+            ) =>
+        {
             anyhow::anyhow!("{e}; --max-faces {max_faces} is in force: raise it to read this file")
-        } else {
-            e.into()
         }
+        e => e.into(),
     })
 }
 
-/// A loaded, cleaned mesh and what loading said about it.
-pub struct Input {
-    /// The mesh, scaled by `2^scale_exponent` (see [`restore`]).
-    pub mesh: Mesh,
-    /// Reader notes and clean-up lines, for the run report.
-    pub notes: Vec<String>,
-    /// Meshes of extreme size (coordinates beyond 2^±64) are computed on at a size near 1,
-    /// scaled exactly by this power of two; 0 for ordinary meshes.
-    pub scale_exponent: i32,
+/// Reads `path` and applies the load-time clean-up every run applies (welding when `weld`
+/// or for STL). A mesh with no face left is an error.
+pub fn load(path: &Path, weld: bool) -> Result<Cleaned> {
+    Ok(coarsen::clean(open(path)?, weld)?)
 }
 
-/// A mesh computed at `2^scale_exponent` back in the input's units (exact: scaling by
-/// powers of two is lossless).
-pub fn restore(mut mesh: Mesh, scale_exponent: i32) -> Mesh {
-    scale::scale_by_power_of_two(&mut mesh, -scale_exponent);
-    mesh
-}
-
-/// Reads `path` and applies load-time clean-up (welding when `weld` or for STL). A mesh
-/// with no face left is an error.
-pub fn load(path: &Path, weld: bool) -> Result<Input> {
-    let loaded = read(path)?;
-    let mut notes = loaded.notes;
-    let mut mesh = loaded.mesh;
-    let k = scale::normalizing_exponent(&mesh);
-    if k != 0 {
-        scale::scale_by_power_of_two(&mut mesh, k);
-        notes.push(format!(
-            "coordinates rescaled exactly by 2^{k} for computing (extreme size); the output is in \
-             the input's units, absolute figures of the report in the rescaled ones"
-        ));
-    }
-    let opts = hygiene::HygieneOptions {
-        weld: weld || loaded.format == Format::Stl,
-        ..Default::default()
-    };
-    let (mesh, report) = hygiene::clean(mesh, &opts).with_context(|| path.display().to_string())?;
-    notes.extend(report.lines());
-    if mesh.n_faces() == 0 {
-        let steps: Vec<String> = report
-            .lines()
-            .into_iter()
-            .filter(|l| !l.ends_with(": 0"))
-            .collect();
-        anyhow::bail!(
-            "{}: no face left after clean-up ({})",
-            path.display(),
-            steps.join("; ")
-        );
-    }
-    Ok(Input {
-        mesh,
-        notes,
-        scale_exponent: k,
-    })
-}
-
-/// Reads `path` exactly as the file has it.
-pub fn load_raw(path: &Path) -> Result<Input> {
-    let loaded = read(path)?;
-    Ok(Input {
-        mesh: loaded.mesh,
-        notes: loaded.notes,
+/// Reads `path` exactly as the file has it, with the reader's notes.
+pub fn load_raw(path: &Path) -> Result<Cleaned> {
+    let input = open(path)?;
+    Ok(Cleaned {
+        mesh: input.mesh,
+        notes: input.notes,
         scale_exponent: 0,
     })
 }

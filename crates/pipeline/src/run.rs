@@ -35,6 +35,7 @@ use crate::{Pipeline, RunReport, StageRecord};
 use coarsen_mesh::{Mesh, sanity};
 use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// The words of the warning a stage's report carries when the runner split the mesh's
@@ -72,6 +73,9 @@ pub struct RunOptions<'a> {
     /// Inputs of at least this many faces are renumbered along a Morton curve before the
     /// first stage (see the module docs); `usize::MAX` never. Default 2¹⁸.
     pub reorder_min_faces: usize,
+    /// When this turns true the run stops with [`RunError::Cancelled`]: before the next
+    /// stage, or inside one the next time it reports progress. Default `None`.
+    pub cancel: Option<&'a AtomicBool>,
 }
 
 /// The default of [`RunOptions::reorder_min_faces`].
@@ -103,6 +107,7 @@ impl Default for RunOptions<'_> {
             after_stage: None,
             progressive: None,
             reorder_min_faces: REORDER_MIN_FACES,
+            cancel: None,
         }
     }
 }
@@ -136,6 +141,26 @@ pub enum RunError {
         /// Non-manifold vertex count.
         vertices: usize,
     },
+    /// The run was cancelled ([`RunOptions::cancel`]).
+    #[error("cancelled during stage {index} `{kind}`")]
+    Cancelled {
+        /// 1-based position of the stage that was running or about to run.
+        index: usize,
+        /// Kind.
+        kind: &'static str,
+    },
+    /// A stage panicked: a bug.
+    #[error(
+        "stage {index} `{kind}` failed with an internal error (a bug in coarsen; please report it with the input): {message}"
+    )]
+    Panicked {
+        /// 1-based position.
+        index: usize,
+        /// Kind.
+        kind: &'static str,
+        /// The panic's message.
+        message: String,
+    },
     /// A stage produced a mesh that breaks the mesh invariants: a bug.
     #[error(
         "stage {index} `{kind}` produced an invalid mesh (a bug in coarsen; please report it with the input): {detail}"
@@ -148,6 +173,51 @@ pub enum RunError {
         /// What the sanity check found.
         detail: String,
     },
+}
+
+/// The payload a cancelled run unwinds a stage with, from inside its progress report.
+struct Cancelled;
+
+/// A progress sink that passes reports on and stops the stage once the flag is up.
+struct Cancelling<'a> {
+    inner: &'a dyn Progress,
+    flag: &'a AtomicBool,
+}
+
+impl Cancelling<'_> {
+    /// Unwinds the stage (without the panic hook's message) when the flag is up; the
+    /// runner catches it and reports [`RunError::Cancelled`]. Stages own everything they
+    /// build, so nothing outlives the unwinding half-made.
+    fn stop_if_cancelled(&self) {
+        if self.flag.load(Ordering::Relaxed) {
+            std::panic::resume_unwind(Box::new(Cancelled));
+        }
+    }
+}
+
+impl Progress for Cancelling<'_> {
+    fn begin(&self, label: &str, total: u64) {
+        self.stop_if_cancelled();
+        self.inner.begin(label, total);
+    }
+    fn advance(&self, done: u64, message: &str) {
+        self.stop_if_cancelled();
+        self.inner.advance(done, message);
+    }
+    fn end(&self) {
+        self.inner.end();
+    }
+}
+
+/// The message of a panic's payload (a `&str` or a `String`, as `panic!` makes them).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "a panic with no message".to_string()
+    }
 }
 
 impl Pipeline {
@@ -183,6 +253,12 @@ impl Pipeline {
         for (i, s) in self.stages.iter().enumerate() {
             let readying = Instant::now();
             let index = i + 1;
+            if opts.cancel.is_some_and(|flag| flag.load(Ordering::Relaxed)) {
+                return Err(RunError::Cancelled {
+                    index,
+                    kind: s.kind,
+                });
+            }
             let contract = s.stage.contract();
             let mut notes = Vec::new();
             let topology_of = |mesh: &Mesh| {
@@ -297,22 +373,47 @@ impl Pipeline {
             let mut slot = opts
                 .progressive
                 .map(|m| m.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
+            let cancelling = opts.cancel.map(|flag| Cancelling {
+                inner: opts.progress,
+                flag,
+            });
             let mut cx = Context {
                 original: &original,
                 target: self.target,
                 report: &mut stage_report,
-                progress: opts.progress,
+                progress: match &cancelling {
+                    Some(c) => c as &dyn Progress,
+                    None => opts.progress,
+                },
                 progressive: slot.as_deref_mut(),
                 shared: Some(&shared),
             };
-            mesh = s
-                .stage
-                .run(mesh, &mut cx)
-                .map_err(|error| RunError::Stage {
-                    index,
-                    kind: s.kind,
-                    error,
-                })?;
+            let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                s.stage.run(mesh, &mut cx)
+            }));
+            mesh = match ran {
+                Ok(Ok(mesh)) => mesh,
+                Ok(Err(error)) => {
+                    return Err(RunError::Stage {
+                        index,
+                        kind: s.kind,
+                        error,
+                    });
+                }
+                Err(payload) if payload.is::<Cancelled>() => {
+                    return Err(RunError::Cancelled {
+                        index,
+                        kind: s.kind,
+                    });
+                }
+                Err(payload) => {
+                    return Err(RunError::Panicked {
+                        index,
+                        kind: s.kind,
+                        message: panic_message(payload.as_ref()),
+                    });
+                }
+            };
             drop(slot);
             let seconds = t.elapsed().as_secs_f64();
             tracing::info!(

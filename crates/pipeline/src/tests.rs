@@ -125,8 +125,50 @@ impl Stage for NeedsManifold {
     }
 }
 
+params! {
+    /// Parameters of `test.trouble`.
+    pub struct TroubleParams {
+        /// `panic`, or `cancel` (raises [`CANCEL`], then reports progress).
+        pub what: String = "panic".to_string(),
+    }
+}
+impl Params for TroubleParams {}
+
+/// The cancel flag of the one test that cancels from inside a stage.
+static CANCEL: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Panics, or cancels the run from inside and goes on reporting progress.
+struct Trouble(TroubleParams);
+impl Stage for Trouble {
+    type Params = TroubleParams;
+    const KIND: &'static str = "test.trouble";
+    const SUMMARY: &'static str = "Panics or cancels.";
+    fn new(p: TroubleParams) -> Self {
+        Trouble(p)
+    }
+    fn contract(&self) -> Contract {
+        Contract::default()
+    }
+    fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        if self.0.what == "cancel" {
+            CANCEL.store(true, std::sync::atomic::Ordering::Relaxed);
+            cx.progress.begin("spinning", 10);
+            cx.progress.advance(1, "");
+            return Err(StageError::Internal("went on after the cancel".into()));
+        }
+        let faces: Vec<usize> = Vec::new();
+        Ok(Mesh::new(
+            mesh.positions.clone(),
+            vec![[0, 1, faces[7] as u32]],
+        ))
+    }
+}
+
 mod mark {
     coarsen_stage::export_stage!(super::Mark);
+}
+mod trouble {
+    coarsen_stage::export_stage!(super::Trouble);
 }
 mod needs_manifold {
     coarsen_stage::export_stage!(super::NeedsManifold);
@@ -140,6 +182,7 @@ fn registry() -> Registry {
         mark::descriptor(),
         drop_high::descriptor(),
         needs_manifold::descriptor(),
+        trouble::descriptor(),
     ])
 }
 
@@ -589,4 +632,57 @@ fn large_inputs_are_renumbered_along_the_curve_unless_a_record_is_kept() {
             .faces,
         input.faces
     );
+}
+
+#[test]
+fn a_panicking_stage_is_reported_as_an_internal_error_of_that_stage() {
+    let text = "[pipeline]\nname = \"t\"\ndescription = \"t\"\n[[stage]]\nkind = \"test.mark\"\n[[stage]]\nkind = \"test.trouble\"\n";
+    let p = parse(text, &Overrides::default()).unwrap();
+    let e = p.run(square(), RunOptions::default()).unwrap_err();
+    assert!(
+        matches!(e, crate::RunError::Panicked { index: 2, .. }),
+        "{e:?}"
+    );
+    let e = e.to_string();
+    assert!(
+        e.starts_with("stage 2 `test.trouble` failed with an internal error (a bug in coarsen"),
+        "{e}"
+    );
+    assert!(e.contains("index out of bounds"), "{e}");
+}
+
+#[test]
+fn a_cancelled_run_stops_inside_the_stage_or_before_the_next() {
+    let text = "[pipeline]\nname = \"t\"\ndescription = \"t\"\n[[stage]]\nkind = \"test.trouble\"\nwhat = \"cancel\"\n[[stage]]\nkind = \"test.mark\"\n";
+    let p = parse(text, &Overrides::default()).unwrap();
+    let opts = RunOptions {
+        cancel: Some(&CANCEL),
+        ..Default::default()
+    };
+    // Inside: the stage raises the flag, and its next progress report ends it.
+    let e = p.run(square(), opts).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            crate::RunError::Cancelled {
+                index: 1,
+                kind: "test.trouble"
+            }
+        ),
+        "{e:?}"
+    );
+    assert_eq!(e.to_string(), "cancelled during stage 1 `test.trouble`");
+    // Before: with the flag up, not even the first stage starts.
+    let marks = parse(
+        "[pipeline]\nname = \"m\"\ndescription = \"m\"\n[[stage]]\nkind = \"test.mark\"\n",
+        &Overrides::default(),
+    )
+    .unwrap();
+    let e = marks.run(square(), opts).unwrap_err();
+    assert!(
+        matches!(e, crate::RunError::Cancelled { index: 1, .. }),
+        "{e:?}"
+    );
+    // Without the flag the same pipeline runs.
+    assert!(marks.run(square(), RunOptions::default()).is_ok());
 }
