@@ -55,9 +55,6 @@
 //! issues #7 and #50), so built-in stages are also listed explicitly by `coarsen-builtin`,
 //! and a plug-in author's binary says `use their_stage_crate as _;`.
 
-// Lets `params!` name `coarsen_stage::…` inside this crate too.
-extern crate self as coarsen_stage;
-
 pub mod context;
 pub mod contract;
 pub mod error;
@@ -79,6 +76,14 @@ pub mod __private {
     pub use inventory;
     pub use serde;
     pub use toml;
+
+    /// What [`params!`](crate::params!) brings into the caller's scope with a glob import
+    /// (a glob, so that two `params!` in one module do not clash): serde under a name
+    /// that its derive's `crate = "…"` can spell without knowing what the caller calls
+    /// this crate (`coarsen_stage`, or a re-export such as `coarsen::plugin`).
+    pub mod scope {
+        pub use serde as __coarsen_stage_serde;
+    }
 }
 
 /// One step of a pipeline: takes a mesh, returns the next one.

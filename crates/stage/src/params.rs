@@ -106,6 +106,51 @@ pub fn check_finite_min(issues: &mut Vec<ParamIssue>, field: &'static str, value
 /// use coarsen_stage::params::ParamFields;
 /// assert_eq!(RefineParams::fields()[0].name, "alpha");
 /// ```
+///
+/// The macro, like [`export_stage!`](crate::export_stage!), names nothing by this crate's
+/// name, so a plug-in that sees the stage API only through a re-export (the facade's
+/// `coarsen::plugin`) needs no dependency on `coarsen-stage` nor on serde. Here a module
+/// called `coarsen_stage` hides the real crate's name, as in such a plug-in:
+///
+/// ```
+/// mod plugin {
+///     pub use ::coarsen_stage::{export_stage, params, Context, Contract, Mesh, Params};
+///     pub use ::coarsen_stage::{Stage, StageError};
+/// }
+///
+/// mod my_stage {
+///     mod coarsen_stage {}
+///     use crate::plugin::*;
+///
+///     params! {
+///         /// Parameters of `noop`.
+///         pub struct NoopParams {
+///             /// Unused.
+///             pub times: u32 = 1,
+///         }
+///     }
+///     impl Params for NoopParams {}
+///
+///     /// Does nothing.
+///     pub struct Noop;
+///     impl Stage for Noop {
+///         type Params = NoopParams;
+///         const KIND: &'static str = "noop";
+///         const SUMMARY: &'static str = "Does nothing.";
+///         fn new(_: NoopParams) -> Self { Noop }
+///         fn contract(&self) -> Contract { Contract::default() }
+///         fn run(&self, mesh: Mesh, _: &mut Context<'_>) -> Result<Mesh, StageError> {
+///             Ok(mesh)
+///         }
+///     }
+///     export_stage!(Noop);
+/// }
+///
+/// # fn main() {
+/// let table: ::toml::Table = ::toml::from_str("times = 3").unwrap();
+/// assert!((my_stage::descriptor().build)(&table).is_ok());
+/// # }
+/// ```
 #[macro_export]
 macro_rules! params {
     (
@@ -117,9 +162,12 @@ macro_rules! params {
             ),* $(,)?
         }
     ) => {
+        #[allow(unused_imports)]
+        use $crate::__private::scope::*;
+
         $(#[$smeta])*
         #[derive(Clone, Debug, PartialEq, $crate::__private::serde::Serialize, $crate::__private::serde::Deserialize)]
-        #[serde(crate = "coarsen_stage::__private::serde", deny_unknown_fields, default)]
+        #[serde(crate = "__coarsen_stage_serde", deny_unknown_fields, default)]
         $vis struct $name {
             $(
                 $(#[doc = $doc])+
