@@ -2,6 +2,7 @@
 
 use coarsen_tests::{pipeline_file, read_mesh, run_cli, run_pipeline, stderr, stdout, write_mesh};
 use std::fs;
+use std::path::{Path, PathBuf};
 
 const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
 
@@ -408,4 +409,180 @@ fn a_stage_error_is_printed_once_with_its_stage() {
     assert!(err.contains("stage 3 `dual` failed"), "{err}");
     assert_eq!(err.matches("cannot make a valid mesh").count(), 1, "{err}");
     assert!(!out.exists());
+}
+
+/// A folder of three meshes of 80, 320 and 1280 faces, and a pipeline that runs
+/// `test.misbehave` with `params` and then QEM to half the faces.
+fn misbehaving_batch(dir: &Path, params: &str) -> (PathBuf, PathBuf) {
+    let inputs = dir.join("in");
+    fs::create_dir_all(&inputs).unwrap();
+    for (name, level) in [("small.obj", 1), ("medium.obj", 2), ("large.obj", 3)] {
+        write_mesh(
+            &coarsen_shapes::icosphere(1.0, level).unwrap(),
+            &inputs.join(name),
+        );
+    }
+    let pipeline = dir.join("misbehave.toml");
+    fs::write(
+        &pipeline,
+        format!(
+            "[pipeline]\nname = \"m\"\ndescription = \"m\"\ntarget = {{ ratio = 0.5 }}\n\
+             [[stage]]\nkind = \"test.misbehave\"\n{params}\n[[stage]]\nkind = \"simplify.qem\"\n"
+        ),
+    )
+    .unwrap();
+    (inputs, pipeline)
+}
+
+/// The rows of a batch's summary.json, by input file name.
+fn summary_rows(out: &Path) -> std::collections::BTreeMap<String, serde_json::Value> {
+    let summary: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    summary
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            let name = Path::new(r["input"].as_str().unwrap())
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .into_owned();
+            (name, r.clone())
+        })
+        .collect()
+}
+
+#[test]
+fn batch_reports_a_panicking_stage_as_that_files_failure_and_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (inputs, pipeline) = misbehaving_batch(dir.path(), "panic_above_faces = 500");
+    let out = dir.path().join("out");
+    let o = run_cli(
+        EXE,
+        &[
+            "batch",
+            inputs.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--pipeline",
+            pipeline.to_str().unwrap(),
+            "--jobs",
+            "1",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("3 files: 2 ok, 0 skipped, 1 failed"),
+        "{}",
+        stdout(&o)
+    );
+    let rows = summary_rows(&out);
+    assert_eq!(rows["small.obj"]["status"], "ok");
+    assert_eq!(rows["medium.obj"]["status"], "ok");
+    assert_eq!(rows["large.obj"]["status"], "failed");
+    let error = rows["large.obj"]["error"].as_str().unwrap();
+    assert!(
+        error.contains("stage 1 `test.misbehave` failed with an internal error")
+            && error.contains("index out of bounds"),
+        "{error}"
+    );
+    assert!(out.join("small.ply").is_file() && !out.join("large.ply").exists());
+}
+
+#[test]
+fn batch_timeout_ends_a_stuck_file_and_the_rest_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (inputs, pipeline) = misbehaving_batch(dir.path(), "hang_above_faces = 500");
+    let out = dir.path().join("out");
+    let started = std::time::Instant::now();
+    let o = run_cli(
+        EXE,
+        &[
+            "batch",
+            inputs.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--pipeline",
+            pipeline.to_str().unwrap(),
+            "--timeout",
+            "1.5",
+        ],
+    );
+    // Not a speed assertion: without the timeout the stuck file would take 60 s.
+    assert!(started.elapsed().as_secs() < 50, "the stuck file was ended");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let rows = summary_rows(&out);
+    assert_eq!(rows["small.obj"]["status"], "ok");
+    assert_eq!(rows["medium.obj"]["status"], "ok");
+    assert_eq!(rows["large.obj"]["status"], "failed");
+    assert_eq!(rows["large.obj"]["error"], "timed out after 1.5 s");
+    assert!(!out.join("large.ply").exists());
+    let bad = run_cli(
+        EXE,
+        &[
+            "batch",
+            inputs.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--timeout",
+            "0",
+        ],
+    );
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(stderr(&bad).contains("expected a number of seconds above 0, got `0`"));
+}
+
+#[test]
+fn batch_shards_by_the_path_below_the_input_folder_however_it_is_spelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let (inputs, _) = misbehaving_batch(dir.path(), "");
+    let spelled = dir.path().join("in/../in/.");
+    let taken = |root: &Path, out: &str, shard: &str| {
+        let out = dir.path().join(out);
+        let o = run_cli(
+            EXE,
+            &[
+                "batch",
+                root.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--pipeline",
+                "qem",
+                "--ratio",
+                "0.5",
+                "--shard",
+                shard,
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let suffix = shard.replace('/', "-of-");
+        let summary: serde_json::Value = serde_json::from_str(
+            &fs::read_to_string(out.join(format!("summary-{suffix}.json"))).unwrap(),
+        )
+        .unwrap();
+        let mut names: Vec<String> = summary
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| {
+                Path::new(r["input"].as_str().unwrap())
+                    .file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        names.sort();
+        names
+    };
+    let mut all = Vec::new();
+    for i in 0..2 {
+        let shard = format!("{i}/2");
+        let plain = taken(&inputs, "a", &shard);
+        assert_eq!(plain, taken(&spelled, "b", &shard), "shard {shard}");
+        all.extend(plain);
+    }
+    all.sort();
+    assert_eq!(all, ["large.obj", "medium.obj", "small.obj"]);
 }

@@ -2,6 +2,7 @@
 
 mod cli;
 mod data;
+mod facade;
 mod hostile;
 mod html;
 mod lod;

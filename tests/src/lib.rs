@@ -69,3 +69,61 @@ pub fn oriented_manifold(mesh: &coarsen_mesh::Mesh, what: &str) -> coarsen_mesh:
     assert!(s.manifold && s.consistently_oriented, "{what}: {s:?}");
     s
 }
+
+/// `test.misbehave`, linked into the CLI under test: a stage that panics or hangs on
+/// purpose, for the tests of what a batch survives.
+pub mod misbehave {
+    use coarsen_stage::{Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, params};
+    use std::time::{Duration, Instant};
+
+    params! {
+        /// Parameters of `test.misbehave`.
+        pub struct MisbehaveParams {
+            /// Panic (index out of bounds) on meshes with more faces than this; 0 never.
+            pub panic_above_faces: u64 = 0,
+            /// Spin, reporting progress, on meshes with more faces than this, until the
+            /// run is cancelled (or 60 s pass, then fail); 0 never.
+            pub hang_above_faces: u64 = 0,
+        }
+    }
+    impl Params for MisbehaveParams {
+        fn validate(&self) -> Vec<ParamIssue> {
+            Vec::new()
+        }
+    }
+
+    /// Passes the mesh through, unless it is one to panic or hang on.
+    pub struct Misbehave(MisbehaveParams);
+
+    impl Stage for Misbehave {
+        type Params = MisbehaveParams;
+        const KIND: &'static str = "test.misbehave";
+        const SUMMARY: &'static str = "Panics or hangs on purpose (tests only).";
+        fn new(p: MisbehaveParams) -> Self {
+            Misbehave(p)
+        }
+        fn contract(&self) -> Contract {
+            Contract::default()
+        }
+        fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+            let faces = mesh.n_faces() as u64;
+            let p = &self.0;
+            if p.panic_above_faces > 0 && faces > p.panic_above_faces {
+                let none: Vec<u32> = Vec::new();
+                let _ = none[faces as usize];
+            }
+            if p.hang_above_faces > 0 && faces > p.hang_above_faces {
+                let start = Instant::now();
+                cx.progress.begin("hanging", 0);
+                while start.elapsed() < Duration::from_secs(60) {
+                    std::thread::sleep(Duration::from_millis(10));
+                    cx.progress.advance(0, "still hanging");
+                }
+                return Err(StageError::Internal("never cancelled".into()));
+            }
+            Ok(mesh)
+        }
+    }
+
+    coarsen_stage::export_stage!(Misbehave);
+}

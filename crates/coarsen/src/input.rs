@@ -257,6 +257,28 @@ mod tests {
     }
 
     #[test]
+    fn reading_an_stl_welds_what_the_reader_keeps_apart() {
+        // Two triangles on the edge (0,0,0)–(1,1,0); one spells its corner `-0`.
+        let text = "solid t\n\
+            facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\nendloop\nendfacet\n\
+            facet normal 0 0 1\nouter loop\nvertex -0 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\n\
+            endsolid t\n";
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.stl");
+        std::fs::write(&path, text).unwrap();
+        let opened = open(&path, &ReadOptions::default()).unwrap();
+        assert!(opened.weld);
+        assert_eq!(opened.mesh.n_vertices(), 5);
+        let read = read(&path).unwrap();
+        assert_eq!(read.n_vertices(), 4);
+        // The same mesh as the run's one clean-up with the weld.
+        assert_eq!(
+            clean(opened, false).unwrap().mesh,
+            clean(Input::new(read, "t"), false).unwrap().mesh
+        );
+    }
+
+    #[test]
     fn extreme_sizes_are_computed_near_one_and_restored_exactly() {
         let mut m = coarsen_shapes::demo();
         m.positions.iter_mut().for_each(|p| *p *= 1e80);
