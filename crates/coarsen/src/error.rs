@@ -6,6 +6,15 @@ use coarsen_pipeline::{Diagnostics, RunError};
 ///
 /// [`Error::is_usage`] sorts the errors by who must act: a bad pipeline, parameter or
 /// request (the caller) or a bad file, a bad mesh or a failed run.
+///
+/// ```
+/// let e = coarsen::Remesher::new()
+///     .set("cluster.cvt.no_such_parameter", "1")
+///     .check()
+///     .unwrap_err();
+/// assert!(e.is_usage());
+/// assert!(e.to_string().contains("no_such_parameter"));
+/// ```
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {

@@ -7,6 +7,17 @@ use coarsen_mesh::{DVec3, Mesh, hygiene, scale};
 use std::path::Path;
 
 /// A mesh to run on, with its name and what reading it said.
+///
+/// ```
+/// let input = coarsen::Input::new(coarsen::demo(), "bumpy sphere");
+/// let done = coarsen::Remesher::new()
+///     .pipeline("qem")
+///     .target(coarsen::Target::Vertices(1000))
+///     .run_input(input)?;
+/// assert_eq!(done.report.input, "bumpy sphere");
+/// assert_eq!(done.mesh.n_vertices(), 1000);
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Input {
     /// The mesh as read (or as built): nothing cleaned yet.
@@ -79,6 +90,15 @@ pub fn read(path: impl AsRef<Path>) -> Result<Mesh, Error> {
 
 /// Reads the mesh file at `path` under the reader limits `opts` (the command line's
 /// `--max-faces`), keeping the reader's notes and the format's need to weld.
+///
+/// ```no_run
+/// let limits = coarsen::ReadOptions { max_faces: Some(1_000_000), ..Default::default() };
+/// let input = coarsen::open("scan.ply", &limits)?;
+/// for note in &input.notes {
+///     println!("{}: {note}", input.name);
+/// }
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 pub fn open(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Input, Error> {
     let path = path.as_ref();
     let loaded = coarsen_io::read_path(path, opts)?;
@@ -104,11 +124,25 @@ pub fn write(path: impl AsRef<Path>, mesh: &Mesh) -> Result<(), Error> {
 }
 
 /// [`write`] with the encoding and attribute choices of `opts`.
+///
+/// ```no_run
+/// # let mesh = coarsen::demo();
+/// let ascii = coarsen::WriteOptions {
+///     ply_encoding: coarsen::PlyEncoding::Ascii,
+///     ..Default::default()
+/// };
+/// coarsen::write_with("out.ply", &mesh, &ascii)?;
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 pub fn write_with(path: impl AsRef<Path>, mesh: &Mesh, opts: &WriteOptions) -> Result<(), Error> {
     Ok(coarsen_io::write_path(mesh, path.as_ref(), opts)?)
 }
 
 /// The built-in demo mesh: a bumpy sphere of 10,242 vertices.
+///
+/// ```
+/// assert_eq!(coarsen::demo().n_vertices(), 10_242);
+/// ```
 pub fn demo() -> Mesh {
     coarsen_shapes::demo()
 }
@@ -147,7 +181,7 @@ pub fn mesh_from_arrays(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Resul
     Ok(Mesh::new(positions, faces))
 }
 
-/// A mesh after the load-time clean-up, ready for a pipeline.
+/// A mesh after the load-time clean-up, ready for a pipeline (see [`clean`]).
 #[derive(Clone, Debug)]
 pub struct Cleaned {
     /// The cleaned mesh, scaled by `2^scale_exponent`.
@@ -177,6 +211,15 @@ pub(crate) fn restore(mut mesh: Mesh, scale_exponent: i32) -> Mesh {
 /// coordinates refused; degenerate and duplicate faces and unreferenced vertices dropped;
 /// coincident vertices welded when `weld` or the input asks for it; meshes of extreme size
 /// rescaled exactly by a power of two. A mesh with no face left is an error.
+///
+/// ```
+/// let mut mesh = coarsen::demo();
+/// mesh.faces.push(mesh.faces[0]); // a duplicate face
+/// let cleaned = coarsen::clean(coarsen::Input::new(mesh, "demo"), false)?;
+/// assert_eq!(cleaned.mesh.n_faces(), coarsen::demo().n_faces());
+/// assert!(cleaned.notes.iter().any(|n| n == "drop duplicate faces: 1"));
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 pub fn clean(input: Input, weld: bool) -> Result<Cleaned, Error> {
     let Input {
         mut mesh,

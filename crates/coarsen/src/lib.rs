@@ -55,11 +55,32 @@ pub use input::{Cleaned, Input, clean, demo, mesh_from_arrays, open, read, write
 pub use remesh::{DEFAULT_PIPELINE, Remeshed, Remesher, registry, remesh};
 
 pub use coarsen_io::{Format, PlyEncoding, ReadOptions, WriteOptions};
-pub use coarsen_lod::Progressive;
 pub use coarsen_mesh::{DVec3, Index, Mesh};
 pub use coarsen_metrics::{MetricsOptions, MetricsReport};
 pub use coarsen_pipeline::{Pipeline, RunError, RunReport as Report, StageRecord};
 pub use coarsen_stage::{Progress, Target};
+
+/// Levels of detail: a collapse pipeline's progressive record
+/// ([`Remesher::progressive`]) rebuilds any level between its output and its input by
+/// undoing collapses.
+///
+/// ```
+/// let done = coarsen::Remesher::new()
+///     .pipeline("qem")
+///     .target(coarsen::Target::Vertices(2000))
+///     .progressive(true)
+///     .run_input(coarsen::Input::demo())?;
+/// let record = done.progressive.expect("asked for");
+/// let level = coarsen::lod::level_with_vertices(&record, 5000).unwrap();
+/// let finer = coarsen::lod::rebuild(&done.mesh, &record, level).unwrap();
+/// assert_eq!(finer.n_vertices(), 5000);
+/// # Ok::<(), coarsen::Error>(())
+/// ```
+pub mod lod {
+    pub use coarsen_lod::{
+        LodError, Progressive, level_vertices, level_with_vertices, levels, read, rebuild, write,
+    };
+}
 
 /// What a stage crate needs: the [`Stage`](plugin::Stage) trait, its parameter and
 /// contract types, and the macros that declare parameters and register a stage.
@@ -83,6 +104,11 @@ pub struct PipelineInfo {
 }
 
 /// The shipped pipelines (`pipelines/*.toml`), by name.
+///
+/// ```
+/// let names: Vec<_> = coarsen::pipelines().iter().map(|p| p.name).collect();
+/// assert!(names.contains(&coarsen::DEFAULT_PIPELINE) && names.contains(&"qem"));
+/// ```
 pub fn pipelines() -> Vec<PipelineInfo> {
     coarsen_builtin::PIPELINES
         .iter()
@@ -129,6 +155,13 @@ pub struct ParamInfo {
 }
 
 /// Every registered stage (built-in and linked), sorted by kind, with its parameters.
+///
+/// ```
+/// let stages = coarsen::stages()?;
+/// let relax = stages.iter().find(|s| s.kind == "relax").unwrap();
+/// assert!(relax.params.iter().any(|p| p.name == "sweeps"));
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 pub fn stages() -> Result<Vec<StageInfo>, Error> {
     let registry = registry();
     Ok(registry
@@ -174,6 +207,17 @@ pub fn metrics(input: &Mesh, output: &Mesh, opts: &MetricsOptions) -> Result<Met
 
 /// [`metrics`] of meshes read with [`open`] (an STL file's corners welded, as a run
 /// welds them), named in errors by their files.
+///
+/// ```no_run
+/// let limits = coarsen::ReadOptions::default();
+/// let m = coarsen::measure(
+///     coarsen::open("bunny.obj", &limits)?,
+///     coarsen::open("bunny-5k.ply", &limits)?,
+///     &Default::default(),
+/// )?;
+/// println!("{}", m.to_markdown());
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 pub fn measure(input: Input, output: Input, opts: &MetricsOptions) -> Result<MetricsReport, Error> {
     let input = clean(input, false)?;
     let output = clean(output, false)?;

@@ -29,11 +29,28 @@ pub fn remesh(mesh: &Mesh, target: Target) -> Result<(Mesh, RunReport), Error> {
 /// Every registered stage: the built-in ones and those linked into the program. A kind
 /// that two packages register is listed in [`Registry::conflicts`] and fails only the
 /// pipelines that use it.
+///
+/// ```
+/// let registry = coarsen::registry();
+/// assert!(registry.conflicts().is_empty());
+/// assert!(registry.get("cluster.cvt").is_some());
+/// ```
 pub fn registry() -> Registry {
     coarsen_builtin::registry()
 }
 
-/// What a run gives back.
+/// What a run gives back ([`Remesher::run_input`]).
+///
+/// ```
+/// let done = coarsen::Remesher::new()
+///     .pipeline("qem")
+///     .target(coarsen::Target::Ratio(0.5))
+///     .progressive(true)
+///     .run_input(coarsen::Input::demo())?;
+/// let record = done.progressive.expect("asked for");
+/// assert_eq!(coarsen::lod::levels(&record), 10_242 - done.mesh.n_vertices());
+/// # Ok::<(), coarsen::Error>(())
+/// ```
 #[derive(Debug)]
 pub struct Remeshed {
     /// The output mesh, in the input's units.
