@@ -1,15 +1,17 @@
 //! An example of a third-party coarsen stage: Taubin λ|μ smoothing (`smooth.taubin`).
 //!
 //! Nothing in coarsen's own crates names this crate. It registers itself at link time with
-//! [`coarsen_stage::export_stage!`]; a binary that wants it links it with
-//! `use coarsen_stage_smooth as _;` (see `src/bin/coarsen-smooth.rs`, a `coarsen` that also
-//! knows this stage), and `docs/writing-a-stage.md` walks through it.
+//! [`export_stage!`](coarsen::plugin::export_stage), from the stage API the facade
+//! re-exports (`coarsen::plugin`: no dependency on coarsen's inner crates); a binary that
+//! wants it links it with `use coarsen_stage_smooth as _;` (see `src/bin/coarsen-smooth.rs`,
+//! a `coarsen` that also knows this stage). `examples/stage-template` is the same outside
+//! the workspace, and `docs/writing-a-stage.md` walks through both.
 //!
 //! Taubin (1995): alternate a shrinking Laplacian step with factor λ > 0 and an inflating one
 //! with μ < −λ, so that the surface is smoothed without shrinking. Uniform (umbrella) weights;
 //! boundary vertices stay put unless `move_boundary` is set.
 
-use coarsen_stage::{
+use coarsen::plugin::{
     Context, Contract, DVec3, Mesh, ParamIssue, Params, Stage, StageError, params,
 };
 
@@ -43,7 +45,7 @@ impl Params for SmoothParams {
                 format!("must be in [-1, -lambda), got {}", self.mu),
             ));
         }
-        coarsen_stage::params::check_range(&mut v, "iterations", self.iterations, 0, 10_000);
+        coarsen::plugin::check_range(&mut v, "iterations", self.iterations, 0, 10_000);
         v
     }
 }
@@ -137,12 +139,12 @@ fn one_rings(mesh: &Mesh) -> (Vec<u32>, Vec<u32>, Vec<bool>) {
     (offsets, neighbours, boundary)
 }
 
-coarsen_stage::export_stage!(Smooth);
+coarsen::plugin::export_stage!(Smooth);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use coarsen_stage::StageReport;
+    use coarsen::plugin::StageReport;
 
     #[test]
     fn smoothing_a_noisy_sphere_reduces_roughness_without_shrinking_much() {
