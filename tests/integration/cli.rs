@@ -434,10 +434,11 @@ fn misbehaving_batch(dir: &Path, params: &str) -> (PathBuf, PathBuf) {
     (inputs, pipeline)
 }
 
-/// The rows of a batch's summary.json, by input file name.
-fn summary_rows(out: &Path) -> std::collections::BTreeMap<String, serde_json::Value> {
+/// The rows of a batch's summary (`summary.json` in `out`, or a shard's), by input file
+/// name.
+fn summary_rows(out: &Path, file: &str) -> std::collections::BTreeMap<String, serde_json::Value> {
     let summary: serde_json::Value =
-        serde_json::from_str(&fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        serde_json::from_str(&fs::read_to_string(out.join(file)).unwrap()).unwrap();
     summary
         .as_array()
         .unwrap()
@@ -477,7 +478,7 @@ fn batch_reports_a_panicking_stage_as_that_files_failure_and_goes_on() {
         "{}",
         stdout(&o)
     );
-    let rows = summary_rows(&out);
+    let rows = summary_rows(&out, "summary.json");
     assert_eq!(rows["small.obj"]["status"], "ok");
     assert_eq!(rows["medium.obj"]["status"], "ok");
     assert_eq!(rows["large.obj"]["status"], "failed");
@@ -512,7 +513,7 @@ fn batch_timeout_ends_a_stuck_file_and_the_rest_goes_on() {
     // Not a speed assertion: without the timeout the stuck file would take 60 s.
     assert!(started.elapsed().as_secs() < 50, "the stuck file was ended");
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let rows = summary_rows(&out);
+    let rows = summary_rows(&out, "summary.json");
     assert_eq!(rows["small.obj"]["status"], "ok");
     assert_eq!(rows["medium.obj"]["status"], "ok");
     assert_eq!(rows["large.obj"]["status"], "failed");
@@ -557,24 +558,9 @@ fn batch_shards_by_the_path_below_the_input_folder_however_it_is_spelled() {
         );
         assert!(o.status.success(), "{}", stderr(&o));
         let suffix = shard.replace('/', "-of-");
-        let summary: serde_json::Value = serde_json::from_str(
-            &fs::read_to_string(out.join(format!("summary-{suffix}.json"))).unwrap(),
-        )
-        .unwrap();
-        let mut names: Vec<String> = summary
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|r| {
-                Path::new(r["input"].as_str().unwrap())
-                    .file_name()
-                    .unwrap()
-                    .to_string_lossy()
-                    .into_owned()
-            })
-            .collect();
-        names.sort();
-        names
+        summary_rows(&out, &format!("summary-{suffix}.json"))
+            .into_keys()
+            .collect::<Vec<_>>()
     };
     let mut all = Vec::new();
     for i in 0..2 {

@@ -246,13 +246,9 @@ fn one(b: &Batch<'_>, input: &Path, output: &Path) -> Row {
         process(b, input, output, &mut row)
     }))
     .unwrap_or_else(|payload| {
-        let message = payload
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "a panic with no message".into());
         Err(anyhow::anyhow!(
-            "internal error (a bug in coarsen; please report it with the input): {message}"
+            "internal error (a bug in coarsen; please report it with the input): {}",
+            coarsen_pipeline::panic_message(payload.as_ref())
         ))
     });
     row.seconds = Some(t.elapsed().as_secs_f64());

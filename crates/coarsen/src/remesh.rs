@@ -323,12 +323,9 @@ impl<'a> Remesher<'a> {
 /// stage's own panics as that stage's error).
 fn catching<T>(work: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)).unwrap_or_else(|payload| {
-        let message = payload
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "a panic with no message".into());
-        Err(Error::Internal(message))
+        Err(Error::Internal(coarsen_pipeline::panic_message(
+            payload.as_ref(),
+        )))
     })
 }
 

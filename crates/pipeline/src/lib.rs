@@ -18,6 +18,7 @@ pub use file::{Overrides, Pipeline, PipelineStage, SetOverride, parse_set};
 pub use report::{RunReport, StageRecord};
 pub use run::{
     AfterStage, CUT_EDGES_NOTE, REORDER_MIN_FACES, RunError, RunOptions, SPLIT_FANS_NOTE,
+    panic_message,
 };
 
 use std::fmt;
