@@ -38,33 +38,31 @@ pub fn registry() -> Registry {
 }
 
 /// The pipelines shipped with coarsen: `(name, TOML text)`, from `pipelines/*.toml`.
+///
+/// They are read through `crates/builtin/pipelines`, a symbolic link to the top-level
+/// `pipelines/` where they are edited, so that the package holds them: `cargo package`
+/// follows the link and ships the files themselves.
 pub const PIPELINES: &[(&str, &str)] = &[
     (
         "adaptive-cvt",
-        include_str!("../../../pipelines/adaptive-cvt.toml"),
+        include_str!("../pipelines/adaptive-cvt.toml"),
     ),
     (
         "adaptive-cvt-r05",
-        include_str!("../../../pipelines/adaptive-cvt-r05.toml"),
+        include_str!("../pipelines/adaptive-cvt-r05.toml"),
     ),
-    (
-        "curvature",
-        include_str!("../../../pipelines/curvature.toml"),
-    ),
-    ("demo", include_str!("../../../pipelines/demo.toml")),
-    ("goal", include_str!("../../../pipelines/goal.toml")),
-    ("metrics", include_str!("../../../pipelines/metrics.toml")),
-    ("qem", include_str!("../../../pipelines/qem.toml")),
-    ("refine", include_str!("../../../pipelines/refine.toml")),
-    ("svec", include_str!("../../../pipelines/svec.toml")),
+    ("curvature", include_str!("../pipelines/curvature.toml")),
+    ("demo", include_str!("../pipelines/demo.toml")),
+    ("goal", include_str!("../pipelines/goal.toml")),
+    ("metrics", include_str!("../pipelines/metrics.toml")),
+    ("qem", include_str!("../pipelines/qem.toml")),
+    ("refine", include_str!("../pipelines/refine.toml")),
+    ("svec", include_str!("../pipelines/svec.toml")),
     (
         "svec-then-cvt",
-        include_str!("../../../pipelines/svec-then-cvt.toml"),
+        include_str!("../pipelines/svec-then-cvt.toml"),
     ),
-    (
-        "uniform-cvt",
-        include_str!("../../../pipelines/uniform-cvt.toml"),
-    ),
+    ("uniform-cvt", include_str!("../pipelines/uniform-cvt.toml")),
 ];
 
 /// The text of the shipped pipeline called `name`.
