@@ -478,6 +478,15 @@ fn pipelines(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     Ok(list)
 }
 
+/// The arrays through the conversions of a run, without the run (a mesh built from their
+/// bytes, and its bytes handed back): what `python/bench/bench.py` measures the Python
+/// call's own cost with.
+#[pyfunction]
+fn echo<'py>(py: Python<'py>, positions: &[u8], faces: &[u8]) -> PyResult<MeshBytes<'py>> {
+    let mesh = mesh_from(positions, faces, vec![], vec![])?;
+    mesh_bytes(py, &mesh, false)
+}
+
 /// The built-in demo mesh (see `coarsen.demo`).
 #[pyfunction]
 fn demo(py: Python<'_>) -> PyResult<MeshBytes<'_>> {
@@ -488,7 +497,7 @@ fn demo(py: Python<'_>) -> PyResult<MeshBytes<'_>> {
 #[pymodule]
 mod _coarsen {
     #[pymodule_export]
-    use super::{CoarsenError, demo, metrics, pipelines, read, remesh, stages, write};
+    use super::{CoarsenError, demo, echo, metrics, pipelines, read, remesh, stages, write};
 
     #[pymodule_export]
     const DEFAULT_PIPELINE: &str = coarsen::DEFAULT_PIPELINE;
