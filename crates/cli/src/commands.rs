@@ -16,7 +16,10 @@ type CmdResult = Result<(), Failure>;
 /// A facade error as a failure: usage (exit 2) or runtime (exit 1).
 fn failure(e: coarsen::Error) -> Failure {
     match e {
-        coarsen::Error::NoRecordingStage { .. } => Failure::Usage(format!("--progressive: {e}")),
+        coarsen::Error::NoRecordingStage { pipeline, stages } => Failure::Usage(format!(
+            "--progressive needs a stage that records its collapses (simplify.qem, \
+             simplify.svec), but pipeline `{pipeline}` has none (stages: {stages})"
+        )),
         coarsen::Error::RecordNotOfOutput { .. } => {
             Failure::Runtime(anyhow::anyhow!("--progressive: {e} (nothing was written)"))
         }

@@ -85,7 +85,8 @@ pub mod lod {
 /// What a stage crate needs: the [`Stage`](plugin::Stage) trait, its parameter and
 /// contract types, and the macros that declare parameters and register a stage.
 pub mod plugin {
-    pub use coarsen_stage::params::check_range;
+    pub use coarsen_mesh::{Aabb, Attributes, CarryReport, FaceOrigins, VertexOrigins};
+    pub use coarsen_stage::params::{check_finite_min, check_range};
     pub use coarsen_stage::{
         AttrKind, AttrRef, AttrValues, Context, Contract, DVec3, Domain, Mesh, Needs, ParamIssue,
         Params, Stage, StageError, StageReport, Target, export_stage, params,
