@@ -14,6 +14,7 @@ static ALLOCATOR: coarsen_malloc::HugeBlocks = coarsen_malloc::HugeBlocks;
 
 mod cases;
 mod features;
+mod fingerprints;
 mod levers;
 mod pyacvd;
 mod scale;
@@ -79,6 +80,23 @@ enum Command {
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
         data: PathBuf,
     },
+    /// One hash of the output bytes per shipped pipeline and mesh (did a change keep every
+    /// output the same?).
+    Fingerprints {
+        /// Folder of the test meshes.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
+        data: PathBuf,
+        /// Also the 4.4M-face bunny (the bunny subdivided three times), with the pipelines
+        /// of the scale section.
+        #[arg(long)]
+        big: bool,
+        /// Write the lines to this file (they are printed too).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Compare with the lines of an earlier run: print what differs, fail if anything.
+        #[arg(long)]
+        check: Option<PathBuf>,
+    },
     /// Runs `coarsen` with the arguments that follow (the speed section's child processes).
     #[command(hide = true)]
     Cli {
@@ -96,6 +114,30 @@ enum Command {
         /// The mesh file.
         file: PathBuf,
     },
+}
+
+/// `fingerprints`: prints the lines, writes them, compares them with an earlier run's.
+fn fingerprints(data: &Path, big: bool, out: Option<&Path>, check: Option<&Path>) -> Result<()> {
+    let before = check
+        .map(|p| std::fs::read_to_string(p).with_context(|| p.display().to_string()))
+        .transpose()?;
+    let lines = fingerprints::lines(data, big)?;
+    let text: String = lines.iter().map(|l| format!("{l}\n")).collect();
+    print!("{text}");
+    if let Some(path) = out {
+        coarsen_io::write_bytes(path, text.as_bytes())?;
+    }
+    if let Some(before) = before {
+        let diffs = fingerprints::differences(&before, &lines);
+        for d in &diffs {
+            eprintln!("{d}");
+        }
+        if !diffs.is_empty() {
+            bail!("{} of {} cases differ", diffs.len(), lines.len());
+        }
+        eprintln!("all {} cases give the same bytes", lines.len());
+    }
+    Ok(())
 }
 
 fn main() -> ExitCode {
@@ -118,6 +160,12 @@ fn main() -> ExitCode {
             },
         ),
         Command::Features { data } => feature_section(&data).map(|s| print!("{s}")),
+        Command::Fingerprints {
+            data,
+            big,
+            out,
+            check,
+        } => fingerprints(&data, big, out.as_deref(), check.as_deref()),
         Command::Speed { data } => {
             speed::section(&data.join("stanford-bunny.obj")).map(|s| print!("{s}"))
         }
