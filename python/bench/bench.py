@@ -112,8 +112,9 @@ def main():
     pv_mesh = pyvista.read(args.bunny)
     cluster_times, mesh_times = [], []
     for _ in range(args.pyacvd_runs):
+        mesh = pv_mesh.copy()  # subdivide() changes the mesh Clustering was given, in place
         start = time.perf_counter()
-        clus = pyacvd.Clustering(pv_mesh)
+        clus = pyacvd.Clustering(mesh)
         clus.subdivide(3)
         clus.cluster(VERTICES)
         middle = time.perf_counter()
@@ -195,7 +196,7 @@ def conversions(V, F):
 
     def through(V, F):
         P, T = coarsen._positions(V), coarsen._faces(F)
-        positions, triangles, _, _ = _coarsen.echo(P.tobytes(), T.tobytes())
+        positions, triangles, _, _ = _coarsen.echo(P, T)
         return coarsen._arrays(positions, triangles)
 
     print("\n## The conversions of the Python call alone (arrays in and out, no run)\n")

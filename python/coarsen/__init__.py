@@ -152,20 +152,17 @@ def _columns(attrs, n_vertices, n_faces):
 
 
 def _arrays(positions, faces):
-    """Numpy arrays over the bytearrays the native side hands back (no copy; writable)."""
-    V = np.frombuffer(positions, dtype=np.float64).reshape(-1, 3)
-    F = np.frombuffer(faces, dtype=np.uint32).reshape(-1, 3)
-    return V, F
+    """(n, 3) and (m, 3) views of the flat arrays the native side hands back (no copy)."""
+    return positions.reshape(-1, 3), faces.reshape(-1, 3)
 
 
 def _attrs(vertex_columns, face_columns):
     out = {}
     for domain, columns in (("vertex", vertex_columns), ("face", face_columns)):
         out[domain] = {}
-        for name, kind, data in columns:
-            dtype, width = _KINDS[kind]
-            a = np.frombuffer(data, dtype=dtype)
-            out[domain][name] = a if width == 1 else a.reshape(-1, width)
+        for name, kind, values in columns:
+            width = _KINDS[kind][1]
+            out[domain][name] = values if width == 1 else values.reshape(-1, width)
     return out
 
 
@@ -335,8 +332,8 @@ def remesh(
         raise ValueError(f"pipeline: expected a name or a path, got {pipeline!r}")
     vertex_columns, face_columns = _columns(attrs, len(P), len(T))
     (positions, triangles, vc, fc), report = _coarsen.remesh(
-        P.tobytes(),
-        T.tobytes(),
+        P,
+        T,
         vertex_attrs=vertex_columns,
         face_attrs=face_columns,
         name=str(name),
@@ -381,7 +378,7 @@ def write(path, V, F=None, attrs=None):
     """
     P, T, _ = _unwrap(V, F)
     vertex_columns, face_columns = _columns(attrs, len(P), len(T))
-    _coarsen.write(os.fspath(path), P.tobytes(), T.tobytes(), vertex_columns, face_columns)
+    _coarsen.write(os.fspath(path), P, T, vertex_columns, face_columns)
 
 
 def metrics(*meshes, samples_per_face=None):
@@ -409,7 +406,7 @@ def metrics(*meshes, samples_per_face=None):
         )
     k = _count("samples_per_face", samples_per_face)
     return json.loads(
-        _coarsen.metrics(P0.tobytes(), T0.tobytes(), P1.tobytes(), T1.tobytes(), k)
+        _coarsen.metrics(P0, T0, P1, T1, k)
     )
 
 

@@ -1,7 +1,8 @@
 //! The native half of the Python package `coarsen` (`coarsen._coarsen`): a thin layer over
 //! the facade crate `coarsen`. The Python half (`python/coarsen/__init__.py`) checks and
-//! converts the arrays (dtype, shape, index range) and hands them over as raw bytes in the
-//! machine's byte order: `f64` triples for positions, `u32` triples for faces.
+//! converts the arrays (dtype, shape, index range) and hands them over as C-contiguous
+//! `(n, 3)` float64 positions and `(m, 3)` uint32 faces (attribute columns as bytes); what
+//! comes back are flat numpy arrays that own the run's output (no copy), reshaped there.
 //!
 //! A run goes on a worker thread while the calling thread waits with the GIL released, in
 //! short slices, taking the GIL back between them to look for signals: Ctrl-C raises the
@@ -9,9 +10,10 @@
 
 use coarsen::plugin::AttrValues;
 use coarsen::{DVec3, Error, Mesh, Target};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyByteArray, PyBytes, PyDict, PyList};
+use pyo3::types::{PyBytes, PyDict, PyList};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Condvar, Mutex};
 use std::time::Duration;
@@ -43,105 +45,49 @@ fn py_err(e: Error, arrays: bool) -> PyErr {
     }
 }
 
-/// `f64` triples from the bytes of a C-contiguous `(n, 3)` float64 array.
-fn positions_from(bytes: &[u8]) -> PyResult<Vec<[f64; 3]>> {
-    if !bytes.len().is_multiple_of(24) {
-        return Err(PyValueError::new_err(
-            "positions: byte length not a multiple of 24",
-        ));
+/// The rows of a C-contiguous `(n, 3)` array.
+fn rows<T: numpy::Element + Copy>(
+    a: &PyReadonlyArray2<'_, T>,
+    what: &str,
+) -> PyResult<Vec<[T; 3]>> {
+    let flat = a
+        .as_slice()
+        .map_err(|_| PyValueError::new_err(format!("{what}: not a C-contiguous array")))?;
+    if a.shape()[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{what}: not of shape (n, 3)"
+        )));
     }
-    Ok(bytes
-        .chunks_exact(24)
-        .map(|c| {
-            let f = |i: usize| f64::from_ne_bytes(c[i..i + 8].try_into().expect("8 bytes"));
-            [f(0), f(8), f(16)]
-        })
-        .collect())
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
-/// `u32` triples from the bytes of a C-contiguous `(m, 3)` uint32 array.
-fn faces_from(bytes: &[u8]) -> PyResult<Vec<[u32; 3]>> {
-    if !bytes.len().is_multiple_of(12) {
-        return Err(PyValueError::new_err(
-            "faces: byte length not a multiple of 12",
-        ));
-    }
-    Ok(bytes
-        .chunks_exact(12)
-        .map(|c| {
-            let u = |i: usize| u32::from_ne_bytes(c[i..i + 4].try_into().expect("4 bytes"));
-            [u(0), u(4), u(8)]
-        })
-        .collect())
+/// A flat numpy array that takes `values` over (no copy).
+fn flat<'py, T: numpy::Element>(py: Python<'py>, values: Vec<T>) -> Bound<'py, PyArray1<T>> {
+    values.into_pyarray(py)
 }
 
-/// A `bytearray` (writable, so that numpy's `frombuffer` over it gives a writable array)
-/// holding `n` items of `width` bytes each, written by `put(i, slot)`.
-fn bytearray_of<'py>(
-    py: Python<'py>,
-    n: usize,
-    width: usize,
-    put: impl Fn(usize, &mut [u8]),
-) -> PyResult<Bound<'py, PyByteArray>> {
-    PyByteArray::new_with(py, n * width, |buf| {
-        buf.chunks_exact_mut(width)
-            .enumerate()
-            .for_each(|(i, slot)| put(i, slot));
-        Ok(())
-    })
-}
-
-fn positions_bytes<'py>(py: Python<'py>, p: &[DVec3]) -> PyResult<Bound<'py, PyByteArray>> {
-    bytearray_of(py, p.len(), 24, |i, s| {
-        s[0..8].copy_from_slice(&p[i].x.to_ne_bytes());
-        s[8..16].copy_from_slice(&p[i].y.to_ne_bytes());
-        s[16..24].copy_from_slice(&p[i].z.to_ne_bytes());
-    })
-}
-
-fn faces_bytes<'py>(py: Python<'py>, f: &[[u32; 3]]) -> PyResult<Bound<'py, PyByteArray>> {
-    bytearray_of(py, f.len(), 12, |i, s| {
-        for (k, v) in f[i].iter().enumerate() {
-            s[4 * k..4 * k + 4].copy_from_slice(&v.to_ne_bytes());
-        }
-    })
-}
-
-/// One attribute column as `(kind, bytes)`: `scalar` (float64), `vec2`/`vec3` (float64
-/// pairs/triples), `label` (uint32) or `color` (uint8 triples).
-fn column_bytes<'py>(
-    py: Python<'py>,
-    v: &AttrValues,
-) -> PyResult<(&'static str, Bound<'py, PyByteArray>)> {
-    Ok(match v {
-        AttrValues::Scalar(x) => (
-            "scalar",
-            bytearray_of(py, x.len(), 8, |i, s| {
-                s.copy_from_slice(&x[i].to_ne_bytes())
-            })?,
-        ),
+/// One attribute column as `(kind, flat values)`: `scalar` (float64), `vec2`/`vec3`
+/// (float64 pairs/triples), `label` (uint32) or `color` (uint8 triples).
+fn column_array<'py>(py: Python<'py>, v: &AttrValues) -> (&'static str, Bound<'py, PyAny>) {
+    match v {
+        AttrValues::Scalar(x) => ("scalar", flat(py, x.clone()).into_any()),
         AttrValues::Vec2(x) => (
             "vec2",
-            bytearray_of(py, x.len(), 16, |i, s| {
-                s[0..8].copy_from_slice(&x[i].x.to_ne_bytes());
-                s[8..16].copy_from_slice(&x[i].y.to_ne_bytes());
-            })?,
+            flat(py, x.iter().flat_map(|p| p.to_array()).collect()).into_any(),
         ),
-        AttrValues::Vec3(x) => ("vec3", positions_bytes(py, x)?),
-        AttrValues::Label(x) => (
-            "label",
-            bytearray_of(py, x.len(), 4, |i, s| {
-                s.copy_from_slice(&x[i].to_ne_bytes())
-            })?,
+        AttrValues::Vec3(x) => (
+            "vec3",
+            flat(py, x.iter().flat_map(|p| p.to_array()).collect()).into_any(),
         ),
+        AttrValues::Label(x) => ("label", flat(py, x.clone()).into_any()),
         AttrValues::Color(x) => (
             "color",
-            bytearray_of(py, x.len(), 3, |i, s| s.copy_from_slice(&x[i]))?,
+            flat(py, x.iter().flatten().copied().collect()).into_any(),
         ),
-    })
+    }
 }
 
-/// A column from its kind and bytes (as [`column_bytes`] gives them).
+/// A column from its kind (as [`column_array`] names them) and its values' bytes.
 fn column_from(name: &str, kind: &str, bytes: &[u8]) -> PyResult<AttrValues> {
     let width = match kind {
         "scalar" | "vec2" | "vec3" => 8,
@@ -186,14 +132,19 @@ fn column_from(name: &str, kind: &str, bytes: &[u8]) -> PyResult<AttrValues> {
 /// Attribute columns as `(name, kind, bytes)` triples.
 type Columns<'py> = Vec<(String, String, Bound<'py, PyBytes>)>;
 
-/// A mesh from the arrays' bytes and attribute columns; errors are `ValueError`s.
+/// Positions as the Python half hands them over.
+type Positions<'py> = PyReadonlyArray2<'py, f64>;
+/// Faces as the Python half hands them over.
+type Faces<'py> = PyReadonlyArray2<'py, u32>;
+
+/// A mesh from the arrays and attribute columns; errors are `ValueError`s.
 fn mesh_from(
-    positions: &[u8],
-    faces: &[u8],
+    positions: &Positions<'_>,
+    faces: &Faces<'_>,
     vertex_attrs: Columns<'_>,
     face_attrs: Columns<'_>,
 ) -> PyResult<Mesh> {
-    let mut mesh = coarsen::mesh_from_arrays(positions_from(positions)?, faces_from(faces)?)
+    let mut mesh = coarsen::mesh_from_arrays(rows(positions, "positions")?, rows(faces, "faces")?)
         .map_err(|e| py_err(e, true))?;
     for (domain, columns, n) in [
         ("vertex", vertex_attrs, mesh.n_vertices()),
@@ -216,31 +167,35 @@ fn mesh_from(
     Ok(mesh)
 }
 
-/// `(positions, faces, vertex columns, face columns)`, each column `(name, kind, bytes)`.
-type MeshBytes<'py> = (
-    Bound<'py, PyByteArray>,
-    Bound<'py, PyByteArray>,
+/// `(positions, faces, vertex columns, face columns)`: flat positions and faces, and each
+/// column as `(name, kind, flat values)`.
+type MeshArrays<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<u32>>,
     Bound<'py, PyList>,
     Bound<'py, PyList>,
 );
 
-fn mesh_bytes<'py>(py: Python<'py>, mesh: &Mesh, attributes: bool) -> PyResult<MeshBytes<'py>> {
-    let columns = |attrs: Vec<(&str, &AttrValues)>| -> PyResult<Bound<'py, PyList>> {
+/// The mesh as numpy arrays (its columns too when `attributes`).
+fn mesh_arrays(py: Python<'_>, mesh: Mesh, attributes: bool) -> PyResult<MeshArrays<'_>> {
+    let columns = |attrs: Vec<(&str, &AttrValues)>| -> PyResult<Bound<'_, PyList>> {
         let list = PyList::empty(py);
         if attributes {
             for (name, values) in attrs {
-                let (kind, bytes) = column_bytes(py, values)?;
-                list.append((name, kind, bytes))?;
+                let (kind, array) = column_array(py, values);
+                list.append((name, kind, array))?;
             }
         }
         Ok(list)
     };
-    Ok((
-        positions_bytes(py, &mesh.positions)?,
-        faces_bytes(py, &mesh.faces)?,
-        columns(mesh.vertex_attrs.iter().collect())?,
-        columns(mesh.face_attrs.iter().collect())?,
-    ))
+    let vertex_columns = columns(mesh.vertex_attrs.iter().collect())?;
+    let face_columns = columns(mesh.face_attrs.iter().collect())?;
+    let positions = flat(
+        py,
+        mesh.positions.iter().flat_map(|p| p.to_array()).collect(),
+    );
+    let faces = flat(py, mesh.faces.into_iter().flatten().collect());
+    Ok((positions, faces, vertex_columns, face_columns))
 }
 
 /// How a run on the worker thread ended, seen from the calling thread.
@@ -321,7 +276,7 @@ fn run_interruptible<T: Send>(
 }
 
 /// What `remesh` hands back: the mesh's bytes and columns, and the run report as JSON.
-type Remeshed<'py> = (MeshBytes<'py>, String);
+type Remeshed<'py> = (MeshArrays<'py>, String);
 
 /// Runs a pipeline on a mesh given as arrays (see `coarsen.remesh`).
 #[pyfunction]
@@ -329,8 +284,8 @@ type Remeshed<'py> = (MeshBytes<'py>, String);
 #[allow(clippy::too_many_arguments)]
 fn remesh<'py>(
     py: Python<'py>,
-    positions: &[u8],
-    faces: &[u8],
+    positions: Positions<'py>,
+    faces: Faces<'py>,
     vertex_attrs: Columns<'py>,
     face_attrs: Columns<'py>,
     name: String,
@@ -354,7 +309,7 @@ fn remesh<'py>(
             ));
         }
     };
-    let mesh = mesh_from(positions, faces, vertex_attrs, face_attrs)?;
+    let mesh = mesh_from(&positions, &faces, vertex_attrs, face_attrs)?;
     let cancel = AtomicBool::new(false);
     let run = run_interruptible(py, &cancel, || {
         let mut r = coarsen::Remesher::new().weld(weld).cancel(&cancel);
@@ -384,7 +339,7 @@ fn remesh<'py>(
         }
     };
     Ok((
-        mesh_bytes(py, &done.mesh, attributes)?,
+        mesh_arrays(py, done.mesh, attributes)?,
         done.report.to_json(),
     ))
 }
@@ -395,11 +350,11 @@ fn read<'py>(
     py: Python<'py>,
     path: std::path::PathBuf,
     attributes: bool,
-) -> PyResult<MeshBytes<'py>> {
+) -> PyResult<MeshArrays<'py>> {
     let mesh = py
         .detach(|| coarsen::read(&path))
         .map_err(|e| py_err(e, false))?;
-    mesh_bytes(py, &mesh, attributes)
+    mesh_arrays(py, mesh, attributes)
 }
 
 /// Writes a mesh file (see `coarsen.write`).
@@ -407,12 +362,12 @@ fn read<'py>(
 fn write(
     py: Python<'_>,
     path: std::path::PathBuf,
-    positions: &[u8],
-    faces: &[u8],
+    positions: Positions<'_>,
+    faces: Faces<'_>,
     vertex_attrs: Columns<'_>,
     face_attrs: Columns<'_>,
 ) -> PyResult<()> {
-    let mesh = mesh_from(positions, faces, vertex_attrs, face_attrs)?;
+    let mesh = mesh_from(&positions, &faces, vertex_attrs, face_attrs)?;
     py.detach(|| coarsen::write(&path, &mesh))
         .map_err(|e| py_err(e, false))
 }
@@ -422,14 +377,14 @@ fn write(
 #[pyo3(signature = (positions0, faces0, positions1, faces1, samples_per_face=None))]
 fn metrics(
     py: Python<'_>,
-    positions0: &[u8],
-    faces0: &[u8],
-    positions1: &[u8],
-    faces1: &[u8],
+    positions0: Positions<'_>,
+    faces0: Faces<'_>,
+    positions1: Positions<'_>,
+    faces1: Faces<'_>,
     samples_per_face: Option<u32>,
 ) -> PyResult<String> {
-    let input = mesh_from(positions0, faces0, vec![], vec![])?;
-    let output = mesh_from(positions1, faces1, vec![], vec![])?;
+    let input = mesh_from(&positions0, &faces0, vec![], vec![])?;
+    let output = mesh_from(&positions1, &faces1, vec![], vec![])?;
     let mut opts = coarsen::MetricsOptions::default();
     if let Some(k) = samples_per_face {
         opts.fidelity.samples_per_face = k;
@@ -482,15 +437,19 @@ fn pipelines(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 /// bytes, and its bytes handed back): what `python/bench/bench.py` measures the Python
 /// call's own cost with.
 #[pyfunction]
-fn echo<'py>(py: Python<'py>, positions: &[u8], faces: &[u8]) -> PyResult<MeshBytes<'py>> {
-    let mesh = mesh_from(positions, faces, vec![], vec![])?;
-    mesh_bytes(py, &mesh, false)
+fn echo<'py>(
+    py: Python<'py>,
+    positions: Positions<'py>,
+    faces: Faces<'py>,
+) -> PyResult<MeshArrays<'py>> {
+    let mesh = mesh_from(&positions, &faces, vec![], vec![])?;
+    mesh_arrays(py, mesh, false)
 }
 
 /// The built-in demo mesh (see `coarsen.demo`).
 #[pyfunction]
-fn demo(py: Python<'_>) -> PyResult<MeshBytes<'_>> {
-    mesh_bytes(py, &coarsen::demo(), false)
+fn demo(py: Python<'_>) -> PyResult<MeshArrays<'_>> {
+    mesh_arrays(py, coarsen::demo(), false)
 }
 
 /// The native half of the `coarsen` package: use `coarsen`, not this module.
