@@ -3,6 +3,7 @@
 mod cli;
 mod data;
 mod facade;
+mod fidelity;
 mod hostile;
 mod html;
 mod lod;

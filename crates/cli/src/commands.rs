@@ -430,10 +430,13 @@ pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResu
     Ok(())
 }
 
-pub fn metrics(input: &Path, output: &Path, json: bool, samples_per_face: u32) -> CmdResult {
-    let opts = coarsen_metrics::MetricsOptions {
-        fidelity: coarsen_metrics::FidelityOptions { samples_per_face },
-    };
+pub fn metrics(
+    input: &Path,
+    output: &Path,
+    json: bool,
+    fidelity: coarsen_metrics::FidelityOptions,
+) -> CmdResult {
+    let opts = coarsen_metrics::MetricsOptions { fidelity };
     let report =
         coarsen::measure(load::open(input)?, load::open(output)?, &opts).map_err(failure)?;
     if json {

@@ -226,7 +226,10 @@ pub fn page(
                 "mean / RMS distance",
                 format!("{:.4} % / {:.4} %", f.mean_dist_pct, f.rms_dist_pct),
             );
-            row("distance samples", f.n_samples.to_string());
+            row(
+                "distance samples (input → output / output → input)",
+                format!("{} / {}", f.forward_samples, f.backward_samples),
+            );
         }
         row("manifold", v.manifold.to_string());
         row(

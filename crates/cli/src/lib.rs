@@ -147,9 +147,13 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
-        /// Distance samples per face, on each mesh (plus every used vertex).
-        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+        /// Distance samples per face on each mesh's faces (each direction is sampled on its
+        /// own mesh, plus every used vertex and points along every edge).
+        #[arg(long, default_value_t = coarsen_metrics::SAMPLES_PER_FACE, value_parser = clap::value_parser!(u32).range(1..=10_000))]
         samples_per_face: u32,
+        /// At least this many distance samples on each mesh's faces.
+        #[arg(long, default_value_t = coarsen_metrics::MIN_FACE_SAMPLES, value_name = "N")]
+        min_samples: u64,
     },
 }
 
@@ -416,7 +420,14 @@ where
             output,
             json,
             samples_per_face,
-        } => commands::metrics(&input, &output, json, samples_per_face),
+            min_samples,
+        } => {
+            let fidelity = coarsen_metrics::FidelityOptions {
+                samples_per_face,
+                min_face_samples: min_samples,
+            };
+            commands::metrics(&input, &output, json, fidelity)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,26 +3,35 @@
 //!
 //! # Sampling rule
 //!
-//! With `k = `[`FidelityOptions::samples_per_face`] (default 10), each mesh carries face
-//! samples in proportion to its own face count: `k·F_in` on the input (measured against
-//! the output: the forward direction) and `k·F_out` on the output (measured against the
-//! input: the backward direction), so `k·(F_in + F_out) ≥ k·max(F_in, F_out)` in all. On
-//! top of these, every vertex used by a face is a sample of its own mesh's direction,
-//! measured with the first face that uses it. So [`Fidelity::n_samples`] is
-//! `k·(F_in + F_out) + used input vertices + used output vertices`, at least the spec's
-//! `10 × max(F_in, F_out)` with the default `k`.
+//! Each direction is sampled on its own mesh: the input's samples are measured against
+//! the output (the forward direction), the output's against the input (the backward
+//! direction). A mesh of `F` faces carries
 //!
-//! Why per mesh: a coarsening's input may have hundreds of times the output's faces. Its
-//! many samples are then measured against the small output's tree, which is quick, and
-//! only the output's few samples walk the large input's tree; each surface is sampled
-//! equally densely (`k` per face on average).
+//! - every vertex used by a face;
+//! - points along every edge: an edge of length `L` gets `max(1, ⌈L/h⌉ − 1)` points
+//!   evenly spaced between its ends, `h = √(A/S)` being the spacing of the face samples
+//!   (`A` the mesh's area, `S` below), so that edges are sampled as densely as faces;
+//!   then a golden-section search of [`REFINE_STEPS`] points between the neighbours of
+//!   each edge's farthest point looks for the edge's largest distance, which is often a
+//!   kink (the edge crossing a crease of the other surface) that even spacing misses by up
+//!   to half a spacing's rise. Those points count for the maximum only: the mean and RMS
+//!   are of the evenly spread samples;
+//! - `S = max(`[`FidelityOptions::min_face_samples`]`, `[`FidelityOptions::samples_per_face`]`·F)`
+//!   points on its faces (defaults 1,000,000 and 100).
+//!
+//! [`Fidelity::forward_samples`] and [`Fidelity::backward_samples`] count them (the
+//! searches' points apart). A coarse output needs this many: with about 10 points per face
+//! in all, the output → input maximum of a 5000-vertex bunny read 0.33 % where this finds
+//! 0.41 %; without the edge searches it read 1.3 % lower than with ten times the samples.
 //!
 //! Face samples are spread over one mesh's faces in proportion to area: with `Cᵢ` the
-//! area of faces `0..i` and `A` the total, face `i` gets `⌊S·Cᵢ₊₁/A⌋ − ⌊S·Cᵢ/A⌋` of that
-//! mesh's `S` samples (so exactly `S` in all; zero-area faces get none). Within a face,
-//! sample `j` sits at barycentric `(u, v)` of the additive recurrence
-//! `u = frac(1/3 + j/g)`, `v = frac(1/3 + j/g²)` (`g` the plastic number), folded into the
-//! triangle: the first is the centroid and the next ones fill the face evenly. The samples
+//! area of faces `0..i`, face `i` gets `⌊S·Cᵢ₊₁/A⌋ − ⌊S·Cᵢ/A⌋` of the `S` samples (so
+//! exactly `S` in all; zero-area faces get none). Within a face, sample `j` sits at
+//! barycentric `(u, v)` of the additive recurrence `u = frac(1/3 + j/g)`,
+//! `v = frac(1/3 + j/g²)` (`g` the plastic number), folded into the triangle: a
+//! low-discrepancy sequence whose first point is the centroid and whose first `k` points
+//! leave no part of the face of area above a small multiple of `1/k` unsampled. Each vertex
+//! and each edge is sampled with the first face (in face order) that uses it. The samples
 //! are thus a pure function of the mesh: no random state, the same every run.
 //!
 //! # Distances
@@ -67,20 +76,36 @@ const CHUNK: usize = 1024;
 /// sample sequence.
 const PLASTIC: f64 = 1.324_717_957_244_746;
 
-/// How fidelity is sampled.
+/// How fidelity is sampled (see the module docs for the rule).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FidelityOptions {
-    /// Face samples per face, on each mesh (so `k·(F_in + F_out)` in all); the vertices
-    /// come on top (see the module docs). Default 10, which meets the spec's minimum.
+    /// Face samples per face of each mesh. Default 100.
     pub samples_per_face: u32,
+    /// At least this many face samples on each mesh. Default 1,000,000.
+    pub min_face_samples: u64,
 }
+
+/// The default of [`FidelityOptions::samples_per_face`].
+pub const SAMPLES_PER_FACE: u32 = 100;
+
+/// The default of [`FidelityOptions::min_face_samples`].
+pub const MIN_FACE_SAMPLES: u64 = 1_000_000;
 
 impl Default for FidelityOptions {
     fn default() -> Self {
         FidelityOptions {
-            samples_per_face: 10,
+            samples_per_face: SAMPLES_PER_FACE,
+            min_face_samples: MIN_FACE_SAMPLES,
         }
+    }
+}
+
+impl FidelityOptions {
+    /// The face samples of a mesh of `faces` faces: `max(min_face_samples,
+    /// samples_per_face · faces)`.
+    pub fn face_samples(&self, faces: usize) -> u64 {
+        (u64::from(self.samples_per_face) * faces as u64).max(self.min_face_samples)
     }
 }
 
@@ -100,6 +125,11 @@ pub struct Fidelity {
     pub backward_max_pct: f64,
     /// Number of samples, both directions (see the module docs for the rule).
     pub n_samples: u64,
+    /// Samples of the input (vertices, edge points, face points), measured against the
+    /// output.
+    pub forward_samples: u64,
+    /// Samples of the output, measured against the input.
+    pub backward_samples: u64,
     /// The input's bounding-box diagonal (of the vertices used by faces), in model units.
     pub bbox_diagonal: f64,
     /// `|V_out − V_in| / |V_in| · 100` with signed volumes, when both meshes are closed and
@@ -171,15 +201,14 @@ pub(crate) fn sample_both<T: Send>(
     floor: f64,
     alongside: impl FnOnce() -> T + Send,
 ) -> Sampled<T> {
-    let k = opts.samples_per_face;
     let build = |p: &Prepared| Bvh::build(&p.mesh.positions, &p.mesh.faces);
     if input.mesh.n_faces() >= output.mesh.n_faces() {
         let output_bvh = build(output);
         let (forward, (input_bvh, alongside)) = rayon::join(
-            || one_side(input, &output_bvh, k, floor),
+            || one_side(input, &output_bvh, opts, floor),
             || rayon::join(|| build(input), alongside),
         );
-        let backward = one_side(output, &input_bvh, k, floor);
+        let backward = one_side(output, &input_bvh, opts, floor);
         Sampled {
             forward,
             backward,
@@ -188,9 +217,11 @@ pub(crate) fn sample_both<T: Send>(
         }
     } else {
         let (input_bvh, alongside) = rayon::join(|| build(input), alongside);
-        let (backward, output_bvh) =
-            rayon::join(|| one_side(output, &input_bvh, k, floor), || build(output));
-        let forward = one_side(input, &output_bvh, k, floor);
+        let (backward, output_bvh) = rayon::join(
+            || one_side(output, &input_bvh, opts, floor),
+            || build(output),
+        );
+        let forward = one_side(input, &output_bvh, opts, floor);
         Sampled {
             forward,
             backward,
@@ -223,6 +254,8 @@ pub(crate) fn figures<T>(
         forward_max_pct: pct(forward.max),
         backward_max_pct: pct(backward.max),
         n_samples: pooled.count,
+        forward_samples: forward.count,
+        backward_samples: backward.count,
         bbox_diagonal: diagonal,
         volume_change_pct,
     }
@@ -261,13 +294,12 @@ impl Stats {
     }
 }
 
-/// Distances from `samples_per_face × faces` face samples plus every used vertex of
-/// `from` to the surface in `to`, gathered face by face: a face's samples are the vertices
-/// it is the first face to use, then its share of the face samples. All the samples of a
-/// face are answered from the triangles of `to` gathered once for that face
-/// ([`Bvh::gather_near`]).
-fn one_side(from: &Prepared, to: &Bvh, samples_per_face: u32, floor: f64) -> Stats {
-    one_side_with(from, to, samples_per_face, floor, true)
+/// Distances from the samples of `from` (see the module docs) to the surface in `to`,
+/// gathered face by face: a face's samples are the vertices and edges it is the first face
+/// to use, then its share of the face samples. All the samples of a face are answered
+/// from the triangles of `to` gathered once for that face ([`Bvh::gather_near`]).
+fn one_side(from: &Prepared, to: &Bvh, opts: &FidelityOptions, floor: f64) -> Stats {
+    one_side_with(from, to, opts, floor, true)
 }
 
 /// [`one_side`], or with `batched` false one walk of the tree per sample: the reference
@@ -275,21 +307,14 @@ fn one_side(from: &Prepared, to: &Bvh, samples_per_face: u32, floor: f64) -> Sta
 fn one_side_with(
     from: &Prepared,
     to: &Bvh,
-    samples_per_face: u32,
+    opts: &FidelityOptions,
     floor: f64,
     batched: bool,
 ) -> Stats {
     let mesh = from.mesh;
     let n_faces = mesh.n_faces();
-    let samples = u64::from(samples_per_face) * n_faces as u64;
-
-    // Each used vertex is sampled once, with the first face that uses it.
-    let mut owner = vec![u32::MAX; mesh.n_vertices()];
-    for (f, face) in mesh.faces.iter().enumerate().rev() {
-        for &v in face {
-            owner[v as usize] = f as u32;
-        }
-    }
+    let samples = opts.face_samples(n_faces);
+    let first = FirstUse::of(mesh);
 
     // Cumulative areas give each face its share of the samples.
     let mut cumulative = Vec::with_capacity(n_faces + 1);
@@ -310,23 +335,41 @@ fn one_side_with(
             ((samples as f64 * cumulative[f] / area) as u64).min(samples)
         }
     };
+    // The spacing of the face samples, which the edge samples keep too.
+    let spacing = if spread {
+        (area / samples as f64).sqrt()
+    } else {
+        f64::INFINITY
+    };
 
     let parts = map_chunks(n_faces, CHUNK, |range| {
         let mut stats = Stats::default();
+        let mut refined = 0.0f64;
         let mut near = NearSet::new();
-        let mut measure = |p: DVec3, near: &NearSet| {
+        let distance = |p: DVec3, near: &NearSet| {
             // `to` holds every face of a checked, non-empty mesh: a nearest point exists.
             let d = to.closest_point_near(near, p).map_or(0.0, |h| h.distance());
-            stats.add(if d <= floor { 0.0 } else { d });
+            if d <= floor { 0.0 } else { d }
+        };
+        let mut measure = |p: DVec3, near: &NearSet| {
+            let d = distance(p, near);
+            stats.add(d);
+            d
         };
         for f in range {
-            let face = mesh.faces[f];
             let corners = mesh.corners(f);
-            let owned: [bool; 3] = std::array::from_fn(|k| {
-                owner[face[k] as usize] == f as u32 && !face[..k].contains(&face[k])
+            let owned_vertices = first.vertices_of(mesh, f);
+            let edge_points: [u64; 3] = std::array::from_fn(|k| {
+                if first.owns_edge(mesh, f, k) {
+                    edge_points(corners[k].distance(corners[(k + 1) % 3]), spacing)
+                } else {
+                    0
+                }
             });
             let n_face = before(f + 1) - before(f);
-            let n = n_face + owned.iter().filter(|&&o| o).count() as u64;
+            let n = n_face
+                + owned_vertices.iter().filter(|&&o| o).count() as u64
+                + edge_points.iter().sum::<u64>();
             let [a, b, c] = corners;
             // The set gathered for an earlier face serves while it covers this one.
             if batched && n >= 2 && !corners.iter().all(|&x| near.covers(x)) {
@@ -337,14 +380,39 @@ fn one_side_with(
                     .fold(0.0, f64::max);
                 to.gather_near(centre, NEAR_GROW * radius, NEAR_LIMIT, &mut near);
             }
-            for (&corner, _) in corners.iter().zip(owned).filter(|(_, o)| *o) {
+            for (&corner, _) in corners.iter().zip(owned_vertices).filter(|(_, o)| *o) {
                 measure(corner, &near);
+            }
+            let mut peaks = [(0.0, 0.0); 3];
+            for (k, &count) in edge_points.iter().enumerate() {
+                let (p, q) = (corners[k], corners[(k + 1) % 3]);
+                let step = 1.0 / (count + 1) as f64;
+                let mut best = (f64::NEG_INFINITY, 0.0);
+                for i in 1..=count {
+                    let t = i as f64 * step;
+                    let d = measure(p + (q - p) * t, &near);
+                    if d > best.0 {
+                        best = (d, t);
+                    }
+                }
+                peaks[k] = (best.1 - step, best.1 + step);
+            }
+            // The largest distance along an edge is often a kink (the edge passing over a
+            // crease of the other surface), which evenly spaced points miss by up to half
+            // a spacing's rise: a search between the largest point's neighbours finds it.
+            for (k, &(lo, hi)) in peaks.iter().enumerate() {
+                if edge_points[k] > 0 {
+                    let (p, q) = (corners[k], corners[(k + 1) % 3]);
+                    let peak = golden_max(lo, hi, |t| distance(p + (q - p) * t, &near));
+                    refined = refined.max(peak);
+                }
             }
             for j in 0..n_face {
                 let (u, v) = face_sample(j);
                 measure(a + (b - a) * u + (c - a) * v, &near);
             }
         }
+        stats.max = stats.max.max(refined);
         stats
     });
 
@@ -353,6 +421,112 @@ fn one_side_with(
         total.merge(part);
     }
     total
+}
+
+/// The largest value `f` takes at the points a golden-section search for its maximum on
+/// `[lo, hi]` visits ([`REFINE_STEPS`] of them).
+fn golden_max(lo: f64, hi: f64, f: impl Fn(f64) -> f64) -> f64 {
+    const INV_PHI: f64 = 0.618_033_988_749_894_9;
+    let (mut a, mut b) = (lo.max(0.0), hi.min(1.0));
+    let mut x1 = b - INV_PHI * (b - a);
+    let mut x2 = a + INV_PHI * (b - a);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    let mut best = f1.max(f2);
+    for _ in 2..REFINE_STEPS {
+        if f1 >= f2 {
+            b = x2;
+            (x2, f2) = (x1, f1);
+            x1 = b - INV_PHI * (b - a);
+            f1 = f(x1);
+            best = best.max(f1);
+        } else {
+            a = x1;
+            (x1, f1) = (x2, f2);
+            x2 = a + INV_PHI * (b - a);
+            f2 = f(x2);
+            best = best.max(f2);
+        }
+    }
+    best
+}
+
+/// Points of the golden-section search around each edge's largest sample: the bracket of
+/// two spacings shrinks to 0.618¹⁰ ≈ 1/120 of itself.
+pub const REFINE_STEPS: usize = 12;
+
+/// The points sampled inside an edge of length `length` at sample spacing `spacing`:
+/// `max(1, ⌈length/spacing⌉ − 1)`, so that neighbouring points are at most `spacing`
+/// apart.
+fn edge_points(length: f64, spacing: f64) -> u64 {
+    let gaps = (length / spacing).ceil();
+    // A NaN (zero over zero) or an infinite spacing leaves the midpoint alone; the cap
+    // keeps a sliver's long edge from asking for more points than a face has samples.
+    if gaps.is_nan() || gaps <= 2.0 {
+        1
+    } else {
+        (gaps.min(1e9) as u64) - 1
+    }
+}
+
+/// Which face samples each vertex and each edge: the first face, in face order, that uses
+/// it (a vertex → faces table in face order answers both).
+struct FirstUse {
+    /// `start[v]..start[v + 1]` indexes `faces` for vertex `v`.
+    start: Vec<u32>,
+    /// The faces of each vertex, ascending.
+    faces: Vec<u32>,
+}
+
+impl FirstUse {
+    fn of(mesh: &Mesh) -> FirstUse {
+        let n = mesh.n_vertices();
+        let mut start = vec![0u32; n + 1];
+        for face in &mesh.faces {
+            for &v in face {
+                start[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            start[v + 1] += start[v];
+        }
+        let mut fill = start.clone();
+        let mut faces = vec![0u32; start[n] as usize];
+        for (f, face) in mesh.faces.iter().enumerate() {
+            for &v in face {
+                let at = &mut fill[v as usize];
+                faces[*at as usize] = f as u32;
+                *at += 1;
+            }
+        }
+        FirstUse { start, faces }
+    }
+
+    fn faces_of(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        &self.faces[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+
+    /// Which corners of face `f` it samples: those whose vertex it is the first to use
+    /// (once, should the face repeat a vertex).
+    fn vertices_of(&self, mesh: &Mesh, f: usize) -> [bool; 3] {
+        let face = mesh.faces[f];
+        std::array::from_fn(|k| {
+            self.faces_of(face[k]).first() == Some(&(f as u32)) && !face[..k].contains(&face[k])
+        })
+    }
+
+    /// True when face `f` samples its edge from corner `k` to corner `k + 1`: it is the
+    /// first face holding both ends (an edge whose ends coincide is no edge).
+    fn owns_edge(&self, mesh: &Mesh, f: usize, k: usize) -> bool {
+        let face = mesh.faces[f];
+        let (a, b) = (face[k], face[(k + 1) % 3]);
+        a != b
+            && self
+                .faces_of(a)
+                .iter()
+                .find(|&&g| mesh.faces[g as usize].contains(&b))
+                == Some(&(f as u32))
+    }
 }
 
 /// Barycentric `(u, v)` of the `j`-th sample in a face (weights of corners b and c).
@@ -376,6 +550,12 @@ mod tests {
     use super::*;
     use crate::test_meshes::icosphere;
 
+    /// Sparse sampling, for the tests whose point is not the density.
+    const LIGHT: FidelityOptions = FidelityOptions {
+        samples_per_face: 10,
+        min_face_samples: 0,
+    };
+
     fn scaled(m: &Mesh, s: f64) -> Mesh {
         Mesh::new(
             m.positions.iter().map(|p| *p * s).collect(),
@@ -386,7 +566,7 @@ mod tests {
     #[test]
     fn identical_meshes_are_exactly_zero_apart() {
         let m = icosphere(3);
-        let f = fidelity(&m, &m, &FidelityOptions::default()).unwrap();
+        let f = fidelity(&m, &m, &LIGHT).unwrap();
         assert_eq!(f.hausdorff_pct, 0.0);
         assert_eq!(f.mean_dist_pct, 0.0);
         assert_eq!(f.rms_dist_pct, 0.0);
@@ -402,7 +582,7 @@ mod tests {
     fn sphere_against_its_scaled_copy_is_d_apart() {
         let m = icosphere(3);
         let d = 0.01;
-        let f = fidelity(&m, &scaled(&m, 1.0 + d), &FidelityOptions::default()).unwrap();
+        let f = fidelity(&m, &scaled(&m, 1.0 + d), &LIGHT).unwrap();
         let diag = m.bbox().diagonal();
         let expect = 100.0 * d / diag;
         assert!(
@@ -422,21 +602,110 @@ mod tests {
         assert!((f.volume_change_pct.unwrap() - dv).abs() < 1e-9);
     }
 
+    /// The rule of the module docs, counted independently: used vertices, the points
+    /// of each distinct edge, the face samples.
+    fn expected_samples(m: &Mesh, opts: &FidelityOptions) -> u64 {
+        let faces = opts.face_samples(m.n_faces());
+        let area: f64 = (0..m.n_faces()).map(|f| m.face_area(f)).sum();
+        let spacing = (area / faces as f64).sqrt();
+        let mut edges = std::collections::BTreeSet::new();
+        let mut used = std::collections::BTreeSet::new();
+        for f in &m.faces {
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                edges.insert((a.min(b), a.max(b)));
+                used.insert(a);
+            }
+        }
+        let edge_points: u64 = edges
+            .iter()
+            .map(|&(a, b)| {
+                let l = m.positions[a as usize].distance(m.positions[b as usize]);
+                ((l / spacing).ceil() as u64).saturating_sub(1).max(1)
+            })
+            .sum();
+        used.len() as u64 + edge_points + faces
+    }
+
     #[test]
     fn sample_count_follows_the_stated_rule() {
         let fine = icosphere(3);
         let coarse = icosphere(1);
-        let opts = FidelityOptions {
-            samples_per_face: 7,
-        };
-        let vertices = (fine.n_vertices() + coarse.n_vertices()) as u64;
-        let expect = 7 * (fine.n_faces() + coarse.n_faces()) as u64 + vertices;
-        // Either way round: each mesh carries k samples per face of its own.
-        for (input, output) in [(&fine, &coarse), (&coarse, &fine)] {
-            let f = fidelity(input, output, &opts).unwrap();
-            assert_eq!(f.n_samples, expect);
-            assert!(f.n_samples >= 7 * fine.n_faces() as u64);
+        for opts in [
+            FidelityOptions {
+                samples_per_face: 7,
+                min_face_samples: 0,
+            },
+            FidelityOptions {
+                samples_per_face: 7,
+                min_face_samples: 5000,
+            },
+            FidelityOptions::default(),
+        ] {
+            // Either way round: each mesh carries its own samples.
+            for (input, output) in [(&fine, &coarse), (&coarse, &fine)] {
+                let f = fidelity(input, output, &opts).unwrap();
+                assert_eq!(
+                    f.forward_samples,
+                    expected_samples(input, &opts),
+                    "{opts:?}"
+                );
+                assert_eq!(
+                    f.backward_samples,
+                    expected_samples(output, &opts),
+                    "{opts:?}"
+                );
+                assert_eq!(f.n_samples, f.forward_samples + f.backward_samples);
+            }
         }
+        // At least the minimum on the faces of the small mesh, 100 per face on the large.
+        let f = fidelity(&fine, &coarse, &FidelityOptions::default()).unwrap();
+        assert!(f.backward_samples > 1_000_000);
+        assert!(f.forward_samples > 1_000_000.max(100 * fine.n_faces() as u64));
+    }
+
+    #[test]
+    fn the_edge_search_finds_a_kink_between_two_samples() {
+        // A roof over [0, 1] with its ridge at 0.37, sampled at 0.25 and 0.5.
+        let roof = |t: f64| 1.0 - (t - 0.37).abs();
+        let peak = golden_max(0.0, 0.5, roof);
+        assert!(peak > 1.0 - 0.005 && peak <= 1.0, "{peak}");
+        // Never below what it evaluates; the bracket is clipped to the edge.
+        assert_eq!(golden_max(-1.0, 2.0, |t| t), golden_max(0.0, 1.0, |t| t));
+        assert!(golden_max(0.0, 1.0, |t| t) > 0.99);
+    }
+
+    #[test]
+    fn edges_get_points_at_the_face_samples_spacing() {
+        assert_eq!(edge_points(1.0, 0.3), 3); // 4 gaps of 0.25
+        assert_eq!(edge_points(1.0, 0.5), 1); // the midpoint
+        assert_eq!(edge_points(1.0, 2.0), 1);
+        assert_eq!(edge_points(0.0, 0.0), 1);
+        assert_eq!(edge_points(1.0, f64::INFINITY), 1);
+        assert_eq!(edge_points(1e300, 1e-300), 999_999_999);
+    }
+
+    /// The output → input maximum of a coarse polyhedron inscribed in a fine one lies
+    /// inside its faces; the dense default finds it at least as far as sparse sampling,
+    /// within a hair of the value a very dense sampling gives.
+    #[test]
+    fn dense_sampling_finds_the_largest_distance_of_a_coarse_output() {
+        let (fine, coarse) = (icosphere(4), icosphere(1));
+        let sparse = FidelityOptions {
+            samples_per_face: 10,
+            min_face_samples: 0,
+        };
+        let denser = FidelityOptions {
+            samples_per_face: 1000,
+            min_face_samples: 4_000_000,
+        };
+        let at = |o: &FidelityOptions| fidelity(&fine, &coarse, o).unwrap().backward_max_pct;
+        let (s, d, reference) = (at(&sparse), at(&FidelityOptions::default()), at(&denser));
+        assert!(d >= s, "{d} < {s}");
+        assert!(
+            d >= reference * 0.995 && d <= reference,
+            "{d} against {reference}"
+        );
     }
 
     /// A bumpy sphere: `m`'s vertices pushed in and out by a smooth pattern.
@@ -461,8 +730,12 @@ mod tests {
             );
             let bvh = Bvh::build(&to.mesh.positions, &to.mesh.faces);
             let floor = rounding_floor(&from, &to).unwrap();
-            let batched = one_side_with(&from, &bvh, 10, floor, true);
-            let reference = one_side_with(&from, &bvh, 10, floor, false);
+            let opts = FidelityOptions {
+                samples_per_face: 10,
+                min_face_samples: 0,
+            };
+            let batched = one_side_with(&from, &bvh, &opts, floor, true);
+            let reference = one_side_with(&from, &bvh, &opts, floor, false);
             assert_eq!(batched.count, reference.count);
             assert_eq!(batched.max.to_bits(), reference.max.to_bits());
             assert_eq!(batched.sum.to_bits(), reference.sum.to_bits());
@@ -473,7 +746,7 @@ mod tests {
     #[test]
     fn input_smaller_than_output_gives_the_same_figures_on_one_thread() {
         let (small, large) = (icosphere(2), bumpy(&icosphere(4), 0.02));
-        let opts = FidelityOptions::default();
+        let opts = LIGHT;
         let f = fidelity(&small, &large, &opts).unwrap();
         assert_eq!(
             coarsen_testdata::on_threads(1, || fidelity(&small, &large, &opts).unwrap()),
@@ -516,7 +789,7 @@ mod tests {
     fn same_figures_twice_and_on_one_thread() {
         let a = icosphere(4);
         let b = scaled(&icosphere(2), 1.02);
-        let opts = FidelityOptions::default();
+        let opts = LIGHT;
         let first = fidelity(&a, &b, &opts).unwrap();
         assert_eq!(first, fidelity(&a, &b, &opts).unwrap());
         let single = coarsen_testdata::on_threads(1, || fidelity(&a, &b, &opts).unwrap());
@@ -532,7 +805,7 @@ mod tests {
         let a = icosphere(2);
         let mut b = a.clone();
         b.faces.pop();
-        let f = fidelity(&a, &b, &FidelityOptions::default()).unwrap();
+        let f = fidelity(&a, &b, &LIGHT).unwrap();
         assert_eq!(f.volume_change_pct, None);
     }
 
@@ -540,7 +813,7 @@ mod tests {
     fn empty_and_pointlike_meshes_are_named_errors() {
         let a = icosphere(1);
         let empty = Mesh::new(a.positions.clone(), Vec::new());
-        let opts = FidelityOptions::default();
+        let opts = LIGHT;
         assert_eq!(
             fidelity(&a, &empty, &opts),
             Err(MetricsError::NoFaces { mesh: Role::Output })
@@ -559,7 +832,7 @@ mod tests {
         a.positions.push(DVec3::splat(50.0)); // unused: neither sampled nor in the box
         a.faces.push([0, 0, 1]); // zero area
         a.faces.push([0, 1, n - 1]);
-        let f = fidelity(&a, &icosphere(2), &FidelityOptions::default()).unwrap();
+        let f = fidelity(&a, &icosphere(2), &LIGHT).unwrap();
         for x in [f.hausdorff_pct, f.mean_dist_pct, f.rms_dist_pct] {
             assert!(x.is_finite());
         }

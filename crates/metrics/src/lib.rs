@@ -46,7 +46,7 @@ pub mod validity;
 
 pub use error::{MAX_COORDINATE, MetricsError, Role};
 pub use features::{FeatureEdges, FeatureOptions, feature_edges, sharp_edges};
-pub use fidelity::{Fidelity, FidelityOptions, fidelity};
+pub use fidelity::{Fidelity, FidelityOptions, MIN_FACE_SAMPLES, SAMPLES_PER_FACE, fidelity};
 pub use grid::{GridFacing, LazyGridFacing};
 pub use quality::{Quality, quality};
 pub use validity::{Facing, SurfaceIndex, SurfaceParts, Validity, validity};
@@ -136,7 +136,13 @@ impl MetricsReport {
             rows.push(("output → input max", format!("{:.3} %", f.backward_max_pct)));
             rows.push(("mean distance", format!("{:.4} %", f.mean_dist_pct)));
             rows.push(("RMS distance", format!("{:.4} %", f.rms_dist_pct)));
-            rows.push(("distance samples", f.n_samples.to_string()));
+            rows.push((
+                "distance samples",
+                format!(
+                    "{} (input → output {}, output → input {})",
+                    f.n_samples, f.forward_samples, f.backward_samples
+                ),
+            ));
             rows.push(("input bbox diagonal", format!("{:.6}", f.bbox_diagonal)));
             rows.push((
                 "volume change",
@@ -196,7 +202,7 @@ mod tests {
         assert_eq!(v.n_components, 1);
         assert_eq!(v.n_flipped, Some(0));
         assert_eq!(f.volume_change_pct, None);
-        assert!(f.n_samples >= 10 * 69_451);
+        assert!(f.forward_samples >= 100 * 69_451 && f.backward_samples >= 1_000_000);
     }
 
     #[test]

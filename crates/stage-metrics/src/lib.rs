@@ -8,9 +8,11 @@ use coarsen_stage::{Context, Contract, Mesh, ParamIssue, Params, Stage, StageErr
 params! {
     /// Parameters of `metrics`.
     pub struct MetricsParams {
-        /// Distance samples per face, on each mesh (plus every used vertex); the spec's
-        /// minimum, 10 × the larger face count in all, is always met.
-        pub samples_per_face: u32 = 10,
+        /// Distance samples per face on each mesh's faces (each direction sampled on its
+        /// own mesh, plus every used vertex and points along every edge).
+        pub samples_per_face: u32 = 100,
+        /// At least this many distance samples on each mesh's faces.
+        pub min_face_samples: u64 = 1_000_000,
         /// Measure fidelity against the original input (Hausdorff, mean, RMS, flips); false
         /// reports only the mesh's own quality and validity.
         pub fidelity: bool = true,
@@ -26,6 +28,13 @@ impl Params for MetricsParams {
             self.samples_per_face,
             1,
             10_000,
+        );
+        coarsen_stage::params::check_range(
+            &mut v,
+            "min_face_samples",
+            self.min_face_samples,
+            0,
+            1_000_000_000,
         );
         v
     }
@@ -51,6 +60,7 @@ impl Stage for MetricsStage {
         let opts = MetricsOptions {
             fidelity: FidelityOptions {
                 samples_per_face: self.0.samples_per_face,
+                min_face_samples: self.0.min_face_samples,
             },
         };
         let original = self.0.fidelity.then_some(cx.original);
