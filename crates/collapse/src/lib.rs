@@ -160,6 +160,7 @@ mod live;
 mod progressive;
 mod qem;
 mod queue;
+pub mod stage;
 
 #[cfg(test)]
 mod fixtures;

@@ -17,22 +17,26 @@
 //! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
 //! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
 //!
-//! The target comes from the run (`--vertices`, `--faces`, `--ratio` or the pipeline's):
-//! a vertex count is met exactly, a face count or ratio too where the mesh has a boundary
-//! (on a closed mesh, whose face count stays even, to within one face, with a warning). The report gives `collapses`, `refused` (by reason),
-//! `sve` (paper 2's squared-volume error, summed over the collapses), `max_cost`, the
-//! final `vertices` and `faces`, why the run `stop`ped, the `locked_vertices` and the
-//! `boundary_loops` before and after, the `parallel_collapses` (made in parts, see below),
-//! and a warning whenever the target was not reached.
+//! The run is the collapse stages' shared skeleton (`coarsen_collapse::stage`): the target
+//! from the run (`--vertices`, `--faces`, `--ratio` or the pipeline's; a vertex count met
+//! exactly, a face count or ratio too where the mesh has a boundary, on a closed mesh to
+//! within one face), the progressive record, the **facing guard** (`facing_guard`: a
+//! collapse is refused, `refused.facing`, when a face it reshapes would point away from
+//! the run input's surface nearest it; on the cow's thin legs, ears and tail this removes
+//! the faces that ended nearest to the part's other side), progress, attribute carrying,
+//! and the report's figures (`collapses`, `parallel_collapses`, `refused` by reason,
+//! `facing_tests`, `sve`, `max_cost`, the final `vertices` and `faces`, `stop`, the
+//! `locked_vertices` and the `boundary_loops` before and after) and warnings (a target not
+//! reached, locked and dropped vertices).
 //!
-//! **Facing guard** (`facing_guard`): besides the engine's own flip checks, a collapse is
-//! refused (`refused.facing`) when a face it reshapes would point away (> 90°) from the run
-//! input's surface at the input point nearest the face's centroid — the metrics' flipped-face
-//! test, on `coarsen_metrics::GridFacing`, a light index of the input built on the first face
-//! tested. Only faces past the engine's gate are tested (`coarsen_collapse::Gated`: their
-//! corners' merged input wraps around a thin part, or they turn by more than 45°); the report
-//! gives how many (`facing_tests`). On the cow's thin legs, ears and tail this removes the
-//! faces that ended nearest to the part's other side.
+//! **Beside `simplify.svec`**, which runs the same skeleton: QEM collapses edges (SVEC
+//! triangles, then a few edges to meet the target exactly); its quadrics are summed per
+//! vertex as the collapses merge them, so only the candidates at the new vertex are
+//! re-costed (SVEC measures from the current faces and re-costs a ring); the new vertex
+//! goes where its quadric is least, kept on the boundary by constraint planes that are on
+//! by default (SVEC: the paper's placement rules with a feature filter, no boundary planes
+//! by default); the parallel phase's second round makes one step (SVEC up to 16); no
+//! `target_scale`, and no figures of its own.
 //!
 //! **Parallel phase** (`parallel`): on a mesh of 2¹⁹ faces or more, the engine first cuts
 //! the mesh into parts of about 2¹⁷ faces and collapses them side by side, up to nine tenths
@@ -62,15 +66,13 @@
 //! # Ok::<(), coarsen_stage::StageError>(())
 //! ```
 
+use coarsen_collapse::stage::{Collapsed, Simplifier};
 use coarsen_collapse::{
-    FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, PartOptions,
-    QemOptions, QuadricModel, Summary,
+    FaceGuard, Goal, LiveMesh, Options, PartOptions, QemOptions, QuadricModel, Unit,
 };
-use coarsen_metrics::LazyGridFacing;
 use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
-    Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
-    TargetCount, params,
+    Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, TargetCount, params,
 };
 
 params! {
@@ -126,35 +128,48 @@ impl Stage for SimplifyQem {
     }
 
     fn contract(&self) -> Contract {
-        Contract {
-            // The engine locks what is not manifold: pinched vertices split per fan let it
-            // work there.
-            needs: Needs {
-                target: true,
-                split_fans: true,
-                ..Needs::default()
-            },
-            ..Contract::default()
-        }
+        coarsen_collapse::stage::contract()
     }
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
-        let p = &self.0;
-        let (target, count) = cx.target_count(Self::KIND)?;
-        let goal = match count {
+        coarsen_collapse::stage::run(Self::KIND, &mut Qem(&self.0), mesh, cx)
+    }
+}
+
+/// The QEM side of the collapse-stage skeleton: edge collapses under the quadric model,
+/// in parts first on big meshes, then in one greedy order.
+struct Qem<'a>(&'a QemParams);
+
+impl Simplifier for Qem<'_> {
+    fn unit(&self) -> Unit {
+        Unit::Edge
+    }
+
+    fn goal(&self, count: TargetCount) -> Goal {
+        match count {
             TargetCount::Vertices(n) => Goal::Vertices(usize::try_from(n).unwrap_or(usize::MAX)),
             TargetCount::Faces(n) => Goal::Faces(usize::try_from(n).unwrap_or(usize::MAX)),
-        };
-        let mut live = LiveMesh::new_renumbered(&mesh)
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        // The live mesh holds the input's arrays now: keep only its attributes to carry.
-        let attributes = coarsen_collapse::attributes_only(mesh);
-        if cx.progressive.is_some() {
-            live.record_progressive();
         }
-        let before = live.summary();
+    }
+
+    fn facing_guard(&self) -> bool {
+        self.0.facing_guard
+    }
+
+    fn max_error(&self) -> f64 {
+        self.0.max_error
+    }
+
+    fn collapse<G: FaceGuard + Send>(
+        &mut self,
+        live: &mut LiveMesh,
+        goal: Goal,
+        new_guard: impl Fn() -> G + Sync,
+        progress: &mut dyn FnMut(usize),
+    ) -> Collapsed {
+        let p = self.0;
         let mut model = QuadricModel::new(
-            &live,
+            live,
             &QemOptions {
                 area_weighted: p.area_weighted,
                 boundary_weight: p.boundary_weight,
@@ -167,110 +182,9 @@ impl Stage for SimplifyQem {
             keep_log: false,
             ..Options::new(goal)
         };
-        let progress = cx.progress;
-        let to_remove = match goal {
-            Goal::Vertices(n) => before.vertices.saturating_sub(n),
-            Goal::Faces(n) => before.faces.saturating_sub(n) / 2,
-        };
-        progress.begin(Self::KIND, to_remove as u64);
         let parts = PartOptions::when(p.parallel);
-
-        let mut advance = |n: usize| progress.advance(n as u64, "collapses");
-        let (outcome, parallel, guarded) = if p.facing_guard {
-            let input = LazyGridFacing::new(cx.original);
-            let guard = || Gated::standard(|a, b, c| input.allows(a, b, c));
-            collapse(&mut live, &mut model, &opts, &parts, guard, &mut advance)
-        } else {
-            collapse(
-                &mut live,
-                &mut model,
-                &opts,
-                &parts,
-                || NoGuard,
-                &mut advance,
-            )
-        };
-        progress.end();
-        let after = live.summary();
-        let (out, carry) = live
-            .to_mesh_with_attributes(&attributes)
-            .map_err(|e| StageError::Internal(e.to_string()))?;
-        if let Some(slot) = cx.progressive.as_mut() {
-            **slot = live
-                .take_progressive(&out)
-                .map(|p| Box::new(p) as coarsen_stage::Handback);
-        }
-        report(cx.report, &target, p, &outcome, &before, &after);
-        if let Some(w) = outcome.below_face_goal(goal, &after) {
-            cx.report.warn(w);
-        }
-        cx.report.figure("parallel_collapses", parallel);
-        if p.facing_guard {
-            cx.report.figure("facing_tests", guarded.tested);
-        }
-        for w in carry.warnings() {
-            cx.report.warn(w);
-        }
-        Ok(out)
-    }
-}
-
-/// [`LiveMesh::collapse_parted`]'s outcome, collapses made in parts and guard counts.
-fn collapse<G: FaceGuard + Send>(
-    live: &mut LiveMesh,
-    model: &mut QuadricModel,
-    opts: &Options,
-    parts: &PartOptions,
-    new_guard: impl Fn() -> G + Sync,
-    advance: &mut dyn FnMut(usize),
-) -> (Outcome, usize, GuardCounts) {
-    let run = live.collapse_parted(model, new_guard, opts, parts, advance);
-    let counts = run.part_counts.plus(&run.guard.counts());
-    (run.outcome, run.in_parts, counts)
-}
-
-/// Fills the stage report: figures, then warnings.
-fn report(
-    r: &mut StageReport,
-    target: &Target,
-    p: &QemParams,
-    o: &Outcome,
-    before: &Summary,
-    after: &Summary,
-) {
-    let refused = &o.refused;
-    let by_reason = refused.by_reason();
-    r.figure("collapses", o.collapses);
-    r.figure("refused", by_reason);
-    r.figure("sve", o.sve);
-    r.figure("max_cost", o.max_cost);
-    r.figure("vertices", after.vertices);
-    r.figure("faces", after.faces);
-    r.figure("stop", o.stop.name());
-    r.figure("locked_vertices", before.locked_vertices);
-    r.figure("boundary_loops_in", before.boundary_loops);
-    r.figure("boundary_loops", after.boundary_loops);
-
-    if let Some(w) = o.shortfall(
-        &target.to_string(),
-        p.max_error,
-        after.vertices,
-        after.faces,
-    ) {
-        r.warn(w);
-    }
-    if before.locked_vertices > 0 {
-        r.warn(format!(
-            "{} non-manifold vertices (or vertices of faces that repeat a vertex) were locked: \
-             they keep their place and no edge at them collapses",
-            before.locked_vertices
-        ));
-    }
-    if before.isolated_vertices > 0 {
-        r.warn(format!(
-            "{} vertices used by no face were dropped",
-            before.isolated_vertices
-        ));
+        live.collapse_parted(&mut model, new_guard, &opts, &parts, progress)
+            .into()
     }
 }
 
@@ -281,6 +195,7 @@ mod tests {
     use super::*;
     use coarsen_mesh::DVec3;
     use coarsen_shapes::{disk_with_holes, icosphere, plane_grid};
+    use coarsen_stage::{StageReport, Target};
 
     fn run(
         mesh: &Mesh,

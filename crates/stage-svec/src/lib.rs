@@ -91,21 +91,20 @@
 //! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
 //! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
 //!
-//! The report gives `collapses` (`triangle_collapses` + `edge_collapses`),
-//! `feature_collapses`, `feature_threshold`, `refused` by reason, `sve` (metrics.md: the
-//! accumulated squared-volume error, computed by the engine exactly as for QEM),
-//! `max_cost`, the final `vertices` and `faces`, why the run `stop`ped, the
-//! `locked_vertices` and the `boundary_loops` before and after, the `parallel_collapses`
-//! (made in parts, see below), and a warning whenever the target was not reached.
+//! The run is the collapse stages' shared skeleton (`coarsen_collapse::stage`, described
+//! in `simplify.qem`'s docs): target, progressive record, the **facing guard**
+//! (`facing_guard`), progress, attribute carrying, and the report's common figures and
+//! warnings. SVEC adds `triangle_collapses` and `edge_collapses` (their sum is
+//! `collapses`), `feature_collapses`, `feature_threshold`, and a warning when more than
+//! two edge collapses finished the run.
 //!
-//! **Facing guard** (`facing_guard`): besides the engine's own flip checks, a collapse is
-//! refused (`refused.facing`) when a face it reshapes would point away (> 90°) from the run
-//! input's surface at the input point nearest the face's centroid — the metrics' flipped-face
-//! test, on `coarsen_metrics::GridFacing`, a light index of the input built on the first face
-//! tested. Only faces past the engine's gate are tested (`coarsen_collapse::Gated`: their
-//! corners' merged input wraps around a thin part, or they turn by more than 45°); the report
-//! gives how many (`facing_tests`). On the cow's thin legs, ears and tail this removes the
-//! faces that ended nearest to the part's other side.
+//! **Beside `simplify.qem`**, which runs the same skeleton: SVEC collapses triangles and
+//! finishes with edge collapses (QEM collapses edges only); its cost is measured from the
+//! current faces, not summed as the collapses merge (so a ring is re-costed after each,
+//! QEM only the new vertex's candidates); the new vertex goes by the paper's rules (a
+//! feature filter, the ω rule on boundaries; no boundary planes by default, QEM's are on);
+//! the parallel phase's second round goes on in up to 16 steps (QEM one); `target_scale`
+//! stops it short of the target for a later stage.
 //!
 //! **Parallel phase** (`parallel`): on a mesh of 2¹⁹ faces or more, the engine first cuts
 //! the mesh into parts of about 2¹⁷ faces and collapses them side by side, up to nine tenths
@@ -148,14 +147,11 @@ mod model;
 
 pub use model::{SvecModel, SvecOptions};
 
-use coarsen_collapse::{
-    FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, PartOptions,
-    StopReason, Summary, Unit,
-};
-use coarsen_metrics::LazyGridFacing;
+use coarsen_collapse::stage::{Collapsed, Simplifier};
+use coarsen_collapse::{FaceGuard, Goal, LiveMesh, Options, PartOptions, StopReason, Unit};
 use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
-    Context, Contract, Mesh, Needs, ParamIssue, Params, Stage, StageError, StageReport, Target,
+    Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, StageReport, Target,
     TargetCount, params,
 };
 
@@ -218,18 +214,6 @@ impl Params for SvecParams {
 /// Paper 2's triangle constriction (SVEC) to the run target.
 pub struct SimplifySvec(SvecParams);
 
-/// Figures of a whole run (triangle phase and edge finish).
-struct Totals {
-    outcome: Outcome,
-    triangle_collapses: usize,
-    /// Collapses made in parts side by side.
-    parallel_collapses: usize,
-    edge_collapses: usize,
-    feature_collapses: usize,
-    feature_threshold: f64,
-    guarded: GuardCounts,
-}
-
 impl Stage for SimplifySvec {
     type Params = SvecParams;
     const KIND: &'static str = "simplify.svec";
@@ -242,201 +226,144 @@ impl Stage for SimplifySvec {
     }
 
     fn contract(&self) -> Contract {
-        Contract {
-            // The engine locks what is not manifold: pinched vertices split per fan let it
-            // work there.
-            needs: Needs {
-                target: true,
-                split_fans: true,
-                ..Needs::default()
-            },
-            ..Contract::default()
-        }
+        coarsen_collapse::stage::contract()
     }
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
-        let p = &self.0;
-        let (target, count) = cx.target_count(Self::KIND)?;
+        coarsen_collapse::stage::run(Self::KIND, &mut Svec::new(&self.0), mesh, cx)
+    }
+}
+
+/// The SVEC side of the collapse-stage skeleton: triangle collapses until one more could
+/// overshoot the goal (most of them on parts of the mesh side by side, when it is big:
+/// `LiveMesh::collapse_in_parts`), then edge collapses to it; the goal scaled by
+/// `target_scale`; its own figures (the two kinds of collapse, the feature rule's).
+struct Svec<'a> {
+    p: &'a SvecParams,
+    parts: PartOptions,
+    triangle_collapses: usize,
+    edge_collapses: usize,
+    feature_collapses: usize,
+    feature_threshold: f64,
+}
+
+impl<'a> Svec<'a> {
+    fn new(p: &'a SvecParams) -> Self {
+        Svec {
+            p,
+            parts: PartOptions {
+                steps: PARALLEL_STEPS,
+                ..PartOptions::when(p.parallel)
+            },
+            triangle_collapses: 0,
+            edge_collapses: 0,
+            feature_collapses: 0,
+            feature_threshold: f64::NAN,
+        }
+    }
+}
+
+impl Simplifier for Svec<'_> {
+    fn unit(&self) -> Unit {
+        Unit::Triangle
+    }
+
+    fn goal(&self, count: TargetCount) -> Goal {
         let scaled = |n: u64| {
-            let n = (n as f64 * p.target_scale).round();
+            let n = (n as f64 * self.p.target_scale).round();
             // A saturating conversion: huge products mean "no collapse at all".
             n as usize
         };
-        let goal = match count {
+        match count {
             TargetCount::Vertices(n) => Goal::Vertices(scaled(n)),
             TargetCount::Faces(n) => Goal::Faces(scaled(n)),
-        };
-        let mut live = LiveMesh::new_renumbered(&mesh)
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-        // The live mesh holds the input's arrays now: keep only its attributes to carry.
-        let attributes = coarsen_collapse::attributes_only(mesh);
-        if cx.progressive.is_some() {
-            live.record_progressive();
         }
-        let before = live.summary();
-        let progress = cx.progress;
-        let to_remove = match goal {
-            Goal::Vertices(n) => before.vertices.saturating_sub(n) / 2,
-            Goal::Faces(n) => before.faces.saturating_sub(n) / 4,
-        };
-        progress.begin(Self::KIND, to_remove as u64);
-        let mut advance = |n: usize| progress.advance(n as u64, "collapses");
-        let parts = PartOptions {
-            steps: PARALLEL_STEPS,
-            ..PartOptions::when(p.parallel)
-        };
-        let totals = if p.facing_guard {
-            let input = LazyGridFacing::new(cx.original);
-            simplify(
-                &mut live,
-                p,
-                goal,
-                &parts,
-                || Gated::standard(|a, b, c| input.allows(a, b, c)),
-                &mut advance,
-            )
+    }
+
+    fn facing_guard(&self) -> bool {
+        self.p.facing_guard
+    }
+
+    fn max_error(&self) -> f64 {
+        self.p.max_error
+    }
+
+    fn target_words(&self, target: &Target) -> String {
+        if self.p.target_scale == 1.0 {
+            target.to_string()
         } else {
-            simplify(&mut live, p, goal, &parts, || NoGuard, &mut advance)
+            format!("{} × {target}", self.p.target_scale)
+        }
+    }
+
+    fn collapse<G: FaceGuard + Send>(
+        &mut self,
+        live: &mut LiveMesh,
+        goal: Goal,
+        new_guard: impl Fn() -> G + Sync,
+        progress: &mut dyn FnMut(usize),
+    ) -> Collapsed {
+        let p = self.p;
+        let model_opts = SvecOptions {
+            feature_threshold: (p.feature_threshold > 0.0).then_some(p.feature_threshold),
+            feature_sigma: p.feature_sigma,
+            volume_constraint: p.volume_constraint,
+            boundary_weight: p.boundary_weight,
         };
-        progress.end();
-        let after = live.summary();
-        let (out, carry) = live
-            .to_mesh_with_attributes(&attributes)
-            .map_err(|e| StageError::Internal(e.to_string()))?;
-        if let Some(slot) = cx.progressive.as_mut() {
-            **slot = live
-                .take_progressive(&out)
-                .map(|p| Box::new(p) as coarsen_stage::Handback);
+        // The parts and the joined mesh get models of their own.
+        let mut model = if live.will_part(&self.parts) {
+            SvecModel::deferred(live, &model_opts)
+        } else {
+            SvecModel::new(live, &model_opts)
+        };
+        let mut opts = Options {
+            // A triangle collapse removes 2 vertices and at most 4 faces.
+            goal: match goal {
+                Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
+                Goal::Faces(n) => Goal::Faces(n.saturating_add(3)),
+            },
+            max_error: (p.max_error > 0.0).then_some(p.max_error),
+            min_quality: p.min_quality,
+            keep_log: false,
+            ..Options::new(goal)
+        };
+        let run = live.collapse_parted(&mut model, new_guard, &opts, &self.parts, progress);
+        let (mut outcome, in_parts, mut guard) = (run.outcome, run.in_parts, run.guard);
+        self.triangle_collapses = outcome.collapses;
+        if !matches!(outcome.stop, StopReason::MaxError { .. }) {
+            model.set_unit(Unit::Edge);
+            opts.goal = goal;
+            let done = outcome.collapses;
+            let finish =
+                live.collapse_guarded(&mut model, &mut guard, &opts, &mut |n| progress(done + n));
+            self.edge_collapses = finish.collapses;
+            outcome = outcome.then(finish);
         }
-        report(cx.report, &target, p, &totals, &before, &after);
-        if let Some(w) = totals.outcome.below_face_goal(goal, &after) {
-            cx.report.warn(w);
+        self.feature_collapses = model.feature_collapses();
+        self.feature_threshold = model.feature_threshold();
+        Collapsed {
+            outcome,
+            in_parts,
+            guarded: run.part_counts.plus(&guard.counts()),
         }
-        for w in carry.warnings() {
-            cx.report.warn(w);
+    }
+
+    fn figures(&self, r: &mut StageReport) {
+        r.figure("triangle_collapses", self.triangle_collapses);
+        r.figure("edge_collapses", self.edge_collapses);
+        r.figure("feature_collapses", self.feature_collapses);
+        if self.feature_threshold.is_finite() {
+            r.figure("feature_threshold", self.feature_threshold);
         }
-        Ok(out)
     }
-}
 
-/// Triangle collapses until one more could overshoot `goal` (most of them on parts of the
-/// mesh side by side, when it is big: `LiveMesh::collapse_in_parts`), then edge collapses
-/// to it.
-fn simplify<G: FaceGuard + Send>(
-    live: &mut LiveMesh,
-    p: &SvecParams,
-    goal: Goal,
-    parts: &PartOptions,
-    new_guard: impl Fn() -> G + Sync,
-    progress: &mut dyn FnMut(usize),
-) -> Totals {
-    let model_opts = SvecOptions {
-        feature_threshold: (p.feature_threshold > 0.0).then_some(p.feature_threshold),
-        feature_sigma: p.feature_sigma,
-        volume_constraint: p.volume_constraint,
-        boundary_weight: p.boundary_weight,
-    };
-    // The parts and the joined mesh get models of their own.
-    let mut model = if live.will_part(parts) {
-        SvecModel::deferred(live, &model_opts)
-    } else {
-        SvecModel::new(live, &model_opts)
-    };
-    let mut opts = Options {
-        // A triangle collapse removes 2 vertices and at most 4 faces.
-        goal: match goal {
-            Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
-            Goal::Faces(n) => Goal::Faces(n.saturating_add(3)),
-        },
-        max_error: (p.max_error > 0.0).then_some(p.max_error),
-        min_quality: p.min_quality,
-        keep_log: false,
-        ..Options::new(goal)
-    };
-    let run = live.collapse_parted(&mut model, new_guard, &opts, parts, progress);
-    let (mut outcome, done_in_parts, mut guard) = (run.outcome, run.in_parts, run.guard);
-    let triangle_collapses = outcome.collapses;
-    let mut edge_collapses = 0;
-    if !matches!(outcome.stop, StopReason::MaxError { .. }) {
-        model.set_unit(Unit::Edge);
-        opts.goal = goal;
-        let done = outcome.collapses;
-        let finish =
-            live.collapse_guarded(&mut model, &mut guard, &opts, &mut |n| progress(done + n));
-        edge_collapses = finish.collapses;
-        outcome = outcome.then(finish);
-    }
-    let guarded = run.part_counts.plus(&guard.counts());
-    Totals {
-        outcome,
-        triangle_collapses,
-        parallel_collapses: done_in_parts,
-        edge_collapses,
-        feature_collapses: model.feature_collapses(),
-        feature_threshold: model.feature_threshold(),
-        guarded,
-    }
-}
-
-/// Fills the stage report: figures, then warnings.
-fn report(
-    r: &mut StageReport,
-    target: &Target,
-    p: &SvecParams,
-    t: &Totals,
-    before: &Summary,
-    after: &Summary,
-) {
-    let o = &t.outcome;
-    let refused = &o.refused;
-    let by_reason = refused.by_reason();
-    r.figure("collapses", o.collapses);
-    r.figure("triangle_collapses", t.triangle_collapses);
-    r.figure("parallel_collapses", t.parallel_collapses);
-    r.figure("edge_collapses", t.edge_collapses);
-    r.figure("feature_collapses", t.feature_collapses);
-    if t.feature_threshold.is_finite() {
-        r.figure("feature_threshold", t.feature_threshold);
-    }
-    r.figure("refused", by_reason);
-    if p.facing_guard {
-        r.figure("facing_tests", t.guarded.tested);
-    }
-    r.figure("sve", o.sve);
-    r.figure("max_cost", o.max_cost);
-    r.figure("vertices", after.vertices);
-    r.figure("faces", after.faces);
-    r.figure("stop", o.stop.name());
-    r.figure("locked_vertices", before.locked_vertices);
-    r.figure("boundary_loops_in", before.boundary_loops);
-    r.figure("boundary_loops", after.boundary_loops);
-
-    let target = if p.target_scale == 1.0 {
-        target.to_string()
-    } else {
-        format!("{} × {target}", p.target_scale)
-    };
-    if let Some(w) = o.shortfall(&target, p.max_error, after.vertices, after.faces) {
-        r.warn(w);
-    }
-    if t.edge_collapses > 2 {
-        r.warn(format!(
-            "{} edge collapses finished the run after the triangle collapses ran out",
-            t.edge_collapses
-        ));
-    }
-    if before.locked_vertices > 0 {
-        r.warn(format!(
-            "{} non-manifold vertices (or vertices of faces that repeat a vertex) were locked: \
-             they keep their place and no collapse touches them",
-            before.locked_vertices
-        ));
-    }
-    if before.isolated_vertices > 0 {
-        r.warn(format!(
-            "{} vertices used by no face were dropped",
-            before.isolated_vertices
-        ));
+    fn warnings(&self, r: &mut StageReport) {
+        if self.edge_collapses > 2 {
+            r.warn(format!(
+                "{} edge collapses finished the run after the triangle collapses ran out",
+                self.edge_collapses
+            ));
+        }
     }
 }
 

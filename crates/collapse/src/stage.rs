@@ -1,0 +1,210 @@
+//! The run of a collapse stage, the skeleton `simplify.qem` and `simplify.svec` share: the
+//! target turned into a [`Goal`], the live mesh renumbered for locality, the progressive
+//! record asked for and handed back, the facing guard against the run input, progress, the
+//! output with its attributes carried, and the report's common figures and warnings.
+//!
+//! What differs between the stages — the cost model, its phases, their own figures — is a
+//! [`Simplifier`]; [`run`] does the rest. The skeleton knows no stage's parameters.
+//!
+//! **Facing guard**: besides the engine's own flip checks, a collapse is refused
+//! (`refused.facing`) when a face it reshapes would point away (> 90°) from the run input's
+//! surface at the input point nearest the face's centroid — the metrics' flipped-face test,
+//! on `coarsen_metrics::GridFacing`, a light index of the input built on the first face
+//! tested. Only faces past the engine's gate are tested ([`Gated`]: their corners' merged
+//! input wraps around a thin part, or they turn by more than 45°); the report gives how
+//! many (`facing_tests`).
+
+use crate::{
+    FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Outcome, Parted, Summary, Unit,
+    attributes_only,
+};
+use coarsen_metrics::LazyGridFacing;
+use coarsen_stage::{
+    Context, Contract, Handback, Mesh, Needs, StageError, StageReport, Target, TargetCount,
+};
+
+/// What differs between the collapse stages: [`run`] asks it for the goal, the collapses
+/// and the stage's own figures.
+pub trait Simplifier {
+    /// What one collapse merges (for the progress total: an edge collapse removes one
+    /// vertex and up to two faces, a triangle collapse two and four).
+    fn unit(&self) -> Unit;
+    /// The goal for the run target's count.
+    fn goal(&self, count: TargetCount) -> Goal;
+    /// Whether faces are tested against the run input's surface nearest them (the
+    /// metrics' flipped-face test behind [`Gated`]'s gate).
+    fn facing_guard(&self) -> bool;
+    /// The cost limit (0: none), for the warning when the target is not reached.
+    fn max_error(&self) -> f64;
+    /// The target in words, for the warning when it is not reached.
+    fn target_words(&self, target: &Target) -> String {
+        target.to_string()
+    }
+    /// Makes the collapses on `live` (the progressive record asked for already) down to
+    /// `goal`, each guard made by `new_guard`; `progress` hears the running count.
+    fn collapse<G: FaceGuard + Send>(
+        &mut self,
+        live: &mut LiveMesh,
+        goal: Goal,
+        new_guard: impl Fn() -> G + Sync,
+        progress: &mut dyn FnMut(usize),
+    ) -> Collapsed;
+    /// Writes the stage's own figures (after `collapses` and `parallel_collapses`).
+    fn figures(&self, report: &mut StageReport) {
+        let _ = report;
+    }
+    /// Writes the stage's own warnings (after the one for a target not reached).
+    fn warnings(&self, report: &mut StageReport) {
+        let _ = report;
+    }
+}
+
+/// What a [`Simplifier`]'s collapses did.
+pub struct Collapsed {
+    /// Every phase's collapses, refusals and stop.
+    pub outcome: Outcome,
+    /// How many collapses the parts made side by side ([`LiveMesh::collapse_in_parts`]).
+    pub in_parts: usize,
+    /// What the guards did, over the parts and the serial run.
+    pub guarded: GuardCounts,
+}
+
+impl<G: FaceGuard> From<Parted<G>> for Collapsed {
+    fn from(run: Parted<G>) -> Collapsed {
+        Collapsed {
+            guarded: run.part_counts.plus(&run.guard.counts()),
+            outcome: run.outcome,
+            in_parts: run.in_parts,
+        }
+    }
+}
+
+/// The contract of a collapse stage: a target, and pinched vertices split per face fan
+/// (the engine locks what is not manifold; split, they let it work there).
+pub fn contract() -> Contract {
+    Contract {
+        needs: Needs {
+            target: true,
+            split_fans: true,
+            ..Needs::default()
+        },
+        ..Contract::default()
+    }
+}
+
+/// Runs the collapse stage `kind` on `mesh`: the goal from the run target, the collapses
+/// of `stage` on a live mesh renumbered for locality (behind the facing guard when the
+/// stage asks for it), the output with its attributes carried, the progressive record in
+/// `cx.progressive` when asked for, and the report.
+pub fn run(
+    kind: &'static str,
+    stage: &mut impl Simplifier,
+    mesh: Mesh,
+    cx: &mut Context<'_>,
+) -> Result<Mesh, StageError> {
+    let (target, count) = cx.target_count(kind)?;
+    let goal = stage.goal(count);
+    let mut live =
+        LiveMesh::new_renumbered(&mesh).map_err(|e| StageError::Input(format!("`{kind}`: {e}")))?;
+    // The live mesh holds the input's arrays now: keep only its attributes to carry.
+    let attributes = attributes_only(mesh);
+    if cx.progressive.is_some() {
+        live.record_progressive();
+    }
+    let before = live.summary();
+    let done = collapse_with_progress(kind, stage, &mut live, goal, &before, cx);
+    let after = live.summary();
+    let (out, carry) = live
+        .to_mesh_with_attributes(&attributes)
+        .map_err(|e| StageError::Internal(e.to_string()))?;
+    if let Some(slot) = cx.progressive.as_mut() {
+        **slot = live.take_progressive(&out).map(|p| Box::new(p) as Handback);
+    }
+    report(cx.report, stage, &target, &done, &before, &after);
+    if let Some(w) = done.outcome.below_face_goal(goal, &after) {
+        cx.report.warn(w);
+    }
+    for w in carry.warnings() {
+        cx.report.warn(w);
+    }
+    Ok(out)
+}
+
+/// `stage`'s collapses, behind the facing guard when it asks for one, told to the run's
+/// progress.
+fn collapse_with_progress(
+    kind: &'static str,
+    stage: &mut impl Simplifier,
+    live: &mut LiveMesh,
+    goal: Goal,
+    before: &Summary,
+    cx: &Context<'_>,
+) -> Collapsed {
+    let per_collapse = match stage.unit() {
+        Unit::Edge => 1,
+        Unit::Triangle => 2,
+    };
+    let to_remove = match goal {
+        Goal::Vertices(n) => before.vertices.saturating_sub(n) / per_collapse,
+        Goal::Faces(n) => before.faces.saturating_sub(n) / (2 * per_collapse),
+    };
+    let progress = cx.progress;
+    progress.begin(kind, to_remove as u64);
+    let mut advance = |n: usize| progress.advance(n as u64, "collapses");
+    let done = if stage.facing_guard() {
+        let input = LazyGridFacing::new(cx.original);
+        let guard = || Gated::standard(|a, b, c| input.allows(a, b, c));
+        stage.collapse(live, goal, guard, &mut advance)
+    } else {
+        stage.collapse(live, goal, || NoGuard, &mut advance)
+    };
+    progress.end();
+    done
+}
+
+/// Fills the stage report: the figures (the stage's own after the collapse counts), then
+/// the warnings.
+fn report(
+    r: &mut StageReport,
+    stage: &impl Simplifier,
+    target: &Target,
+    done: &Collapsed,
+    before: &Summary,
+    after: &Summary,
+) {
+    let o = &done.outcome;
+    r.figure("collapses", o.collapses);
+    r.figure("parallel_collapses", done.in_parts);
+    stage.figures(r);
+    r.figure("refused", o.refused.by_reason());
+    if stage.facing_guard() {
+        r.figure("facing_tests", done.guarded.tested);
+    }
+    r.figure("sve", o.sve);
+    r.figure("max_cost", o.max_cost);
+    r.figure("vertices", after.vertices);
+    r.figure("faces", after.faces);
+    r.figure("stop", o.stop.name());
+    r.figure("locked_vertices", before.locked_vertices);
+    r.figure("boundary_loops_in", before.boundary_loops);
+    r.figure("boundary_loops", after.boundary_loops);
+
+    let words = stage.target_words(target);
+    if let Some(w) = o.shortfall(&words, stage.max_error(), after.vertices, after.faces) {
+        r.warn(w);
+    }
+    stage.warnings(r);
+    if before.locked_vertices > 0 {
+        r.warn(format!(
+            "{} non-manifold vertices (or vertices of faces that repeat a vertex) were locked: \
+             they keep their place and no collapse touches them",
+            before.locked_vertices
+        ));
+    }
+    if before.isolated_vertices > 0 {
+        r.warn(format!(
+            "{} vertices used by no face were dropped",
+            before.isolated_vertices
+        ));
+    }
+}
