@@ -5,6 +5,7 @@
 //!
 //! The case count is bounded for CI (`PROPTEST_CASES` raises it for a long run).
 
+use coarsen_geom::SplitMix64;
 use coarsen_mesh::sanity::{SanityOptions, sanity_check_with};
 use coarsen_mesh::{DVec3, Mesh, Topology};
 use coarsen_pipeline::{Overrides, Pipeline, RunOptions};
@@ -33,15 +34,9 @@ fn shape_with(kind: u8, seed: u64, noise: f64) -> Mesh {
             Mesh::new(positions, faces)
         }
     };
-    // Deterministic perturbation (SplitMix64), so nothing is too regular.
-    let mut s = seed;
-    let mut next = || {
-        s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = s;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    // Deterministic perturbation, so nothing is too regular.
+    let mut rng = SplitMix64::new(seed);
+    let mut next = || rng.unit() - 0.5;
     let scale = m.bbox().diagonal() * noise;
     for p in &mut m.positions {
         *p += DVec3::new(next(), next(), next()) * scale;

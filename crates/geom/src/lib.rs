@@ -14,12 +14,14 @@
 
 pub mod aabb;
 pub mod quadric;
+pub mod random;
 pub mod solve;
 pub mod triangle;
 
 pub use aabb::Aabb;
 pub use glam::{DMat3, DVec2, DVec3, DVec4};
 pub use quadric::Quadric;
+pub use random::SplitMix64;
 
 /// True when every coordinate is finite (no NaN, no infinity).
 #[inline]

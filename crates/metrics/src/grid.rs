@@ -280,14 +280,8 @@ mod tests {
 
     /// A deterministic scatter of points in [-s, s]³.
     fn points(n: usize, s: f64) -> Vec<DVec3> {
-        let mut x = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 * s - s
-        };
-        (0..n).map(|_| DVec3::new(next(), next(), next())).collect()
+        let mut rng = coarsen_geom::SplitMix64::new(1);
+        (0..n).map(|_| rng.point(-s, s)).collect()
     }
 
     #[test]

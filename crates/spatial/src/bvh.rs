@@ -1035,7 +1035,7 @@ fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> (usize, [Bound
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::closest::tests::Rng;
+    use coarsen_geom::SplitMix64;
 
     /// The obvious answer: every face, one by one.
     fn brute_force(positions: &[DVec3], faces: &[[u32; 3]], p: DVec3) -> f64 {
@@ -1049,7 +1049,7 @@ mod tests {
     }
 
     /// A bumpy height-field grid of `n × n` quads, plus some random loose triangles.
-    fn random_mesh(rng: &mut Rng, n: u32, loose: usize) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    fn random_mesh(rng: &mut SplitMix64, n: u32, loose: usize) -> (Vec<DVec3>, Vec<[u32; 3]>) {
         let mut pos = Vec::new();
         for j in 0..=n {
             for i in 0..=n {
@@ -1071,9 +1071,9 @@ mod tests {
         }
         for _ in 0..loose {
             let base = pos.len() as u32;
-            let c = rng.vec(-0.5, 1.5);
+            let c = rng.point(-0.5, 1.5);
             for _ in 0..3 {
-                pos.push(c + rng.vec(-0.1, 0.1));
+                pos.push(c + rng.point(-0.1, 0.1));
             }
             faces.push([base, base + 1, base + 2]);
         }
@@ -1090,13 +1090,13 @@ mod tests {
 
     #[test]
     fn closest_point_equals_brute_force_on_random_meshes() {
-        let mut rng = Rng(42);
+        let mut rng = SplitMix64::new(42);
         for round in 0..4 {
             let (pos, faces) = random_mesh(&mut rng, 6 + 5 * round, 20 * round as usize);
             for bvh in both_builds(&pos, &faces) {
                 assert_eq!(bvh.len(), faces.len());
                 for _ in 0..300 {
-                    let p = rng.vec(-1.0, 2.0);
+                    let p = rng.point(-1.0, 2.0);
                     let got = bvh.closest_point(p).unwrap();
                     let want = brute_force(&pos, &faces, p);
                     assert_eq!(got.distance_squared, want, "at {p}");
@@ -1114,7 +1114,7 @@ mod tests {
 
     #[test]
     fn closest_point_where_looks_at_the_accepted_faces_alone() {
-        let mut rng = Rng(17);
+        let mut rng = SplitMix64::new(17);
         let (pos, faces) = random_mesh(&mut rng, 9, 30);
         // Every third face, then none.
         let taken = |f: u32| f % 3 == 1;
@@ -1124,7 +1124,7 @@ mod tests {
             .collect();
         for bvh in both_builds(&pos, &faces) {
             for _ in 0..300 {
-                let p = rng.vec(-1.0, 2.0);
+                let p = rng.point(-1.0, 2.0);
                 let got = bvh.closest_point_where(p, taken).unwrap();
                 assert!(taken(got.face));
                 assert_eq!(got.distance_squared, brute_force(&pos, &kept, p), "at {p}");
@@ -1137,7 +1137,7 @@ mod tests {
 
     #[test]
     fn few_faces_over_many_positions_keep_only_the_positions_they_use() {
-        let mut rng = Rng(9);
+        let mut rng = SplitMix64::new(9);
         let (pos, faces) = random_mesh(&mut rng, 12, 0);
         let few = [faces[40], faces[3], faces[40]];
         let bvh = Bvh::build(&pos, &few);
@@ -1156,7 +1156,7 @@ mod tests {
 
     #[test]
     fn closest_point_within_respects_the_bound() {
-        let mut rng = Rng(5);
+        let mut rng = SplitMix64::new(5);
         let (pos, faces) = random_mesh(&mut rng, 8, 0);
         let bvh = Bvh::build(&pos, &faces);
         let p = DVec3::new(0.5, 0.5, 2.0);
@@ -1176,7 +1176,7 @@ mod tests {
 
     #[test]
     fn same_input_gives_the_same_tree_and_answers() {
-        let mut rng = Rng(9);
+        let mut rng = SplitMix64::new(9);
         let (pos, faces) = random_mesh(&mut rng, 20, 50);
         for (a, b) in both_builds(&pos, &faces)
             .into_iter()
@@ -1190,7 +1190,7 @@ mod tests {
 
     #[test]
     fn single_precision_boxes_round_outwards() {
-        let mut rng = Rng(5);
+        let mut rng = SplitMix64::new(5);
         let mut xs: Vec<f64> = (0..10_000)
             .map(|i| (rng.unit() - 0.5) * 10f64.powi(i % 80 - 40))
             .collect();
@@ -1232,7 +1232,7 @@ mod tests {
 
     #[test]
     fn parallel_builds_give_the_same_tree_on_any_thread_count() {
-        let mut rng = Rng(17);
+        let mut rng = SplitMix64::new(17);
         // Over 4·PARALLEL_MIN faces, so that two levels are built in parallel pieces.
         let (pos, faces) = random_mesh(&mut rng, 190, 300);
         assert!(faces.len() > 4 * PARALLEL_MIN);
@@ -1250,7 +1250,7 @@ mod tests {
             // Both hold the exact box of every triangle.
             assert_eq!(single.bounds(), reference.bounds());
             for _ in 0..200 {
-                let p = rng.vec(-1.0, 2.0);
+                let p = rng.point(-1.0, 2.0);
                 assert_eq!(
                     triple.closest_point(p).unwrap().distance_squared,
                     brute_force(&pos, &faces, p)
@@ -1261,7 +1261,7 @@ mod tests {
 
     #[test]
     fn big_meshes_take_the_morton_build() {
-        let mut rng = Rng(29);
+        let mut rng = SplitMix64::new(29);
         let (pos, faces) = random_mesh(&mut rng, 20, 0);
         assert_eq!(
             Bvh::build_with(&pos, &faces, faces.len()),
@@ -1274,9 +1274,9 @@ mod tests {
     }
 
     /// A point uniformly in the ball of radius `r` around `c` (rejection sampling).
-    fn in_ball(rng: &mut Rng, c: DVec3, r: f64) -> DVec3 {
+    fn in_ball(rng: &mut SplitMix64, c: DVec3, r: f64) -> DVec3 {
         loop {
-            let d = rng.vec(-1.0, 1.0);
+            let d = rng.point(-1.0, 1.0);
             if d.length_squared() <= 1.0 {
                 return c + d * r;
             }
@@ -1285,7 +1285,7 @@ mod tests {
 
     #[test]
     fn near_set_answers_equal_the_tree_walk() {
-        let mut rng = Rng(21);
+        let mut rng = SplitMix64::new(21);
         let (pos, faces) = random_mesh(&mut rng, 24, 40);
         for bvh in both_builds(&pos, &faces) {
             let mut set = NearSet::new();
@@ -1296,7 +1296,7 @@ mod tests {
                 let (centre, radius) = if round % 2 == 0 {
                     let [a, b, c] =
                         faces[rng.next_u64() as usize % faces.len()].map(|i| pos[i as usize]);
-                    let centre = (a + b + c) / 3.0 + rng.vec(-0.005, 0.005);
+                    let centre = (a + b + c) / 3.0 + rng.point(-0.005, 0.005);
                     (centre, (a - centre).length().max((b - centre).length()))
                 } else {
                     let centre = DVec3::new(rng.unit(), rng.unit(), rng.range(-0.05, 0.1));
@@ -1331,7 +1331,7 @@ mod tests {
 
     #[test]
     fn gathering_gives_up_beyond_its_limit_and_on_bad_balls() {
-        let mut rng = Rng(23);
+        let mut rng = SplitMix64::new(23);
         let (pos, faces) = random_mesh(&mut rng, 16, 0);
         let bvh = Bvh::build(&pos, &faces);
         let mut set = NearSet::new();
@@ -1355,13 +1355,13 @@ mod tests {
     #[test]
     fn big_ranges_placed_from_a_sample_still_answer_exactly() {
         // 9,200 faces: the top levels bin every second to eighth item.
-        let mut rng = Rng(7);
+        let mut rng = SplitMix64::new(7);
         let (pos, faces) = random_mesh(&mut rng, 60, 2000);
         assert!(faces.len() > 8 * SAMPLE);
         let bvh = Bvh::build(&pos, &faces);
         assert_eq!(bvh.len(), faces.len());
         for _ in 0..200 {
-            let p = rng.vec(-1.0, 2.0);
+            let p = rng.point(-1.0, 2.0);
             let got = bvh.closest_point(p).unwrap();
             assert_eq!(got.distance_squared, brute_force(&pos, &faces, p), "at {p}");
         }
@@ -1369,7 +1369,7 @@ mod tests {
 
     #[test]
     fn leaves_hold_at_most_max_leaf_triangles_and_cover_every_face_once() {
-        let mut rng = Rng(13);
+        let mut rng = SplitMix64::new(13);
         for (n, loose) in [(30, 100), (60, 2000)] {
             let (pos, faces) = random_mesh(&mut rng, n, loose);
             leaves_cover_every_face_once(&pos, &faces);
@@ -1378,7 +1378,7 @@ mod tests {
 
     #[test]
     fn children_share_a_cache_line_and_lie_in_their_parent() {
-        let mut rng = Rng(23);
+        let mut rng = SplitMix64::new(23);
         let (pos, faces) = random_mesh(&mut rng, 60, 2000);
         for bvh in both_builds(&pos, &faces) {
             assert_eq!(std::mem::size_of::<Pair>(), 64);

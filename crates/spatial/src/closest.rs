@@ -124,32 +124,9 @@ fn closest_on_edges(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, [f64; 3])
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
-
-    /// SplitMix64: a tiny deterministic generator for test inputs.
-    pub(crate) struct Rng(pub u64);
-
-    impl Rng {
-        pub(crate) fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        /// Uniform in `[0, 1)`.
-        pub(crate) fn unit(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-        }
-        /// Uniform in `[lo, hi)`.
-        pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.unit()
-        }
-        pub(crate) fn vec(&mut self, lo: f64, hi: f64) -> DVec3 {
-            DVec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-        }
-    }
+    use coarsen_geom::SplitMix64;
 
     /// Brute force: the nearest of a dense barycentric grid of the triangle, and the grid's
     /// covering radius (every triangle point is within it of some grid point).
@@ -177,9 +154,13 @@ pub(crate) mod tests {
         assert!((a * w[0] + b * w[1] + c * w[2] - q).length() < 1e-12 * scale);
     }
 
-    fn random_triangle(rng: &mut Rng) -> (DVec3, DVec3, DVec3) {
+    fn random_triangle(rng: &mut SplitMix64) -> (DVec3, DVec3, DVec3) {
         loop {
-            let (a, b, c) = (rng.vec(-1.0, 1.0), rng.vec(-1.0, 1.0), rng.vec(-1.0, 1.0));
+            let (a, b, c) = (
+                rng.point(-1.0, 1.0),
+                rng.point(-1.0, 1.0),
+                rng.point(-1.0, 1.0),
+            );
             if coarsen_geom::triangle::min_angle(a, b, c) > 0.05 {
                 return (a, b, c);
             }
@@ -188,11 +169,11 @@ pub(crate) mod tests {
 
     #[test]
     fn matches_dense_sampling_on_random_triangles_and_points() {
-        let mut rng = Rng(7);
+        let mut rng = SplitMix64::new(7);
         for _ in 0..60 {
             let (a, b, c) = random_triangle(&mut rng);
             for _ in 0..5 {
-                let p = rng.vec(-2.0, 2.0);
+                let p = rng.point(-2.0, 2.0);
                 let (q, w) = closest_point_on_triangle(p, a, b, c);
                 assert_on_triangle(q, w, a, b, c);
                 let (sampled, h) = sampled_min_distance(p, a, b, c);
@@ -213,7 +194,7 @@ pub(crate) mod tests {
     /// `q` on the triangle, `p = q +` a vector in that region's normal cone.
     #[test]
     fn exact_in_each_of_the_seven_voronoi_regions() {
-        let mut rng = Rng(11);
+        let mut rng = SplitMix64::new(11);
         for _ in 0..200 {
             let (a, b, c) = random_triangle(&mut rng);
             let corners = [a, b, c];
@@ -279,13 +260,13 @@ pub(crate) mod tests {
 
     #[test]
     fn sliver_triangles_stay_within_their_thickness_of_the_truth() {
-        let mut rng = Rng(3);
+        let mut rng = SplitMix64::new(3);
         for _ in 0..200 {
-            let a = rng.vec(-1.0, 1.0);
-            let b = rng.vec(-1.0, 1.0);
+            let a = rng.point(-1.0, 1.0);
+            let b = rng.point(-1.0, 1.0);
             // c almost on the line ab: thickness about 1e-9.
-            let c = a.lerp(b, rng.range(-0.5, 1.5)) + rng.vec(-1e-9, 1e-9);
-            let p = rng.vec(-2.0, 2.0);
+            let c = a.lerp(b, rng.range(-0.5, 1.5)) + rng.point(-1e-9, 1e-9);
+            let p = rng.point(-2.0, 2.0);
             let (q, w) = closest_point_on_triangle(p, a, b, c);
             assert!(w.iter().all(|x| x.is_finite()));
             let (sampled, h) = sampled_min_distance(p, a, b, c);

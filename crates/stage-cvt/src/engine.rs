@@ -6,7 +6,7 @@
 
 use crate::energy::{Derived, Energy, FaceData, FacePoint, Sums, WithEnergy};
 use crate::sweep;
-use coarsen_geom::{DVec3, triangle};
+use coarsen_geom::{DVec3, SplitMix64, triangle};
 use coarsen_mesh::order::{CurveOrder, is_along_curve, morton, unit_box};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
@@ -99,31 +99,6 @@ pub struct PassLog {
     /// Faces that fell asleep: left out of the passes, with nothing around them changed,
     /// until a cluster next to them changes (the result is the same as visiting them).
     pub slept: u64,
-}
-
-/// A small deterministic PRNG (SplitMix64).
-#[derive(Clone, Debug)]
-pub struct SplitMix64(u64);
-
-impl SplitMix64 {
-    /// A generator from `seed`.
-    pub fn new(seed: u64) -> Self {
-        SplitMix64(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A number in `0..n` (`n > 0`).
-    pub fn below(&mut self, n: usize) -> usize {
-        ((self.next_u64() as u128 * n as u128) >> 64) as usize
-    }
 }
 
 /// The clusterer's face layout against the mesh's face numbering; the identity (a mesh
@@ -1291,16 +1266,5 @@ mod tests {
         // Capacities are respected.
         let q = allocate(6, &[100.0, 1.0], |c| [2, 10][c]);
         assert_eq!(q, vec![2, 4]);
-    }
-
-    #[test]
-    fn splitmix_is_deterministic_and_in_range() {
-        let mut a = SplitMix64::new(7);
-        let mut b = SplitMix64::new(7);
-        for _ in 0..100 {
-            let x = a.below(13);
-            assert_eq!(x, b.below(13));
-            assert!(x < 13);
-        }
     }
 }

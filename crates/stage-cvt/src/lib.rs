@@ -72,8 +72,7 @@ mod sweep;
 
 pub use energy::{Energy, FacePoint, Shu2009, Sums, Valette2004};
 pub use engine::{
-    ClusterError, Clusterer, PassLog, SplitMix64, cluster_centroids, face_neighbors,
-    faces_by_cluster,
+    ClusterError, Clusterer, PassLog, cluster_centroids, face_neighbors, faces_by_cluster,
 };
 
 use coarsen_mesh::Topology;

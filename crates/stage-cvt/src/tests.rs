@@ -1,4 +1,5 @@
 use super::*;
+use coarsen_geom::SplitMix64;
 use coarsen_shapes::{disk_with_holes, icosphere, plane_grid, torus};
 use coarsen_stage::{DVec3, Target};
 

@@ -1311,7 +1311,7 @@ mod tests {
             let expect = topology_of(mesh, &topo);
             let nf = mesh.n_faces();
             for seed in 0..12 {
-                let mut rng = coarsen_stage_cvt::SplitMix64::new(seed);
+                let mut rng = coarsen_geom::SplitMix64::new(seed);
                 let labels: Vec<u32> = (0..nf as u32).collect();
                 let d = diagnose(mesh, &topo, &labels, nf, expect, LoopMarking::WholeLoop);
                 let mut g = Merging::new(mesh, &topo, &labels, nf, d.faces);

@@ -1,8 +1,9 @@
 use super::*;
+use coarsen_geom::SplitMix64;
 use coarsen_mesh::{SanityOptions, sanity_check_with};
 use coarsen_shapes::{disk_with_holes, icosphere, plane_grid, torus};
 use coarsen_stage::{AttrValues, StageReport};
-use coarsen_stage_cvt::{ClusterCvt, CvtParams, EnergyKind, SplitMix64};
+use coarsen_stage_cvt::{ClusterCvt, CvtParams, EnergyKind};
 
 /// [`dual`] of `mesh` with its own adjacency, placed without an input surface.
 fn dual_on(
