@@ -289,7 +289,7 @@ pub fn split_small_pieces(mesh: Mesh, topo: &crate::Topology) -> (Mesh, usize) {
             *m
         });
         // Edge k of the face runs from corner k to corner k + 1.
-        faces.extend([[a, m0, m2], [m0, b, m1], [m2, m1, c], [m0, m1, m2]]);
+        faces.extend(crate::topology::split_children([a, b, c], [m0, m1, m2]));
         parents.extend([f as Index; 4]);
     }
     let (out, _) = mesh.rebuilt(

@@ -60,6 +60,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 mod split;
 
+pub use split::split_children;
+
 /// The "no such element" value of `u32` tables (a skipped face's edges and component).
 pub const NONE: u32 = u32::MAX;
 

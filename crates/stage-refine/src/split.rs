@@ -18,7 +18,9 @@
 //! 3. [`split`] appends one midpoint per marked edge and replaces every face by its
 //!    children, recording where each came from so that `Mesh::rebuilt` carries the
 //!    attributes (a midpoint takes the mean of its edge's ends). A uniform split (every
-//!    face red) writes its children in parallel.
+//!    face red) writes its children in parallel, numbered as `coarsen_mesh::topology`'s
+//!    uniform split (midpoints in edge order, children by `split_children`), so that its
+//!    adjacency can be derived from the coarse one (`Topology::of_split`).
 //!
 //! ```text
 //!  red, or 3 marked      1 marked          2 marked (a-b, b-c)
@@ -34,6 +36,7 @@
 //! shape.
 
 use coarsen_geom::{DVec3, triangle};
+use coarsen_mesh::topology::split_children;
 use coarsen_mesh::{FaceOrigins, Index, Mesh, Topology, VertexOrigins};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -271,12 +274,10 @@ pub(crate) fn split(mesh: &Mesh, table: &EdgeTable<'_>, plan: &Plan) -> Split {
                 1
             }
             7 => {
-                out[..4].copy_from_slice(&[
-                    [v[0], m[0], m[2]],
-                    [m[0], v[1], m[1]],
-                    [m[2], m[1], v[2]],
-                    [m[0], m[1], m[2]],
-                ]);
+                // The mesh crate's layout: a uniform split (every midpoint `nv + e`, as
+                // here when every edge is marked) gets its adjacency derived from the
+                // coarse one (`Topology::of_split`), as `postprocess` does.
+                out[..4].copy_from_slice(&split_children(v, m));
                 4
             }
             1 | 2 | 4 => {

@@ -1,13 +1,15 @@
 //! The adjacency of a uniform 1-to-4 split, derived from the adjacency of the mesh split
 //! instead of built from the split's faces.
 //!
-//! The split this knows numbers its elements the way `refine.red-green`'s uniform split
-//! does: the vertices keep their numbers, the midpoint of edge `e` (this adjacency's edge
-//! numbering) is vertex `n_vertices + e`, and face `f = [v0, v1, v2]`, whose edge `i` runs
-//! from corner `i` to corner `i + 1` and has midpoint `mi`, becomes the four faces
-//! `4f .. 4f + 3`: `[v0, m0, m2]`, `[m0, v1, m1]`, `[m2, m1, v2]`, `[m0, m1, m2]`. Corner
-//! child `c` has the half-edges `vc → mc` (its corner `c`), `mc → m(c+2)` (corner `c + 1`)
-//! and `m(c+2) → vc` (corner `c + 2`); the centre child has `mi → m(i+1)` at corner `i`.
+//! The uniform split is numbered this way (this module's convention; a caller whose split
+//! numbers its elements so, laying out the children with [`split_children`], gets its
+//! adjacency from [`Topology::of_split`]): the vertices keep their numbers, the midpoint of
+//! edge `e` (this adjacency's edge numbering) is vertex `n_vertices + e`, and face
+//! `f = [v0, v1, v2]`, whose edge `i` runs from corner `i` to corner `i + 1` and has
+//! midpoint `mi`, becomes the four faces `4f .. 4f + 3`: `[v0, m0, m2]`, `[m0, v1, m1]`,
+//! `[m2, m1, v2]`, `[m0, m1, m2]`. Corner child `c` has the half-edges `vc → mc` (its
+//! corner `c`), `mc → m(c+2)` (corner `c + 1`) and `m(c+2) → vc` (corner `c + 2`); the
+//! centre child has `mi → m(i+1)` at corner `i`.
 //!
 //! Every table comes out exactly as [`Topology::build`] would make it (tested against it):
 //! edges sorted, each edge's faces ascending, fans starting where the build starts them,
@@ -78,10 +80,18 @@ fn offsets(n: usize, count: impl Fn(usize) -> u32) -> Vec<u32> {
     out
 }
 
+/// The four children of face `corners` in the uniform 1-to-4 split, given the midpoints
+/// of its edges (`mids[i]` on the edge from corner `i` to corner `i + 1`): the three corner
+/// children, then the centre one, as the module docs number them.
+#[inline]
+pub fn split_children(corners: [u32; 3], mids: [u32; 3]) -> [[u32; 3]; 4] {
+    let ([v0, v1, v2], [m0, m1, m2]) = (corners, mids);
+    [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
+}
+
 impl Topology {
     /// The uniform 1-to-4 split of `mesh` (whose adjacency this is) in the numbering the
-    /// module docs give, each midpoint halfway along its edge; attributes are not carried
-    /// (`refine.red-green` makes the same split with them).
+    /// module docs give, each midpoint halfway along its edge; attributes are not carried.
     pub fn uniform_split(&self, mesh: &Mesh) -> Mesh {
         let nv = mesh.n_vertices() as u32;
         let mut positions = mesh.positions.clone();
@@ -94,10 +104,7 @@ impl Topology {
             .faces
             .iter()
             .zip(&self.face_edges)
-            .flat_map(|(&[v0, v1, v2], e)| {
-                let [m0, m1, m2] = e.map(|e| nv + e);
-                [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
-            })
+            .flat_map(|(&corners, e)| split_children(corners, e.map(|e| nv + e)))
             .collect();
         Mesh::new(positions, faces)
     }
@@ -144,11 +151,7 @@ impl Topology {
         }
         let (cf, fe) = (&coarse.faces, &self.face_edges);
         let mid = |e: u32| nv as u32 + e;
-        let children = |f: usize| {
-            let [v0, v1, v2] = cf[f];
-            let [m0, m1, m2] = fe[f].map(mid);
-            [[v0, m0, m2], [m0, v1, m1], [m2, m1, v2], [m0, m1, m2]]
-        };
+        let children = |f: usize| split_children(cf[f], fe[f].map(mid));
         if fine
             .faces
             .par_chunks(4)
