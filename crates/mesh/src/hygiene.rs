@@ -187,6 +187,11 @@ impl HygieneReport {
 /// [`cut_non_manifold_edges`] keeps the surface whole).
 pub fn split_non_manifold_vertices(mesh: Mesh) -> (Mesh, usize) {
     let topo = crate::Topology::build(&mesh);
+    split_non_manifold_vertices_with(mesh, &topo)
+}
+
+/// [`split_non_manifold_vertices`] with `topo`, the adjacency of `mesh`, at hand.
+pub fn split_non_manifold_vertices_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh, usize) {
     let bad = topo.non_manifold_vertices();
     if bad.is_empty() {
         return (mesh, 0);
@@ -342,6 +347,11 @@ pub struct EdgeCut {
 /// repeat a vertex keep theirs.
 pub fn cut_non_manifold_edges(mesh: Mesh) -> (Mesh, EdgeCut) {
     let topo = crate::Topology::build(&mesh);
+    cut_non_manifold_edges_with(mesh, &topo)
+}
+
+/// [`cut_non_manifold_edges`] with `topo`, the adjacency of `mesh`, at hand.
+pub fn cut_non_manifold_edges_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh, EdgeCut) {
     let nf = mesh.n_faces();
     let corner = |f: u32, v: Index| {
         let c = mesh.faces[f as usize].iter().position(|&u| u == v);

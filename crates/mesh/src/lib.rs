@@ -10,6 +10,8 @@
 //! * [`sanity`]: the exhaustive invariant check that tests and debug runs call after
 //!   every stage.
 //! * [`hygiene`]: the explicit, reported clean-up steps applied after loading a file.
+//! * [`repair`]: the repairs that ready a mesh for a step of a run (pinched vertices split,
+//!   edges of three or more faces cut, pieces too small for a dual split), by what it needs.
 //! * [`ring`]: whether the faces around a vertex form one oriented fan.
 //! * [`order`]: vertices and faces renumbered along a Morton curve, for memory locality.
 //!
@@ -29,6 +31,7 @@ pub mod attribute;
 pub mod carry;
 pub mod hygiene;
 pub mod order;
+pub mod repair;
 pub mod ring;
 pub mod sanity;
 pub mod scale;

@@ -1,26 +1,14 @@
 //! Running a checked pipeline on a mesh.
 //!
-//! Before a stage that needs a manifold mesh or asks for it (`Needs::split_fans`, the
-//! collapse stages), non-manifold vertices (several face fans at one point) are split into
-//! one vertex per fan, with a warning in that stage's report. A stage that only asks for
-//! the split skips the adjacency altogether when every vertex is one oriented fan
-//! ([`coarsen_mesh::ring::one_fan_everywhere`]), a far cheaper test (0.16 against 0.8 s
-//! on the bunny subdivided three times, 4.4M faces).
-//!
-//! Edges of three or more faces are cut apart before the first stage of a pipeline that
-//! has a stage needing a manifold mesh (so that the stages between, clustering above all,
-//! see the surface that stage will get), and again before such a stage if one appeared
-//! meanwhile: two-sided faces (two faces back to back on the same vertices, which no dual
-//! can represent) are first made one-sided ([`coarsen_mesh::hygiene::drop_two_sided_faces`]),
-//! then the faces on each such edge are paired, the two sides of a surface first, and the
-//! others come off ([`coarsen_mesh::hygiene::cut_non_manifold_edges`]: a fin on a surface
-//! leaves the surface whole). Then the faces of pieces whose boundary runs along fewer
-//! than three faces (a lone triangle cut off; no dual exists for them) are split 1-to-4
-//! ([`coarsen_mesh::hygiene::split_small_pieces`]). Warnings of that stage count each.
-//! In a pipeline with no such stage, a collapse stage gets those edges as they are (their
-//! vertices stay in place). Two faces using an edge in the same direction are no matter
-//! of manifoldness (the stage itself may refuse them); [`RunError::NotManifold`] guards
-//! what is left.
+//! Before each stage the mesh is readied for what the stage's contract needs
+//! ([`coarsen_mesh::repair::ready`], which says what is repaired and when): pinched
+//! vertices split per face fan before a stage that needs a manifold mesh or asks for the
+//! split (the collapse stages); edges of three or more faces cut apart, two-sided faces
+//! made one-sided and pieces too small for a dual split 1-to-4 before the first stage of a
+//! pipeline that has a stage needing a manifold mesh; a stage that needs one and does not
+//! get it fails with [`RunError::NotManifold`]. The repairs become that stage's warnings.
+//! The adjacency the repairs read is the run's shared one (`Shared::topology`), which the
+//! next stage that needs it takes over.
 //!
 //! A large input (see [`RunOptions::reorder_min_faces`]) is first renumbered along a
 //! Morton curve ([`coarsen_mesh::order::along_curve`]): the same surface, its vertices and
@@ -31,20 +19,18 @@
 //! records a progressive record keeps the input's numbering, so that rebuilding its finest
 //! level gives the input back vertex for vertex.
 
-use crate::{Pipeline, RunReport, StageRecord};
+use crate::{Pipeline, PipelineStage, RunReport, StageRecord};
+use coarsen_mesh::repair::{self, Readied, RepairError};
 use coarsen_mesh::{Mesh, sanity};
-use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport};
+use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport, Target};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// The words of the warning a stage's report carries when the runner split the mesh's
-/// non-manifold vertices before it (one vertex per face fan).
-pub const SPLIT_FANS_NOTE: &str = "split into one vertex per face fan";
-
-/// The words of the warning a stage's report carries when the runner cut edges of three or
-/// more faces apart before it (after making two-sided faces one-sided).
-pub const CUT_EDGES_NOTE: &str = "edges of three or more faces cut apart";
+/// non-manifold vertices before it (one vertex per face fan), and when it cut edges of
+/// three or more faces apart before it (after making two-sided faces one-sided).
+pub use coarsen_mesh::repair::{CUT_EDGES_NOTE, SPLIT_FANS_NOTE};
 
 /// What every stage's output must satisfy: valid indices, finite values, no face repeating
 /// a vertex, no duplicate face, no face of exactly zero area — the same bar as load-time
@@ -250,193 +236,35 @@ impl Pipeline {
             ..Default::default()
         };
         let shared = coarsen_stage::Shared::new();
+        let run = Run {
+            original: &original,
+            target: self.target,
+            opts: &opts,
+            shared: &shared,
+        };
+        // When some stage needs a manifold mesh, edges of three or more faces are cut
+        // before the first stage: the stages between (clustering above all) then work on
+        // the surface that stage will get.
+        let cut_ahead = self
+            .stages
+            .iter()
+            .any(|s| s.stage.contract().needs.manifold);
         for (i, s) in self.stages.iter().enumerate() {
-            let readying = Instant::now();
             let index = i + 1;
-            if opts.cancel.is_some_and(|flag| flag.load(Ordering::Relaxed)) {
-                return Err(RunError::Cancelled {
-                    index,
-                    kind: s.kind,
-                });
-            }
-            let contract = s.stage.contract();
-            let mut notes = Vec::new();
-            let topology_of = |mesh: &Mesh| {
-                shared.topology(mesh).map_err(|e| RunError::Stage {
-                    index,
-                    kind: s.kind,
-                    error: StageError::Input(e.to_string()),
-                })
-            };
-            let summary_of = |mesh: &Mesh| topology_of(mesh).map(|t| t.summary(mesh));
-            // When some stage of the pipeline needs a manifold mesh, edges of three or
-            // more faces are cut before the first one: the stages between (clustering
-            // above all) then work on the surface that stage will get.
-            let prepare = i == 0
-                && self
-                    .stages
-                    .iter()
-                    .any(|s| s.stage.contract().needs.manifold);
-            let cut_first = prepare && !topology_of(&mesh)?.is_manifold();
-            // A stage that only asks for the split needs no adjacency when every vertex is
-            // one oriented fan (the usual case), which is much cheaper to tell.
-            let check = contract.needs.manifold
-                || cut_first
-                || (contract.needs.split_fans && !coarsen_mesh::ring::one_fan_everywhere(&mesh));
-            // A manifold mesh has nothing to split, cut or refuse: its summary (the
-            // components and loops counted, every face's area measured) is not needed.
-            if check && !topology_of(&mesh)?.is_manifold() {
-                let mut summary = summary_of(&mesh)?;
-                // Edges of three or more faces are cut only for a stage that cannot work
-                // with them, or before one: a collapse stage keeps them joined (its
-                // vertices there stay).
-                let multi_edges = summary.n_non_manifold_edges - summary.n_flipped_edges;
-                let cut = (contract.needs.manifold || cut_first) && multi_edges > 0;
-                let split_only =
-                    multi_edges == 0 && (contract.needs.manifold || contract.needs.split_fans);
-                if summary.n_non_manifold_vertices > 0 && (split_only || cut) {
-                    // One vertex per face fan makes non-manifold vertices workable.
-                    let (split, cut_edges, copies) = if cut {
-                        // A two-sided face (two faces back to back) has no dual: one side
-                        // stays.
-                        let (m, dropped) = coarsen_mesh::hygiene::drop_two_sided_faces(mesh);
-                        if dropped > 0 {
-                            notes.push(format!(
-                                "{dropped} faces dropped that lay back to back on another face (two-sided faces made one-sided)"
-                            ));
-                        }
-                        let (m, c) = coarsen_mesh::hygiene::cut_non_manifold_edges(m);
-                        (m, c.edges, c.copies)
-                    } else {
-                        let (m, copies) = coarsen_mesh::hygiene::split_non_manifold_vertices(mesh);
-                        (m, 0, copies)
-                    };
-                    mesh = split;
-                    let after = summary_of(&mesh)?;
-                    if copies > 0 {
-                        let cut_note = if cut_edges > 0 {
-                            format!("{cut_edges} {CUT_EDGES_NOTE}, ")
-                        } else {
-                            String::new()
-                        };
-                        notes.push(format!(
-                            "{cut_note}{} non-manifold vertices {SPLIT_FANS_NOTE} ({copies} copies added)",
-                            summary.n_non_manifold_vertices - after.n_non_manifold_vertices
-                        ));
-                    }
-                    summary = after;
-                }
-                if contract.needs.manifold && !summary.manifold {
-                    return Err(RunError::NotManifold {
-                        index,
-                        kind: s.kind,
-                        edges: summary.n_non_manifold_edges,
-                        vertices: summary.n_non_manifold_vertices,
-                    });
-                }
-            }
-            // Pieces too small for a dual (a boundary loop along fewer than three faces, as
-            // a lone triangle cut off) are split 1-to-4 before the first stage.
-            let topo = if prepare {
-                Some(topology_of(&mesh)?)
-            } else {
-                None
-            };
-            if let Some(topo) = topo
-                && !coarsen_mesh::hygiene::small_pieces(&topo).is_empty()
-            {
-                let (split, n) = coarsen_mesh::hygiene::split_small_pieces(mesh, &topo);
-                mesh = split;
-                notes.push(format!(
-                    "{n} faces split 1-to-4 in pieces whose boundary runs along fewer than three faces (a dual needs three)"
-                ));
-            }
-            if s.stage.records_collapses() {
-                // Collapse stages build adjacency of their own: the kept one would only
-                // add to their peak (350 MiB at 4.4M faces).
-                shared.forget_topology();
-            }
+            stop_if_cancelled(&opts, index, s.kind)?;
+            let readying = Instant::now();
+            let readied = ready(mesh, s, index, cut_ahead && i == 0, &shared)?;
             let ready_seconds = readying.elapsed().as_secs_f64();
-            let (vb, fb) = (mesh.n_vertices(), mesh.n_faces());
-            tracing::info!(
-                stage = index,
-                kind = s.kind,
-                vertices = vb,
-                faces = fb,
-                "stage starts"
-            );
+            let (vb, fb) = (readied.mesh.n_vertices(), readied.mesh.n_faces());
             let mut stage_report = StageReport::default();
-            for note in notes {
+            for note in readied.notes {
                 stage_report.warn(note);
             }
             let t = Instant::now();
-            let mut slot = opts
-                .progressive
-                .map(|m| m.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
-            let cancelling = opts.cancel.map(|flag| Cancelling {
-                inner: opts.progress,
-                flag,
-            });
-            let mut cx = Context {
-                original: &original,
-                target: self.target,
-                report: &mut stage_report,
-                progress: match &cancelling {
-                    Some(c) => c as &dyn Progress,
-                    None => opts.progress,
-                },
-                progressive: slot.as_deref_mut(),
-                shared: Some(&shared),
-            };
-            let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                s.stage.run(mesh, &mut cx)
-            }));
-            mesh = match ran {
-                Ok(Ok(mesh)) => mesh,
-                Ok(Err(error)) => {
-                    return Err(RunError::Stage {
-                        index,
-                        kind: s.kind,
-                        error,
-                    });
-                }
-                Err(payload) if payload.is::<Cancelled>() => {
-                    return Err(RunError::Cancelled {
-                        index,
-                        kind: s.kind,
-                    });
-                }
-                Err(payload) => {
-                    return Err(RunError::Panicked {
-                        index,
-                        kind: s.kind,
-                        message: panic_message(payload.as_ref()),
-                    });
-                }
-            };
-            drop(slot);
+            mesh = run_stage(s, index, readied.mesh, &mut stage_report, &run)?;
             let seconds = t.elapsed().as_secs_f64();
-            tracing::info!(
-                stage = index,
-                kind = s.kind,
-                vertices = mesh.n_vertices(),
-                faces = mesh.n_faces(),
-                seconds,
-                "stage done"
-            );
-            for (name, value) in &stage_report.figures {
-                tracing::debug!(stage = index, kind = s.kind, "{name} = {value}");
-            }
-            for w in &stage_report.warnings {
-                tracing::warn!(stage = index, kind = s.kind, "{w}");
-            }
-            if opts.sanity {
-                sanity::sanity_check_with(&mesh, &STAGE_OUTPUT).map_err(|e| RunError::Invalid {
-                    index,
-                    kind: s.kind,
-                    detail: e.to_string(),
-                })?;
-            }
+            log_stage(s.kind, index, &mesh, seconds, &stage_report);
+            check_output(&opts, &mesh, index, s.kind)?;
             report.stages.push(StageRecord {
                 index,
                 kind: s.kind.to_string(),
@@ -460,4 +288,147 @@ impl Pipeline {
         report.output_faces = mesh.n_faces();
         Ok((mesh, report))
     }
+}
+
+/// What every stage of one run sees besides its input mesh.
+struct Run<'a> {
+    /// The run's input, as the stages measure against it.
+    original: &'a Mesh,
+    target: Option<Target>,
+    opts: &'a RunOptions<'a>,
+    /// What the stages share (indexes of the input, the current adjacency).
+    shared: &'a coarsen_stage::Shared,
+}
+
+/// Runs stage `s` (at 1-based `index`) on `mesh` with the run's context, turning its
+/// error, a panic or a cancellation inside it into the run's error.
+fn run_stage(
+    s: &PipelineStage,
+    index: usize,
+    mesh: Mesh,
+    stage_report: &mut StageReport,
+    run: &Run<'_>,
+) -> Result<Mesh, RunError> {
+    let opts = run.opts;
+    tracing::info!(
+        stage = index,
+        kind = s.kind,
+        vertices = mesh.n_vertices(),
+        faces = mesh.n_faces(),
+        "stage starts"
+    );
+    let mut slot = opts
+        .progressive
+        .map(|m| m.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
+    let cancelling = opts.cancel.map(|flag| Cancelling {
+        inner: opts.progress,
+        flag,
+    });
+    let mut cx = Context {
+        original: run.original,
+        target: run.target,
+        report: stage_report,
+        progress: match &cancelling {
+            Some(c) => c as &dyn Progress,
+            None => opts.progress,
+        },
+        progressive: slot.as_deref_mut(),
+        shared: Some(run.shared),
+    };
+    let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| s.stage.run(mesh, &mut cx)));
+    let kind = s.kind;
+    match ran {
+        Ok(Ok(mesh)) => Ok(mesh),
+        Ok(Err(error)) => Err(RunError::Stage { index, kind, error }),
+        Err(payload) if payload.is::<Cancelled>() => Err(RunError::Cancelled { index, kind }),
+        Err(payload) => Err(RunError::Panicked {
+            index,
+            kind,
+            message: panic_message(payload.as_ref()),
+        }),
+    }
+}
+
+/// [`RunError::Cancelled`] when the run's cancel flag is up before stage `index`.
+fn stop_if_cancelled(
+    opts: &RunOptions<'_>,
+    index: usize,
+    kind: &'static str,
+) -> Result<(), RunError> {
+    match opts.cancel.is_some_and(|flag| flag.load(Ordering::Relaxed)) {
+        true => Err(RunError::Cancelled { index, kind }),
+        false => Ok(()),
+    }
+}
+
+/// `mesh` readied for stage `s` (at 1-based `index`) by the mesh crate's repairs, reading
+/// the run's shared adjacency; `cut_ahead` before the first stage of a pipeline with a
+/// stage that needs a manifold mesh.
+fn ready(
+    mesh: Mesh,
+    s: &PipelineStage,
+    index: usize,
+    cut_ahead: bool,
+    shared: &coarsen_stage::Shared,
+) -> Result<Readied, RunError> {
+    let needs = s.stage.contract().needs;
+    let needs = repair::Needs {
+        manifold: needs.manifold,
+        split_fans: needs.split_fans,
+        cut_ahead,
+    };
+    let readied = repair::ready(mesh, needs, |m| shared.topology(m)).map_err(|e| match e {
+        RepairError::NotManifold { edges, vertices } => RunError::NotManifold {
+            index,
+            kind: s.kind,
+            edges,
+            vertices,
+        },
+        RepairError::Topology(e) => RunError::Stage {
+            index,
+            kind: s.kind,
+            error: StageError::Input(e.to_string()),
+        },
+    })?;
+    if s.stage.records_collapses() {
+        // Collapse stages build adjacency of their own: the kept one would only add to
+        // their peak (350 MiB at 4.4M faces).
+        shared.forget_topology();
+    }
+    Ok(readied)
+}
+
+/// Logs what stage `index` made: its counts and time, then its figures and warnings.
+fn log_stage(kind: &'static str, index: usize, mesh: &Mesh, seconds: f64, r: &StageReport) {
+    tracing::info!(
+        stage = index,
+        kind,
+        vertices = mesh.n_vertices(),
+        faces = mesh.n_faces(),
+        seconds,
+        "stage done"
+    );
+    for (name, value) in &r.figures {
+        tracing::debug!(stage = index, kind, "{name} = {value}");
+    }
+    for w in &r.warnings {
+        tracing::warn!(stage = index, kind, "{w}");
+    }
+}
+
+/// The exhaustive check of stage `index`'s output, when the run asks for it.
+fn check_output(
+    opts: &RunOptions<'_>,
+    mesh: &Mesh,
+    index: usize,
+    kind: &'static str,
+) -> Result<(), RunError> {
+    if !opts.sanity {
+        return Ok(());
+    }
+    sanity::sanity_check_with(mesh, &STAGE_OUTPUT).map_err(|e| RunError::Invalid {
+        index,
+        kind,
+        detail: e.to_string(),
+    })
 }
