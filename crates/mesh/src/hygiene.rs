@@ -352,33 +352,75 @@ pub fn cut_non_manifold_edges(mesh: Mesh) -> (Mesh, EdgeCut) {
 
 /// [`cut_non_manifold_edges`] with `topo`, the adjacency of `mesh`, at hand.
 pub fn cut_non_manifold_edges_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh, EdgeCut) {
-    let nf = mesh.n_faces();
-    let corner = |f: u32, v: Index| {
-        let c = mesh.faces[f as usize].iter().position(|&u| u == v);
-        3 * f + c.unwrap_or(0) as u32
+    let mut fans = CornerFans::new(&mesh.faces);
+    let (multi, pairs) = join_plain_edges(&mesh, topo, &mut fans);
+    let cut = EdgeCut {
+        edges: multi.len() / 2,
+        copies: 0,
     };
-    // Corners around one vertex that share a fan, by union-find over all corners.
-    let mut parent: Vec<u32> = (0..3 * nf as u32).collect();
-    let join = |parent: &mut Vec<u32>, f: u32, g: u32, [a, b]: [u32; 2]| {
-        for v in [a, b] {
-            let (x, y) = (
-                crate::topology::find_root(parent, corner(f, v)),
-                crate::topology::find_root(parent, corner(g, v)),
-            );
-            parent[x.max(y) as usize] = x.min(y);
+    pair_faces_on_multi_edges(topo, &mut fans, &multi, pairs);
+    let parent = fans.parent;
+    give_fans_vertices(mesh, topo, parent, cut)
+}
+
+/// The corners of a face array joined into fans (those around one vertex that share a
+/// fan), by union-find over all corners.
+struct CornerFans<'a> {
+    faces: &'a [[Index; 3]],
+    parent: Vec<u32>,
+}
+
+impl CornerFans<'_> {
+    fn new(faces: &[[Index; 3]]) -> CornerFans<'_> {
+        CornerFans {
+            faces,
+            parent: (0..3 * faces.len() as u32).collect(),
         }
-    };
+    }
+
+    /// The fan of face `f`'s corner at `v`.
+    fn root(&mut self, f: u32, v: Index) -> u32 {
+        let k = corner_of(self.faces, f, v);
+        crate::topology::find_root(&mut self.parent, k)
+    }
+
+    /// Joins faces `f` and `g` across their edge `[a, b]`: their corners at both ends.
+    fn join(&mut self, f: u32, g: u32, [a, b]: [u32; 2]) {
+        for v in [a, b] {
+            let (x, y) = (self.root(f, v), self.root(g, v));
+            self.parent[x.max(y) as usize] = x.min(y);
+        }
+    }
+}
+
+/// The corner of face `f` of `faces` at vertex `v` (as `3 f + c`).
+fn corner_of(faces: &[[Index; 3]], f: u32, v: Index) -> u32 {
+    let c = faces[f as usize].iter().position(|&u| u == v);
+    3 * f + c.unwrap_or(0) as u32
+}
+
+/// A candidate pair of faces on an edge of three or more faces: how well their normals
+/// agree, the edge, the two faces.
+type FacePair = (f64, u32, u32, u32);
+
+/// Joins the faces across every edge of two faces, and lists the edges of three or more
+/// (`(end, edge)` for both ends, sorted) with the pairs of their faces that run along them
+/// in opposite directions.
+fn join_plain_edges(
+    mesh: &Mesh,
+    topo: &crate::Topology,
+    fans: &mut CornerFans<'_>,
+) -> (Vec<(Index, u32)>, Vec<FacePair>) {
     let normal = |f: u32| {
         let [a, b, c] = mesh.faces[f as usize].map(|v| mesh.positions[v as usize]);
         coarsen_geom::triangle::cross(a, b, c).normalize_or_zero()
     };
-    // Faces joined across edges of two faces first; the candidate pairs of the others.
     let mut multi: Vec<(Index, u32)> = Vec::new();
-    let mut pairs: Vec<(f64, u32, u32, u32)> = Vec::new();
+    let mut pairs: Vec<FacePair> = Vec::new();
     for e in 0..topo.n_edges() as u32 {
         let [a, b] = topo.edge(e);
         match topo.edge_faces(e) {
-            &[f, g] => join(&mut parent, f, g, [a, b]),
+            &[f, g] => fans.join(f, g, [a, b]),
             faces if faces.len() >= 3 => {
                 multi.extend([(a, e), (b, e)]);
                 // Which way each face runs along the edge: a → b or not.
@@ -397,24 +439,33 @@ pub fn cut_non_manifold_edges_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh,
             _ => {}
         }
     }
-    let cut_edges = multi.len() / 2;
     multi.sort_unstable();
-    // Best agreeing pairs first. A pair is joined only if, around each of its ends, no
-    // fan then holds more than two faces of any edge of three or more (else that edge
-    // would stay one edge of them all, as when a surface's two sides would each join a
-    // side of a two-sided flap).
+    (multi, pairs)
+}
+
+/// Joins pairs of faces on the edges of three or more faces, the best agreeing pairs
+/// first, each face in one pair at most. A pair is joined only if, around each of its
+/// ends, no fan then holds more than two faces of any edge of three or more (else that
+/// edge would stay one edge of them all, as when a surface's two sides would each join a
+/// side of a two-sided flap).
+fn pair_faces_on_multi_edges(
+    topo: &crate::Topology,
+    fans: &mut CornerFans<'_>,
+    multi: &[(Index, u32)],
+    mut pairs: Vec<FacePair>,
+) {
     pairs.sort_by(|x, y| {
         y.0.total_cmp(&x.0)
             .then((x.1, x.2, x.3).cmp(&(y.1, y.2, y.3)))
     });
-    let mut taken = vec![false; nf];
+    let mut taken = vec![false; fans.faces.len()];
     for &(_, e, f, g) in &pairs {
         if taken[f as usize] || taken[g as usize] {
             continue;
         }
         let ends = topo.edge(e);
         let fits = ends.iter().all(|&v| {
-            let roots = [f, g].map(|h| crate::topology::find_root(&mut parent, corner(h, v)));
+            let roots = [f, g].map(|h| fans.root(h, v));
             let from = multi.partition_point(|&(u, _)| u < v);
             multi[from..]
                 .iter()
@@ -423,9 +474,7 @@ pub fn cut_non_manifold_edges_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh,
                     let inside = topo
                         .edge_faces(m)
                         .iter()
-                        .filter(|&&h| {
-                            roots.contains(&crate::topology::find_root(&mut parent, corner(h, v)))
-                        })
+                        .filter(|&&h| roots.contains(&fans.root(h, v)))
                         .count();
                     inside <= 2
                 })
@@ -433,27 +482,35 @@ pub fn cut_non_manifold_edges_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh,
         if fits {
             taken[f as usize] = true;
             taken[g as usize] = true;
-            join(&mut parent, f, g, ends);
+            fans.join(f, g, ends);
         }
     }
-    let mut cut = EdgeCut {
-        edges: cut_edges,
-        copies: 0,
-    };
+}
+
+/// One vertex per fan (`parent`: the corners' union-find of [`CornerFans`]): around each
+/// vertex, the fan of its first face keeps it and every other fan gets a copy at the same
+/// position with the same attributes (counted in `cut`).
+fn give_fans_vertices(
+    mesh: Mesh,
+    topo: &crate::Topology,
+    mut parent: Vec<u32>,
+    mut cut: EdgeCut,
+) -> (Mesh, EdgeCut) {
+    let nf = mesh.n_faces();
     let mut positions = mesh.positions.clone();
     let mut faces = mesh.faces.clone();
     let mut origins = VertexOrigins::identity(mesh.n_vertices());
     // Per vertex: the fans met so far (their root) and the vertex each was given.
-    let mut fans: Vec<(u32, Index)> = Vec::new();
+    let mut met: Vec<(u32, Index)> = Vec::new();
     for v in 0..mesh.n_vertices() as Index {
-        fans.clear();
+        met.clear();
         for &f in topo.vertex_faces(v) {
-            let k = corner(f, v);
+            let k = corner_of(&mesh.faces, f, v);
             let root = crate::topology::find_root(&mut parent, k);
-            let w = match fans.iter().find(|&&(r, _)| r == root) {
+            let w = match met.iter().find(|&&(r, _)| r == root) {
                 Some(&(_, w)) => w,
                 None => {
-                    let w = if fans.is_empty() {
+                    let w = if met.is_empty() {
                         v
                     } else {
                         positions.push(mesh.positions[v as usize]);
@@ -461,7 +518,7 @@ pub fn cut_non_manifold_edges_with(mesh: Mesh, topo: &crate::Topology) -> (Mesh,
                         cut.copies += 1;
                         (positions.len() - 1) as Index
                     };
-                    fans.push((root, w));
+                    met.push((root, w));
                     w
                 }
             };

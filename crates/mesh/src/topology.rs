@@ -615,7 +615,7 @@ impl Topology {
         let mut vertex_faces = vec![0u32; corners.len()];
         let mut vertex_flags = vec![0u8; nv];
         // Zeroed memory, taken over in place (skipped faces get `NONE` at the end).
-        let mut local_face_edges: Vec<[AtomicU32; 3]> = vec![[0u32; 3]; faces.len()]
+        let local_face_edges: Vec<[AtomicU32; 3]> = vec![[0u32; 3]; faces.len()]
             .into_iter()
             .map(|fe| fe.map(AtomicU32::new))
             .collect();
@@ -678,38 +678,15 @@ impl Topology {
             edge_bases, links, ..
         } = tables.finish(self);
 
-        // Range-local edge ids → global ones (the range of an edge is its smaller
-        // endpoint's); skipped faces get `NONE`.
-        let shift = |(fe, (face, &ok)): (&mut [AtomicU32; 3], (&[Index; 3], &bool))| {
-            for (c, e) in fe.iter_mut().enumerate() {
-                let e = e.get_mut();
-                *e = if ok {
-                    let owner = face[c].min(face[(c + 1) % 3]) as usize / chunk;
-                    e.wrapping_add(edge_bases.get(owner).copied().unwrap_or(0))
-                } else {
-                    NONE
-                };
-            }
-        };
-        if n_chunks > 1 {
-            local_face_edges
-                .par_iter_mut()
-                .zip(faces.par_iter().zip(valid))
-                .for_each(shift);
-        } else if self.n_out_of_range_faces + self.n_repeated_index_faces > 0 {
-            for (fe, &ok) in local_face_edges.iter_mut().zip(valid) {
-                if !ok {
-                    *fe = [NONE; 3].map(AtomicU32::new);
-                }
-            }
-        }
-        // The same layout: collected in place.
-        self.face_edges = local_face_edges
-            .into_iter()
-            .map(|fe| fe.map(AtomicU32::into_inner))
-            .collect();
+        let skipped = self.n_out_of_range_faces + self.n_repeated_index_faces > 0;
+        let ranges = (n_chunks, chunk);
+        self.face_edges = globalize(local_face_edges, faces, valid, ranges, &edge_bases, skipped);
+        self.boundary_links(&links)
+    }
 
-        // Boundary links, in vertex order, now that every edge has its id.
+    /// The boundary links of the edges (see `link_boundary`), from the pairs of half-edges
+    /// the ranges found at each vertex, in vertex order, now that every edge has its id.
+    fn boundary_links(&self, links: &[[u32; 3]]) -> Vec<[u32; 2]> {
         let mut boundary_link = Vec::new();
         if !links.is_empty() {
             boundary_link = vec![[NONE; 2]; self.edges.len()];
@@ -720,7 +697,7 @@ impl Topology {
                     .copied()
                     .unwrap_or(NONE)
             };
-            for &[v, a, b] in &links {
+            for &[v, a, b] in links {
                 let (a, b) = (edge_of(a), edge_of(b));
                 // Both are edges of v by construction; the test only guards the invariant.
                 if a != NONE && b != NONE {
@@ -730,6 +707,47 @@ impl Topology {
         }
         boundary_link
     }
+}
+
+/// The faces' edges with global ids: the range-local ids of `local` shifted by their
+/// range's first edge (`edge_bases`; the range of an edge is its smaller endpoint's, of
+/// `chunk` vertices each, `n_chunks` of them), `NONE` for the faces not `valid` (some are
+/// not when `skipped`). The same layout: collected in place.
+fn globalize(
+    mut local: Vec<[AtomicU32; 3]>,
+    faces: &[[Index; 3]],
+    valid: &[bool],
+    (n_chunks, chunk): (usize, usize),
+    edge_bases: &[u32],
+    skipped: bool,
+) -> Vec<[u32; 3]> {
+    let shift = |(fe, (face, &ok)): (&mut [AtomicU32; 3], (&[Index; 3], &bool))| {
+        for (c, e) in fe.iter_mut().enumerate() {
+            let e = e.get_mut();
+            *e = if ok {
+                let owner = face[c].min(face[(c + 1) % 3]) as usize / chunk;
+                e.wrapping_add(edge_bases.get(owner).copied().unwrap_or(0))
+            } else {
+                NONE
+            };
+        }
+    };
+    if n_chunks > 1 {
+        local
+            .par_iter_mut()
+            .zip(faces.par_iter().zip(valid))
+            .for_each(shift);
+    } else if skipped {
+        for (fe, &ok) in local.iter_mut().zip(valid) {
+            if !ok {
+                *fe = [NONE; 3].map(AtomicU32::new);
+            }
+        }
+    }
+    local
+        .into_iter()
+        .map(|fe| fe.map(AtomicU32::into_inner))
+        .collect()
 }
 
 /// The tables of the vertex pass being assembled from its ranges, in vertex order.
@@ -1119,6 +1137,16 @@ impl VertexPass<'_> {
     /// through edges of exactly two faces (flipped or not), walks the fans and pairs the
     /// boundary edges at their ends. Returns the number of fans.
     fn general_vertex(&mut self, v: u32, start: usize, sc: &mut Scratch) -> usize {
+        let n_groups = self.group_edges(v, sc);
+        let n_fans = self.walk_fans(v, start, n_groups, sc);
+        self.pair_loose_ends(v, sc);
+        n_fans
+    }
+
+    /// Groups the slots of `v` by the edge `(v, x)` each side lies on (sorting), records
+    /// each edge whose other end is larger, and links the faces of every edge of exactly
+    /// two faces. Returns the number of groups (edges at `v`).
+    fn group_edges(&mut self, v: u32, sc: &mut Scratch) -> u32 {
         let slots = &mut sc.slots;
         let pairs = &mut sc.pairs;
         pairs.clear();
@@ -1192,6 +1220,15 @@ impl VertexPass<'_> {
             i = k;
         }
 
+        n_groups
+    }
+
+    /// Walks the fans of `v` from the linked slots, laying their faces out from `start`
+    /// and its neighbours once each, and links the boundary edges at the two open ends of
+    /// each chain (those no fan pairs are kept in `sc.loose_in` and `sc.loose_out`).
+    /// Returns the number of fans.
+    fn walk_fans(&mut self, v: u32, start: usize, n_groups: u32, sc: &mut Scratch) -> usize {
+        let slots = &mut sc.slots;
         // Walk the fans: open chains starting where the `next` side is open (so the
         // walk runs counter-clockwise), then open chains starting where the `prev`
         // side is open (only reachable through orientation flips), then closed fans.
@@ -1272,6 +1309,11 @@ impl VertexPass<'_> {
                 }
             }
         }
+        n_fans
+    }
+
+    /// Pairs the boundary ends at `v` that no fan paired.
+    fn pair_loose_ends(&mut self, v: u32, sc: &mut Scratch) {
         // Boundary ends that no fan pairs (chains ending at an edge of three or more
         // faces): entering edges paired with leaving ones in edge order (the order of
         // their other endpoints), then any rest among themselves, so every boundary edge
@@ -1292,7 +1334,6 @@ impl VertexPass<'_> {
         for pair in rest.chunks_exact(2) {
             self.out.links.push([v, half(pair[0]), half(pair[1])]);
         }
-        n_fans
     }
 }
 

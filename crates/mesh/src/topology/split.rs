@@ -126,6 +126,26 @@ impl Topology {
 
     /// [`Topology::of_split`], the vertex neighbours laid out when `neighbors` is true.
     fn split_tables(&self, coarse: &Mesh, fine: &Mesh, neighbors: bool) -> Option<Topology> {
+        if !self.is_split_into(coarse, fine) {
+            return None;
+        }
+        let c = Coarse {
+            topo: self,
+            faces: &coarse.faces,
+            face_edges: &self.face_edges,
+            nv: self.n_vertices,
+        };
+        let off = c.offsets(neighbors)?;
+        let mut fine = FineTables::new(&off, 4 * self.n_faces());
+        c.fill(&mut fine, &off, neighbors);
+        let (loop_offsets, loop_vertices) = c.loops()?;
+        Some(fine.into_topology(self, off, loop_offsets, loop_vertices))
+    }
+
+    /// Whether `fine` is the uniform split of `coarse`, whose adjacency this is, in the
+    /// module's numbering, and `coarse` a consistently oriented manifold without isolated
+    /// vertices whose split fits the tables.
+    fn is_split_into(&self, coarse: &Mesh, fine: &Mesh) -> bool {
         let (nv, nf, ne) = (self.n_vertices, self.n_faces(), self.edges.len());
         let (nv2, nf2) = (nv + ne, 4 * nf);
         let manifold = self.has_vertex_neighbors()
@@ -147,282 +167,354 @@ impl Topology {
             || nf2 > MAX_FACES
             || nv2 >= NONE as usize
         {
-            return None;
+            return false;
         }
         let (cf, fe) = (&coarse.faces, &self.face_edges);
-        let mid = |e: u32| nv as u32 + e;
-        let children = |f: usize| split_children(cf[f], fe[f].map(mid));
-        if fine
-            .faces
+        let children = |f: usize| split_children(cf[f], fe[f].map(|e| nv as u32 + e));
+        fine.faces
             .par_chunks(4)
             .enumerate()
-            .any(|(f, four)| four != children(f))
-        {
+            .all(|(f, four)| four == children(f))
+    }
+}
+
+/// The coarse mesh and its adjacency, as the derivation of its split's adjacency reads
+/// them.
+struct Coarse<'a> {
+    topo: &'a Topology,
+    faces: &'a [[u32; 3]],
+    face_edges: &'a [[u32; 3]],
+    /// Coarse vertices: the fine vertex of edge `e`'s midpoint is `nv + e`.
+    nv: usize,
+}
+
+/// Where each fine vertex's entries start in each table (with the totals appended).
+struct Offsets {
+    faces: Vec<u32>,
+    /// Empty without the vertex neighbours.
+    neighbors: Vec<u32>,
+    edges: Vec<u32>,
+    edge_faces: Vec<u32>,
+}
+
+/// The tables of the fine adjacency, filled range by range.
+struct FineTables {
+    vertex_faces: Vec<u32>,
+    vertex_neighbors: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+    edge_flags: Vec<u8>,
+    edge_face_offsets: Vec<u32>,
+    edge_faces: Vec<u32>,
+    vertex_flags: Vec<u8>,
+    face_edges: Vec<[AtomicU32; 3]>,
+}
+
+impl Coarse<'_> {
+    /// The fine vertex at the midpoint of coarse edge `e`.
+    #[inline]
+    fn mid(&self, e: u32) -> u32 {
+        self.nv as u32 + e
+    }
+
+    /// The corner of coarse face `f` at vertex `v`.
+    #[inline]
+    fn corner(&self, v: u32, f: u32) -> usize {
+        self.faces[f as usize]
+            .iter()
+            .position(|&x| x == v)
+            .unwrap_or(0)
+    }
+
+    /// The slot of edge `e` among coarse face `f`'s edges.
+    #[inline]
+    fn slot(&self, e: u32, f: u32) -> usize {
+        self.face_edges[f as usize]
+            .iter()
+            .position(|&x| x == e)
+            .unwrap_or(0)
+    }
+
+    /// The fine faces around midpoint `e` in one coarse face `f`, counter-clockwise.
+    fn around_in(&self, e: u32, f: u32) -> [Around; 3] {
+        let k = self.slot(e, f);
+        let (c1, c2) = ((k + 1) % 3, (k + 2) % 3);
+        let (v, m) = (
+            self.faces[f as usize],
+            self.face_edges[f as usize].map(|e| self.mid(e)),
+        );
+        let f4 = 4 * f;
+        [
+            Around {
+                face: f4 + c1 as u32,
+                next: v[c1],
+                prev: m[c1],
+            },
+            Around {
+                face: f4 + 3,
+                next: m[c1],
+                prev: m[c2],
+            },
+            Around {
+                face: f4 + k as u32,
+                next: m[c2],
+                prev: v[k],
+            },
+        ]
+    }
+
+    /// The other edges of the coarse faces of edge `e`, two per face, and how many.
+    fn partner_ids(&self, e: u32) -> ([u32; 4], usize) {
+        let mut ids = [NONE; 4];
+        let ef = self.topo.edge_faces(e);
+        for (i, &f) in ef.iter().take(2).enumerate() {
+            let k = self.slot(e, f);
+            ids[2 * i] = self.face_edges[f as usize][(k + 2) % 3];
+            ids[2 * i + 1] = self.face_edges[f as usize][(k + 1) % 3];
+        }
+        (ids, 2 * ef.len().min(2))
+    }
+
+    /// The interior fine edges from midpoint `e` to larger midpoints, sorted, into `out`.
+    fn partners(&self, e: u32, out: &mut Vec<Partner>) {
+        out.clear();
+        for &f in self.topo.edge_faces(e) {
+            let k = self.slot(e, f);
+            let (c1, c2) = ((k + 1) % 3, (k + 2) % 3);
+            let f4 = 4 * f;
+            let (p2, p1) = (
+                self.face_edges[f as usize][c2],
+                self.face_edges[f as usize][c1],
+            );
+            if p2 > e {
+                out.push((self.mid(p2), [(f4 + k as u32, c1), (f4 + 3, c2)]));
+            }
+            if p1 > e {
+                out.push((self.mid(p1), [(f4 + c1 as u32, c2), (f4 + 3, k)]));
+            }
+        }
+        out.sort_unstable_by_key(|p| p.0);
+    }
+
+    /// How many entries fine vertex `v` has in each table; `None` when two coarse faces
+    /// share two edges (the split would not be a manifold).
+    fn entries(&self, v: usize) -> Option<Entries> {
+        let t = self.topo;
+        if v < self.nv {
+            let k = t.n_vertex_faces(v as u32) as u32;
+            let n = t.vertex_neighbors(v as u32).len() as u32;
+            return Some(Entries {
+                faces: k,
+                neighbors: n,
+                edges: n,
+                edge_faces: 2 * k,
+            });
+        }
+        let e = (v - self.nv) as u32;
+        let (ids, n) = self.partner_ids(e);
+        let ids = &ids[..n];
+        if (0..n).any(|i| ids[i + 1..].contains(&ids[i])) {
             return None;
         }
-        let corner = |v: u32, f: u32| cf[f as usize].iter().position(|&x| x == v).unwrap_or(0);
-        let slot = |e: u32, f: u32| fe[f as usize].iter().position(|&x| x == e).unwrap_or(0);
-        // The faces around midpoint `e` in one coarse face `f`, counter-clockwise.
-        let around_in = |e: u32, f: u32| {
-            let k = slot(e, f);
-            let (c1, c2) = ((k + 1) % 3, (k + 2) % 3);
-            let (v, m) = (cf[f as usize], fe[f as usize].map(mid));
-            let f4 = 4 * f;
-            [
-                Around {
-                    face: f4 + c1 as u32,
-                    next: v[c1],
-                    prev: m[c1],
-                },
-                Around {
-                    face: f4 + 3,
-                    next: m[c1],
-                    prev: m[c2],
-                },
-                Around {
-                    face: f4 + k as u32,
-                    next: m[c2],
-                    prev: v[k],
-                },
-            ]
-        };
-        // The other edges of the faces of edge `e`, two per face.
-        let partner_ids = |e: u32| {
-            let mut ids = [NONE; 4];
-            let ef = self.edge_faces(e);
-            for (i, &f) in ef.iter().take(2).enumerate() {
-                let k = slot(e, f);
-                ids[2 * i] = fe[f as usize][(k + 2) % 3];
-                ids[2 * i + 1] = fe[f as usize][(k + 1) % 3];
-            }
-            (ids, 2 * ef.len().min(2))
-        };
-        // The interior edges from midpoint `e` to larger midpoints, sorted.
-        let partners = |e: u32, out: &mut Vec<Partner>| {
-            out.clear();
-            for &f in self.edge_faces(e) {
-                let k = slot(e, f);
-                let (c1, c2) = ((k + 1) % 3, (k + 2) % 3);
-                let f4 = 4 * f;
-                let (p2, p1) = (fe[f as usize][c2], fe[f as usize][c1]);
-                if p2 > e {
-                    out.push((mid(p2), [(f4 + k as u32, c1), (f4 + 3, c2)]));
-                }
-                if p1 > e {
-                    out.push((mid(p1), [(f4 + c1 as u32, c2), (f4 + 3, k)]));
-                }
-            }
-            out.sort_unstable_by_key(|p| p.0);
-        };
-        // Entries per fine vertex, then where each vertex's entries start.
+        let larger = ids.iter().filter(|&&p| p > e).count() as u32;
+        Some(Entries {
+            faces: 3 * n as u32 / 2,
+            neighbors: n as u32 + 2,
+            edges: larger,
+            edge_faces: 2 * larger,
+        })
+    }
+
+    /// Where each fine vertex's entries start; `None` when the split would not be a
+    /// manifold.
+    fn offsets(&self, neighbors: bool) -> Option<Offsets> {
+        let (ne, nf) = (self.topo.edges.len(), self.topo.n_faces());
+        let nv2 = self.nv + ne;
         let counts: Vec<Entries> = (0..nv2)
             .into_par_iter()
-            .map(|v| {
-                if v < nv {
-                    let k = self.n_vertex_faces(v as u32) as u32;
-                    let n = self.vertex_neighbors(v as u32).len() as u32;
-                    return Some(Entries {
-                        faces: k,
-                        neighbors: n,
-                        edges: n,
-                        edge_faces: 2 * k,
-                    });
-                }
-                let e = (v - nv) as u32;
-                let (ids, n) = partner_ids(e);
-                let ids = &ids[..n];
-                // Two coarse faces sharing two edges: the split would not be a manifold.
-                if (0..n).any(|i| ids[i + 1..].contains(&ids[i])) {
-                    return None;
-                }
-                let larger = ids.iter().filter(|&&p| p > e).count() as u32;
-                Some(Entries {
-                    faces: 3 * n as u32 / 2,
-                    neighbors: n as u32 + 2,
-                    edges: larger,
-                    edge_faces: 2 * larger,
-                })
-            })
+            .map(|v| self.entries(v))
             .collect::<Option<_>>()?;
-        let face_off = offsets(nv2, |v| counts[v].faces);
-        // Without neighbours no offsets either (asking for them then fails loudly).
-        let nbr_off = match neighbors {
-            true => offsets(nv2, |v| counts[v].neighbors),
-            false => Vec::new(),
+        let off = Offsets {
+            faces: offsets(nv2, |v| counts[v].faces),
+            // Without neighbours no offsets either (asking for them then fails loudly).
+            neighbors: match neighbors {
+                true => offsets(nv2, |v| counts[v].neighbors),
+                false => Vec::new(),
+            },
+            edges: offsets(nv2, |v| counts[v].edges),
+            edge_faces: offsets(nv2, |v| counts[v].edge_faces),
         };
-        let edge_off = offsets(nv2, |v| counts[v].edges);
-        let ef_off = offsets(nv2, |v| counts[v].edge_faces);
-        drop(counts);
-        let ne2 = edge_off[nv2] as usize;
-        if ne2 != 2 * ne + 3 * nf {
-            return None;
-        }
+        (off.edges[nv2] as usize == 2 * ne + 3 * nf).then_some(off)
+    }
 
-        let mut vertex_faces = vec![0u32; face_off[nv2] as usize];
-        let mut vertex_neighbors = vec![0u32; nbr_off.get(nv2).map_or(0, |&n| n as usize)];
-        let mut edges = vec![[0u32; 2]; ne2];
-        let mut edge_flags = vec![0u8; ne2];
-        let mut edge_face_offsets = vec![0u32; ne2 + 1];
-        let mut edge_faces = vec![0u32; ef_off[nv2] as usize];
-        let mut vertex_flags = vec![0u8; nv2];
-        let face_edges: Vec<[AtomicU32; 3]> = (0..nf2)
-            .into_par_iter()
-            .map(|_| [0, 0, 0].map(AtomicU32::new))
-            .collect();
+    /// Fills `t` range by range in parallel: each range of fine vertices owns its slices
+    /// of the tables.
+    fn fill(&self, t: &mut FineTables, off: &Offsets, neighbors: bool) {
+        let nv2 = self.nv + self.topo.edges.len();
         let bounds: Vec<(usize, usize)> = (0..nv2.div_ceil(RANGE))
             .map(|r| (r * RANGE, nv2.min((r + 1) * RANGE)))
             .collect();
-        let len = |off: &[u32]| -> std::vec::IntoIter<usize> {
-            let n: Vec<usize> = bounds
-                .iter()
-                .map(|&(v0, v1)| (off[v1] - off[v0]) as usize)
-                .collect();
-            n.into_iter()
-        };
-        let pieces: Vec<Piece<'_>> = {
-            let mut f = cut(&mut vertex_faces, len(&face_off)).into_iter();
-            let mut n = match neighbors {
-                true => cut(&mut vertex_neighbors, len(&nbr_off)),
-                false => Vec::new(),
-            }
-            .into_iter();
-            let mut e = cut(&mut edges, len(&edge_off)).into_iter();
-            let mut ef = cut(&mut edge_flags, len(&edge_off)).into_iter();
-            let mut ee = cut(&mut edge_face_offsets[1..], len(&edge_off)).into_iter();
-            let mut efs = cut(&mut edge_faces, len(&ef_off)).into_iter();
-            let mut fl = cut(&mut vertex_flags, bounds.iter().map(|b| b.1 - b.0)).into_iter();
-            bounds
-                .iter()
-                .map(|&(v0, v1)| Piece {
-                    v0,
-                    v1,
-                    faces: f.next().unwrap_or_default(),
-                    neighbors: n.next().unwrap_or_default(),
-                    edges: e.next().unwrap_or_default(),
-                    edge_flags: ef.next().unwrap_or_default(),
-                    edge_face_ends: ee.next().unwrap_or_default(),
-                    edge_faces: efs.next().unwrap_or_default(),
-                    flags: fl.next().unwrap_or_default(),
-                })
-                .collect()
-        };
-        let put = |f: u32, c: usize, e: usize| {
-            face_edges[f as usize][c].store(e as u32, Ordering::Relaxed)
-        };
-        pieces.into_par_iter().for_each(|p| {
-            let (mut fi, mut ni, mut ei, mut efi) = (0, 0, 0, 0);
-            // Where the piece's edge faces start in the whole table.
-            let ef0 = ef_off[p.v0];
-            let mut mids: Vec<u32> = Vec::new();
-            let mut ring: Vec<Around> = Vec::new();
-            let mut pairs: Vec<Partner> = Vec::new();
-            let mut sides: Vec<(u32, u32, usize)> = Vec::new();
-            for (v, &e_base) in (p.v0..p.v1).zip(&edge_off[p.v0..p.v1]) {
-                let e_base = e_base as usize;
-                if v < nv {
-                    let vv = v as u32;
-                    let fan = self.vertex_faces(vv);
-                    let open = self.vertex_flags[v] & V_BOUNDARY != 0;
-                    p.flags[v - p.v0] = self.vertex_flags[v];
-                    // The children at v turn like the coarse faces around it; each has
-                    // the edges to two midpoints at v (corner c and c + 2 of the child).
-                    mids.clear();
-                    sides.clear();
-                    for (j, &f) in fan.iter().enumerate() {
-                        let c = corner(vv, f);
-                        let child = 4 * f + c as u32;
-                        p.faces[fi] = child;
-                        fi += 1;
-                        let (next, prev) =
-                            (mid(fe[f as usize][c]), mid(fe[f as usize][(c + 2) % 3]));
-                        if j == 0 {
-                            mids.push(next);
-                        }
-                        if open || j + 1 < fan.len() {
-                            mids.push(prev);
-                        }
-                        sides.push((next, child, c));
-                        sides.push((prev, child, (c + 2) % 3));
-                    }
-                    if neighbors {
-                        p.neighbors[ni..ni + mids.len()].copy_from_slice(&mids);
-                        ni += mids.len();
-                    }
-                    // Edges to the midpoints around v, in order of the midpoints, each with
-                    // the children on it (ascending).
-                    sides.sort_unstable();
-                    for (j, group) in sides.chunk_by(|a, b| a.0 == b.0).enumerate() {
-                        p.edges[ei] = [vv, group[0].0];
-                        p.edge_flags[ei] = if group.len() == 1 { E_BOUNDARY } else { 0 };
-                        for &(_, child, at) in group {
-                            p.edge_faces[efi] = child;
-                            efi += 1;
-                            put(child, at, e_base + j);
-                        }
-                        p.edge_face_ends[ei] = ef0 + efi as u32;
-                        ei += 1;
-                    }
-                } else {
-                    let e = (v - nv) as u32;
-                    let ef = self.edge_faces(e);
-                    ring.clear();
-                    for &f in ef {
-                        ring.extend(around_in(e, f));
-                    }
-                    let start = match ef.len() {
-                        // Closed: from the lowest face, in the lower coarse face.
-                        2 if slot(e, ef[0]) != 2 => 2,
-                        _ => 0,
-                    };
-                    ring.rotate_left(start);
-                    let boundary = ef.len() == 1;
-                    p.flags[v - p.v0] = if boundary { V_BOUNDARY } else { 0 };
-                    if neighbors {
-                        p.neighbors[ni] = ring[0].next;
-                        ni += 1;
-                        let shown = if boundary { ring.len() } else { ring.len() - 1 };
-                        for a in &ring[..shown] {
-                            p.neighbors[ni] = a.prev;
-                            ni += 1;
-                        }
-                    }
-                    for a in &ring {
-                        p.faces[fi] = a.face;
-                        fi += 1;
-                    }
-                    partners(e, &mut pairs);
-                    for (j, &(m, on)) in pairs.iter().enumerate() {
-                        p.edges[ei] = [v as u32, m];
-                        for (g, c) in on {
-                            p.edge_faces[efi] = g;
-                            efi += 1;
-                            put(g, c, e_base + j);
-                        }
-                        p.edge_face_ends[ei] = ef0 + efi as u32;
-                        ei += 1;
-                    }
-                }
-            }
-        });
+        let (pieces, face_edges) = t.pieces(&bounds, off, neighbors);
+        pieces
+            .into_par_iter()
+            .for_each(|p| self.fill_piece(p, off, face_edges, neighbors));
+    }
 
-        // Boundary loops: each coarse loop with its midpoints between its vertices, from
-        // the tail of its lowest edge (which lies at its lowest vertex), the same way round.
-        let mut loop_offsets = Vec::with_capacity(self.loop_offsets.len());
-        let mut loop_vertices = Vec::with_capacity(2 * self.loop_vertices.len());
+    /// Fills one range's slices: each coarse vertex's entries, then each midpoint's.
+    fn fill_piece(
+        &self,
+        mut p: Piece<'_>,
+        off: &Offsets,
+        face_edges: &[[AtomicU32; 3]],
+        neighbors: bool,
+    ) {
+        let mut at = At {
+            // Where the piece's edge faces start in the whole table.
+            ef0: off.edge_faces[p.v0],
+            ..At::default()
+        };
+        let mut scratch = Scratch::default();
+        for (v, &e_base) in (p.v0..p.v1).zip(&off.edges[p.v0..p.v1]) {
+            let put = |f: u32, c: usize, j: usize| {
+                face_edges[f as usize][c].store((e_base as usize + j) as u32, Ordering::Relaxed)
+            };
+            if v < self.nv {
+                self.fill_vertex(v, &mut p, &mut at, &mut scratch, neighbors, put);
+            } else {
+                self.fill_midpoint(v, &mut p, &mut at, &mut scratch, neighbors, put);
+            }
+        }
+    }
+
+    /// Coarse vertex `v`'s entries: its children turn like the coarse faces around it;
+    /// each has the edges to two midpoints at `v` (corner `c` and `c + 2` of the child).
+    fn fill_vertex(
+        &self,
+        v: usize,
+        p: &mut Piece<'_>,
+        at: &mut At,
+        s: &mut Scratch,
+        neighbors: bool,
+        put: impl Fn(u32, usize, usize),
+    ) {
+        let t = self.topo;
+        let vv = v as u32;
+        let fan = t.vertex_faces(vv);
+        let open = t.vertex_flags[v] & V_BOUNDARY != 0;
+        p.flags[v - p.v0] = t.vertex_flags[v];
+        s.mids.clear();
+        s.sides.clear();
+        for (j, &f) in fan.iter().enumerate() {
+            let c = self.corner(vv, f);
+            let child = 4 * f + c as u32;
+            p.faces[at.faces] = child;
+            at.faces += 1;
+            let fe = self.face_edges[f as usize];
+            let (next, prev) = (self.mid(fe[c]), self.mid(fe[(c + 2) % 3]));
+            if j == 0 {
+                s.mids.push(next);
+            }
+            if open || j + 1 < fan.len() {
+                s.mids.push(prev);
+            }
+            s.sides.push((next, child, c));
+            s.sides.push((prev, child, (c + 2) % 3));
+        }
+        if neighbors {
+            p.neighbors[at.neighbors..at.neighbors + s.mids.len()].copy_from_slice(&s.mids);
+            at.neighbors += s.mids.len();
+        }
+        // Edges to the midpoints around v, in order of the midpoints, each with the
+        // children on it (ascending).
+        s.sides.sort_unstable();
+        for (j, group) in s.sides.chunk_by(|a, b| a.0 == b.0).enumerate() {
+            p.edges[at.edges] = [vv, group[0].0];
+            p.edge_flags[at.edges] = if group.len() == 1 { E_BOUNDARY } else { 0 };
+            for &(_, child, corner) in group {
+                p.edge_faces[at.edge_faces] = child;
+                at.edge_faces += 1;
+                put(child, corner, j);
+            }
+            p.edge_face_ends[at.edges] = at.ef0 + at.edge_faces as u32;
+            at.edges += 1;
+        }
+    }
+
+    /// Midpoint `v`'s entries: the fine faces around it (from the lowest face, in the
+    /// lower coarse face, when the edge is closed) and its edges to larger midpoints.
+    fn fill_midpoint(
+        &self,
+        v: usize,
+        p: &mut Piece<'_>,
+        at: &mut At,
+        s: &mut Scratch,
+        neighbors: bool,
+        put: impl Fn(u32, usize, usize),
+    ) {
+        let e = (v - self.nv) as u32;
+        let ef = self.topo.edge_faces(e);
+        s.ring.clear();
+        for &f in ef {
+            s.ring.extend(self.around_in(e, f));
+        }
+        let start = match ef.len() {
+            // Closed: from the lowest face, in the lower coarse face.
+            2 if self.slot(e, ef[0]) != 2 => 2,
+            _ => 0,
+        };
+        s.ring.rotate_left(start);
+        let boundary = ef.len() == 1;
+        p.flags[v - p.v0] = if boundary { V_BOUNDARY } else { 0 };
+        if neighbors {
+            p.neighbors[at.neighbors] = s.ring[0].next;
+            at.neighbors += 1;
+            let shown = if boundary {
+                s.ring.len()
+            } else {
+                s.ring.len() - 1
+            };
+            for a in &s.ring[..shown] {
+                p.neighbors[at.neighbors] = a.prev;
+                at.neighbors += 1;
+            }
+        }
+        for a in &s.ring {
+            p.faces[at.faces] = a.face;
+            at.faces += 1;
+        }
+        self.partners(e, &mut s.pairs);
+        for (j, &(m, on)) in s.pairs.iter().enumerate() {
+            p.edges[at.edges] = [v as u32, m];
+            for (g, c) in on {
+                p.edge_faces[at.edge_faces] = g;
+                at.edge_faces += 1;
+                put(g, c, j);
+            }
+            p.edge_face_ends[at.edges] = at.ef0 + at.edge_faces as u32;
+            at.edges += 1;
+        }
+    }
+
+    /// The fine boundary loops: each coarse loop with its midpoints between its vertices,
+    /// from the tail of its lowest edge (which lies at its lowest vertex), the same way
+    /// round; `None` for a loop of fewer than three edges.
+    fn loops(&self) -> Option<(Vec<u32>, Vec<u32>)> {
+        let t = self.topo;
+        let mut loop_offsets = Vec::with_capacity(t.loop_offsets.len());
+        let mut loop_vertices = Vec::with_capacity(2 * t.loop_vertices.len());
         loop_offsets.push(0);
-        for i in 0..self.n_boundary_loops() {
-            let l = self.boundary_loop(i);
+        for i in 0..t.n_boundary_loops() {
+            let l = t.boundary_loop(i);
             let n = l.len();
             let low = (0..n).min_by_key(|&j| l[j])?;
             let at = |j: usize| l[(low + j) % n];
             let first = loop_vertices.len();
             for j in 0..n {
                 loop_vertices.push(at(j));
-                loop_vertices.push(mid(self.find_edge(at(j), at(j + 1))?));
+                loop_vertices.push(self.mid(t.find_edge(at(j), at(j + 1))?));
             }
             // The edge into the lowest vertex is the lower one: its midpoint comes first.
-            let into = self.find_edge(at(n - 1), at(0))?;
-            if n < 3 || into < self.find_edge(at(0), at(1))? {
+            let into = t.find_edge(at(n - 1), at(0))?;
+            if n < 3 || into < t.find_edge(at(0), at(1))? {
                 loop_vertices[first..].rotate_right(1);
             }
             if n < 3 {
@@ -430,39 +522,137 @@ impl Topology {
             }
             loop_offsets.push(loop_vertices.len() as u32);
         }
+        Some((loop_offsets, loop_vertices))
+    }
+}
 
-        Some(Topology {
+/// Where a range's filling stands in each of its slices.
+#[derive(Default)]
+struct At {
+    faces: usize,
+    neighbors: usize,
+    edges: usize,
+    edge_faces: usize,
+    /// Where the range's edge faces start in the whole table.
+    ef0: u32,
+}
+
+/// A range's reused lists.
+#[derive(Default)]
+struct Scratch {
+    mids: Vec<u32>,
+    ring: Vec<Around>,
+    pairs: Vec<Partner>,
+    sides: Vec<(u32, u32, usize)>,
+}
+
+impl FineTables {
+    /// The tables, zeroed, at the sizes `off` gives, for `nf2` fine faces.
+    fn new(off: &Offsets, nf2: usize) -> FineTables {
+        let nv2 = off.faces.len() - 1;
+        let ne2 = off.edges[nv2] as usize;
+        FineTables {
+            vertex_faces: vec![0u32; off.faces[nv2] as usize],
+            vertex_neighbors: vec![0u32; off.neighbors.get(nv2).map_or(0, |&n| n as usize)],
+            edges: vec![[0u32; 2]; ne2],
+            edge_flags: vec![0u8; ne2],
+            edge_face_offsets: vec![0u32; ne2 + 1],
+            edge_faces: vec![0u32; off.edge_faces[nv2] as usize],
+            vertex_flags: vec![0u8; nv2],
+            face_edges: (0..nf2)
+                .into_par_iter()
+                .map(|_| [0, 0, 0].map(AtomicU32::new))
+                .collect(),
+        }
+    }
+
+    /// The tables cut into the slices each range of fine vertices (`bounds`) fills, and
+    /// the faces' edges, which every range writes to (each entry once).
+    fn pieces(
+        &mut self,
+        bounds: &[(usize, usize)],
+        off: &Offsets,
+        neighbors: bool,
+    ) -> (Vec<Piece<'_>>, &[[AtomicU32; 3]]) {
+        let len = |off: &[u32]| -> std::vec::IntoIter<usize> {
+            let n: Vec<usize> = bounds
+                .iter()
+                .map(|&(v0, v1)| (off[v1] - off[v0]) as usize)
+                .collect();
+            n.into_iter()
+        };
+        let mut f = cut(&mut self.vertex_faces, len(&off.faces)).into_iter();
+        let mut n = match neighbors {
+            true => cut(&mut self.vertex_neighbors, len(&off.neighbors)),
+            false => Vec::new(),
+        }
+        .into_iter();
+        let mut e = cut(&mut self.edges, len(&off.edges)).into_iter();
+        let mut ef = cut(&mut self.edge_flags, len(&off.edges)).into_iter();
+        let mut ee = cut(&mut self.edge_face_offsets[1..], len(&off.edges)).into_iter();
+        let mut efs = cut(&mut self.edge_faces, len(&off.edge_faces)).into_iter();
+        let mut fl = cut(&mut self.vertex_flags, bounds.iter().map(|b| b.1 - b.0)).into_iter();
+        let pieces = bounds
+            .iter()
+            .map(|&(v0, v1)| Piece {
+                v0,
+                v1,
+                faces: f.next().unwrap_or_default(),
+                neighbors: n.next().unwrap_or_default(),
+                edges: e.next().unwrap_or_default(),
+                edge_flags: ef.next().unwrap_or_default(),
+                edge_face_ends: ee.next().unwrap_or_default(),
+                edge_faces: efs.next().unwrap_or_default(),
+                flags: fl.next().unwrap_or_default(),
+            })
+            .collect();
+        (pieces, &self.face_edges)
+    }
+
+    /// The fine adjacency: these tables, the offsets, the loops, and what carries over
+    /// from `coarse` (components, orientability, manifoldness).
+    fn into_topology(
+        self,
+        coarse: &Topology,
+        off: Offsets,
+        loop_offsets: Vec<u32>,
+        loop_vertices: Vec<u32>,
+    ) -> Topology {
+        let nv2 = off.faces.len() - 1;
+        let nf2 = self.face_edges.len();
+        Topology {
             n_vertices: nv2,
-            face_edges: face_edges
+            face_edges: self
+                .face_edges
                 .into_iter()
                 .map(|fe| fe.map(AtomicU32::into_inner))
                 .collect(),
             face_component: (0..nf2)
                 .into_par_iter()
-                .map(|f| self.face_component[f / 4])
+                .map(|f| coarse.face_component[f / 4])
                 .collect(),
             n_repeated_index_faces: 0,
             n_out_of_range_faces: 0,
-            edges,
-            edge_flags,
-            edge_face_offsets,
-            edge_faces,
-            vertex_edge_offsets: edge_off,
-            vertex_face_offsets: face_off.clone(),
-            vertex_faces,
-            vertex_neighbor_offsets: nbr_off,
-            vertex_neighbors,
+            edges: self.edges,
+            edge_flags: self.edge_flags,
+            edge_face_offsets: self.edge_face_offsets,
+            edge_faces: self.edge_faces,
+            vertex_edge_offsets: off.edges,
+            vertex_face_offsets: off.faces.clone(),
+            vertex_faces: self.vertex_faces,
+            vertex_neighbor_offsets: off.neighbors,
+            vertex_neighbors: self.vertex_neighbors,
             vertex_fan_offsets: (0..=nv2 as u32).collect(),
-            fan_offsets: face_off,
-            vertex_flags,
+            fan_offsets: off.faces,
+            vertex_flags: self.vertex_flags,
             loop_offsets,
             loop_vertices,
-            loop_component: self.loop_component.clone(),
+            loop_component: coarse.loop_component.clone(),
             n_open_boundary_chains: 0,
-            component_orientable: self.component_orientable.clone(),
-            component_manifold: self.component_manifold.clone(),
+            component_orientable: coarse.component_orientable.clone(),
+            component_manifold: coarse.component_manifold.clone(),
             counts: Memo::default(),
-        })
+        }
     }
 }
 
