@@ -81,6 +81,16 @@ pub struct Parted<G> {
 /// One candidate in this many is costed to find the parts' cost bound.
 const SAMPLE_EVERY: usize = 16;
 
+/// What the parts of one round share: where they are cut, which vertices are free, how
+/// many collapses the goal needs, and the cost bound (from the rank, when bounded).
+struct Round<'a> {
+    cuts: &'a [usize],
+    free: &'a [bool],
+    needed: usize,
+    bound: f64,
+    bound_rank: Option<f64>,
+}
+
 /// What one part did, in the whole mesh's indices: what its free vertices and their faces
 /// became, and its counts.
 struct PartRun<G> {
@@ -211,7 +221,9 @@ impl LiveMesh {
         }
     }
 
-    /// One round of [`LiveMesh::collapse_in_parts`], its cuts `offset` parts along.
+    /// One round of [`LiveMesh::collapse_in_parts`], its cuts `offset` parts along: the
+    /// vertices cut into parts, those whose faces all lie in their part freed, the parts
+    /// collapsed side by side, and what they left written back into this mesh.
     fn part_round<M, G, F>(
         &mut self,
         model: &mut M,
@@ -226,21 +238,57 @@ impl LiveMesh {
         G: FaceGuard + Send,
         F: Fn() -> G + Sync,
     {
-        let mut out = Outcome::none();
         let unit = model.unit();
-        let per_collapse = match (unit, opts.goal) {
+        let needed = self.needed_collapses(unit, opts.goal);
+        let cuts = self.part_cuts(parts, offset);
+        let free = self.free_vertices(&cuts);
+        let bound = match bound_rank {
+            Some(rank) => {
+                model.prepare(self);
+                self.sample_bound(model, unit, &free, needed, rank)
+            }
+            None => f64::INFINITY,
+        };
+        let round = Round {
+            cuts: &cuts,
+            free: &free,
+            needed,
+            bound,
+            bound_rank,
+        };
+        let runs = self.run_parts(model, new_guard, opts, parts, &round);
+        if runs.iter().all(|r| r.outcome.collapses == 0) {
+            let mut out = Outcome::none();
+            out.refused = runs.iter().fold(out.refused, |mut sum, r| {
+                sum.add(&r.outcome.refused);
+                sum
+            });
+            return (out, runs.into_iter().map(|r| r.guard).collect());
+        }
+        self.join_parts(model, runs, &free, opts)
+    }
+
+    /// How many collapses of `unit` the goal still needs (at most: a collapse removes one
+    /// or two vertices, two or four faces).
+    fn needed_collapses(&self, unit: Unit, goal: Goal) -> usize {
+        let per_collapse = match (unit, goal) {
             (Unit::Edge, Goal::Vertices(_)) => 1,
             (Unit::Edge, Goal::Faces(_)) => 2,
             (Unit::Triangle, Goal::Vertices(_)) => 2,
             (Unit::Triangle, Goal::Faces(_)) => 4,
         };
-        let needed = match opts.goal {
+        let left = match goal {
             Goal::Vertices(n) => self.n_vertices.saturating_sub(n),
             Goal::Faces(n) => self.n_faces.saturating_sub(n),
-        } / per_collapse;
+        };
+        left / per_collapse
+    }
+
+    /// Where the parts start: part `k` holds the vertices `cuts[k]..cuts[k + 1]` (every cut
+    /// `offset` parts along; the count depends on the mesh alone).
+    fn part_cuts(&self, parts: &PartOptions, offset: f64) -> Vec<usize> {
         let n_parts = (self.n_faces / parts.faces_per_part.max(1)).clamp(2, 64);
         let slots = self.pos.len();
-        // Part k holds the vertices cuts[k]..cuts[k + 1].
         let mut cuts: Vec<usize> = vec![0];
         cuts.extend(
             (0..=n_parts)
@@ -249,12 +297,19 @@ impl LiveMesh {
         );
         cuts.push(slots);
         cuts.dedup();
+        cuts
+    }
+
+    /// Per vertex: free, i.e. live, neither locked nor isolated, and every vertex of its
+    /// faces in its part (`cuts`).
+    fn free_vertices(&self, cuts: &[usize]) -> Vec<bool> {
+        let slots = self.pos.len();
         let mut part_id = vec![0u32; slots];
         for (k, w) in cuts.windows(2).enumerate() {
             part_id[w[0]..w[1]].fill(k as u32);
         }
         let part_of = |v: Index| part_id[v as usize];
-        let free: Vec<bool> = (0..slots as Index)
+        (0..slots as Index)
             .into_par_iter()
             .map(|v| {
                 let ok_kind = matches!(
@@ -269,38 +324,49 @@ impl LiveMesh {
                             .all(|&u| part_of(u) == part_of(v))
                     })
             })
-            .collect();
-        let bound = match bound_rank {
-            Some(rank) => {
-                model.prepare(self);
-                self.sample_bound(model, unit, &free, needed, rank)
-            }
-            None => f64::INFINITY,
-        };
+            .collect()
+    }
+
+    /// Collapses the parts of `round` side by side, each up to its share of the collapses
+    /// needed and the round's cost bound (in steps when the round is bounded and
+    /// [`PartOptions::steps`] asks for several).
+    fn run_parts<M, G, F>(
+        &self,
+        model: &M,
+        new_guard: &F,
+        opts: &Options,
+        parts: &PartOptions,
+        round: &Round<'_>,
+    ) -> Vec<PartRun<G>>
+    where
+        M: CostModel + Send,
+        G: FaceGuard + Send,
+        F: Fn() -> G + Sync,
+    {
+        let (cuts, free, needed) = (round.cuts, round.free, round.needed);
         let free_total = free.iter().filter(|&&f| f).count().max(1);
-        let max_error = error_limit(opts, bound);
-        let (this, shared): (&LiveMesh, &M) = (self, model);
+        let max_error = error_limit(opts, round.bound);
         let share_cap = |(lo, hi): (usize, usize)| {
             let free_here = free[lo..hi].iter().filter(|&&f| f).count();
             (parts.share * needed as f64 * free_here as f64 / free_total as f64) as usize
         };
-        let runs: Vec<PartRun<G>> = match bound_rank.filter(|_| parts.steps > 1) {
+        match round.bound_rank.filter(|_| parts.steps > 1) {
             // One step per part: it is built, collapsed and done with on one thread.
             None => cuts
                 .par_windows(2)
                 .map(|w| {
                     let (lo, hi) = (w[0], w[1]);
                     let mut part =
-                        this.start_part(shared, new_guard, (lo as Index, hi as Index), &free);
+                        self.start_part(model, new_guard, (lo as Index, hi as Index), free);
                     part.step(opts, share_cap((lo, hi)), max_error);
-                    part.finish(&free)
+                    part.finish(free)
                 })
                 .collect(),
             Some(rank) => {
                 let mut all: Vec<Part<M, G>> = cuts
                     .par_windows(2)
                     .map(|w| {
-                        this.start_part(shared, new_guard, (w[0] as Index, w[1] as Index), &free)
+                        self.start_part(model, new_guard, (w[0] as Index, w[1] as Index), free)
                     })
                     .collect();
                 let caps: Vec<usize> = cuts.windows(2).map(|w| share_cap((w[0], w[1]))).collect();
@@ -310,27 +376,36 @@ impl LiveMesh {
                     min_collapses: parts.min_collapses,
                     steps: parts.steps,
                 };
-                stepped(&mut all, caps, opts, bound, &limits);
-                all.into_par_iter().map(|p| p.finish(&free)).collect()
+                stepped(&mut all, caps, opts, round.bound, &limits);
+                all.into_par_iter().map(|p| p.finish(free)).collect()
             }
-        };
-
-        if runs.iter().all(|r| r.outcome.collapses == 0) {
-            out.refused = runs.iter().fold(out.refused, |mut sum, r| {
-                sum.add(&r.outcome.refused);
-                sum
-            });
-            return (out, runs.into_iter().map(|r| r.guard).collect());
         }
-        // The faces and vertices the parts own go, and what they left comes back.
+    }
+
+    /// Writes what the parts made back into this mesh: the faces and vertices they owned
+    /// (at `free` vertices) go, what they left comes back, part after part, the model
+    /// told; then the arrays are closed up. Returns the parts' outcomes added up and
+    /// their guards.
+    fn join_parts<M, G>(
+        &mut self,
+        model: &mut M,
+        runs: Vec<PartRun<G>>,
+        free: &[bool],
+        opts: &Options,
+    ) -> (Outcome, Vec<G>)
+    where
+        M: CostModel + Send,
+        G: FaceGuard + Send,
+    {
         for f in 0..self.faces.len() {
             if self.face_state[f] == LIVE && self.faces[f].iter().any(|&v| free[v as usize]) {
                 self.face_state[f] = DEAD;
             }
         }
-        for (alive, &free) in self.alive.iter_mut().zip(&free) {
+        for (alive, &free) in self.alive.iter_mut().zip(free) {
             *alive &= !free;
         }
+        let mut out = Outcome::none();
         let mut guards = Vec::with_capacity(runs.len());
         for run in runs {
             let mut o = run.outcome;
