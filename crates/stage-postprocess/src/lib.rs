@@ -87,13 +87,59 @@ impl Stage for Postprocess {
     }
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let coarse = mesh.clone();
+        // The coarse mesh's adjacency, which the runner's manifold check built.
+        let coarse_topo = cx.topology(&coarse).ok();
+        let coarse_rim = boundary_points(&coarse, coarse_topo.as_deref());
+        // 1–2. Subdivide and re-cluster into n regions, level by level.
+        let mut levels = self.recluster(mesh, &coarse, coarse_topo.as_deref(), cx)?;
+        // 3. Dual again, placed on the input when projecting onto it.
+        let facing = self.input_facing(cx)?;
+        let Some(dual) = self.dual_again(&mut levels, facing.as_ref(), cx)? else {
+            return Ok(coarse);
+        };
+        let mut out = dual.mesh;
+        // 4. Pull onto the input surface.
+        let projected = match &facing {
+            Some(facing) => project(&mut out, &coarse_rim, facing, cx)?,
+            None => coarsen_stage_dual::Pulled::default(),
+        };
+        report(cx, &levels, &dual.stats, &projected);
+        Ok(out)
+    }
+}
+
+/// The finest level's clustering and how the levels went.
+struct Levels {
+    /// The finest subdivision.
+    fine: Mesh,
+    /// Its faces' clusters.
+    labels: Vec<u32>,
+    /// Its adjacency, when the last level kept it.
+    topo: Option<Topology>,
+    /// Subdivisions made.
+    done: u32,
+    /// Clustering passes per level.
+    passes: Vec<usize>,
+    /// The finest level's clustering log.
+    log: coarsen_stage_cvt::PassLog,
+}
+
+impl Postprocess {
+    /// Subdivides `mesh` (the coarse mesh, with adjacency `coarse_topo`) and re-clusters
+    /// it into as many regions as it has vertices, level by level: the first level starts
+    /// from the dual cells of the coarse vertices, each finer one from the clustering of
+    /// the level before carried to the child faces, so the global arrangement settles
+    /// where faces are few and the fine levels only polish borders.
+    fn recluster(
+        &self,
+        mesh: Mesh,
+        coarse: &Mesh,
+        coarse_topo: Option<&Topology>,
+        cx: &mut Context<'_>,
+    ) -> Result<Levels, StageError> {
         let p = &self.0;
         let n = mesh.n_vertices();
-        // 1–2. Subdivide and re-cluster into n regions, level by level: the first level
-        // starts from the dual cells of the coarse vertices, each finer one from the
-        // clustering of the level before carried to the child faces, so the global
-        // arrangement settles where faces are few and the fine levels only polish borders.
-        let coarse = mesh.clone();
         let mut fine = mesh;
         fine.face_attrs.insert(
             COARSE_FACE,
@@ -107,23 +153,12 @@ impl Stage for Postprocess {
             fold_guard: p.fold_guard,
             ..Default::default()
         };
-        let progress = cx.progress;
         let mut done = 0;
         let mut passes = Vec::new();
         let mut log = None;
         // Each level's adjacency, derived from the one before where the split is uniform
-        // (the first from the coarse mesh's, which the runner's manifold check built).
+        // (the first from the coarse mesh's).
         let mut level_topo: Option<Topology> = None;
-        let coarse_topo = cx.topology(&coarse).ok();
-        // The coarse mesh's boundary vertices lie on the input's boundary (the dual before
-        // put them there): the projection of the output's boundary starts from them.
-        let coarse_rim: Vec<DVec3> = match &coarse_topo {
-            Some(t) => (0..coarse.n_vertices() as u32)
-                .filter(|&v| t.is_boundary_vertex(v))
-                .map(|v| coarse.positions[v as usize])
-                .collect(),
-            None => Vec::new(),
-        };
         let mut derived = None;
         for _ in 0..p.times.max(1) {
             if done < p.times {
@@ -136,18 +171,12 @@ impl Stage for Postprocess {
                         break;
                     }
                 } else {
-                    let all = vec![true; fine.n_faces()];
                     let before = level_topo.take();
-                    let topo = before.as_ref().or(coarse_topo.as_deref());
-                    let next = coarsen_stage_refine::split_once_with(&fine, &all, topo)
-                        .map_err(|e| StageError::Input(e.to_string()))?
-                        .0;
+                    let topo = before.as_ref().or(coarse_topo);
                     // The finest level's readers (the clusterer, the dual) never ask for
                     // the vertex neighbours.
-                    derived = topo.and_then(|t| match done + 1 == p.times {
-                        true => t.of_split_lean(&fine, &next),
-                        false => t.of_split(&fine, &next),
-                    });
+                    let (next, topo) = subdivide(&fine, topo, done + 1 == p.times)?;
+                    derived = topo;
                     fine = next;
                     done += 1;
                 }
@@ -157,7 +186,7 @@ impl Stage for Postprocess {
             let start = match (fine.face_attrs.remove(CLUSTER), log.is_some()) {
                 (Some(AttrValues::Label(l)), true) => Start::Carried(l),
                 (Some(AttrValues::Label(l)), false) => Start::Labels(l),
-                _ => Start::Labels(dual_cells(&coarse, &fine, done)),
+                _ => Start::Labels(dual_cells(coarse, &fine, done)),
             };
             // The coarse faces are only needed for the dual cells of the first level: the
             // finer levels need not carry them.
@@ -173,23 +202,7 @@ impl Stage for Postprocess {
             } else {
                 0.1 * p.tolerance
             };
-            progress.begin(Self::KIND, u64::from(p.max_passes));
-            let clustering = coarsen_stage_cvt::cluster_from(
-                &fine,
-                &topo,
-                start,
-                n,
-                &cvt,
-                None,
-                |pass, moves, energy| {
-                    progress.advance(
-                        u64::from(pass),
-                        &format!("level {done}: {moves} moves, energy {energy:.4e}"),
-                    );
-                },
-            )
-            .map_err(|e| StageError::Input(format!("`{}`: {e}", Self::KIND)))?;
-            progress.end();
+            let clustering = cluster_level(&fine, &topo, start, n, &cvt, done, cx)?;
             passes.push(clustering.log.moves.len());
             fine.face_attrs
                 .insert(CLUSTER, AttrValues::Label(clustering.labels));
@@ -200,95 +213,189 @@ impl Stage for Postprocess {
             }
         }
         fine.face_attrs.remove(COARSE_FACE);
-        let Some(AttrValues::Label(mut labels)) = fine.face_attrs.remove(CLUSTER) else {
+        let Some(AttrValues::Label(labels)) = fine.face_attrs.remove(CLUSTER) else {
             return Err(StageError::Internal(format!(
                 "`{}`: the clustering was lost",
                 Self::KIND
             )));
         };
-        let log = log.unwrap_or_default();
-        // 3. Dual again.
-        // One index of the run's input serves the dual's placement and the projection.
-        let facing = match p.project && cx.original.n_faces() > 0 {
-            false => None,
-            true => Some(coarsen_metrics::Facing::with_index(
-                cx.original,
-                cx.input_index_with_topology(coarsen_metrics::SurfaceIndex::with_topology)
-                    .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?,
-            )),
-        };
-        let topo = match level_topo {
+        Ok(Levels {
+            fine,
+            labels,
+            topo: level_topo,
+            done,
+            passes,
+            log: log.unwrap_or_default(),
+        })
+    }
+
+    /// The flipped-face test on the run's input, whose index the dual's placement and the
+    /// projection share; `None` without projection.
+    fn input_facing<'a>(
+        &self,
+        cx: &Context<'a>,
+    ) -> Result<Option<coarsen_metrics::Facing<'a>>, StageError> {
+        if !(self.0.project && cx.original.n_faces() > 0) {
+            return Ok(None);
+        }
+        let index = cx
+            .input_index_with_topology(coarsen_metrics::SurfaceIndex::with_topology)
+            .map_err(|e| StageError::Input(format!("`{}`: the input: {e}", Self::KIND)))?;
+        Ok(Some(coarsen_metrics::Facing::with_index(
+            cx.original,
+            index,
+        )))
+    }
+
+    /// The dual of the finest clustering; `None` (said in a warning and the figure
+    /// `kept_coarse`) when it has no valid dual that the repairs can reach: the coarse
+    /// mesh is a valid result already, and a fine clustering without a dual (e.g.
+    /// clusters of a few tiny faces whose vertices fall in a row) leaves it as it came
+    /// rather than failing the run.
+    fn dual_again(
+        &self,
+        levels: &mut Levels,
+        facing: Option<&coarsen_metrics::Facing<'_>>,
+        cx: &mut Context<'_>,
+    ) -> Result<Option<coarsen_stage_dual::Dual>, StageError> {
+        let p = &self.0;
+        let topo = match levels.topo.take() {
             Some(t) => t,
-            None => Topology::try_build(&fine).map_err(|e| StageError::Input(e.to_string()))?,
+            None => {
+                Topology::try_build(&levels.fine).map_err(|e| StageError::Input(e.to_string()))?
+            }
         };
-        let dual = match coarsen_stage_dual::dual(
-            &fine,
-            &topo,
-            &mut labels,
-            p.placement,
-            facing.as_ref(),
-            coarsen_stage_dual::Repair {
-                max_rounds: 40,
-                relax_passes: 8,
-                fold_guard: p.fold_guard,
-            },
-            true,
-        ) {
-            Ok(d) => d,
-            // The coarse mesh is a valid result already: a fine clustering without a valid
-            // dual (e.g. clusters of a few tiny faces whose vertices fall in a row) leaves
-            // it as it came, said in a warning, rather than failing the run.
+        let repair = coarsen_stage_dual::Repair {
+            max_rounds: 40,
+            relax_passes: 8,
+            fold_guard: p.fold_guard,
+        };
+        let fine = &levels.fine;
+        let labels = &mut levels.labels;
+        match coarsen_stage_dual::dual(fine, &topo, labels, p.placement, facing, repair, true) {
+            Ok(d) => Ok(Some(d)),
             Err(e @ coarsen_stage_dual::DualError::Unrepaired(_)) => {
                 cx.report.warn(format!(
                     "the re-clustered mesh has no valid dual ({e}): the coarse mesh is kept as it came"
                 ));
                 cx.report.figure("kept_coarse", true);
-                return Ok(coarse);
+                Ok(None)
             }
-            Err(e @ coarsen_stage_dual::DualError::TooFew(_)) => {
-                return Err(StageError::Param {
-                    name: "target",
-                    message: format!("`{}`: {e}", Self::KIND),
-                });
-            }
-            Err(e) => return Err(StageError::Input(format!("`{}`: {e}", Self::KIND))),
-        };
-        drop(topo);
-        let mut out = dual.mesh;
-        // 4. Pull onto the input surface, the vertices of the output's boundary onto the
-        // input's boundary from the coarse boundary vertices, which lie on it (the dual put
-        // them on the subdivided coarse boundary, whose edges cut across the input's bays);
-        // moves that would spoil a face are undone.
-        let mut projected = coarsen_stage_dual::Pulled::default();
-        if let Some(facing) = &facing {
-            let topo = Topology::try_build(&out)
-                .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
-            let pull = Pull {
-                rim: &coarse_rim,
-                interior: true,
-                min_move: 0.0,
-            };
-            let diag2 = cx.original.bbox().diagonal().powi(2);
-            match pull_onto_input(&mut out, &topo, facing, pull, diag2) {
-                Some(p) => projected = p,
-                None => cx.report.warn(
-                    "projection onto the input would degenerate faces: vertices left where the dual put them",
-                ),
-            }
+            Err(e @ coarsen_stage_dual::DualError::TooFew(_)) => Err(StageError::Param {
+                name: "target",
+                message: format!("`{}`: {e}", Self::KIND),
+            }),
+            Err(e) => Err(StageError::Input(format!("`{}`: {e}", Self::KIND))),
         }
-        cx.report.figure("subdivisions", done);
-        cx.report.figure("fine_faces", fine.n_faces());
-        cx.report.figure("passes_per_level", &passes);
-        cx.report.figure("passes", log.moves.len());
-        cx.report.figure("initial_energy", log.initial_energy);
-        cx.report.figure("moves_per_pass", &log.moves);
-        cx.report.figure("energy_per_pass", &log.energy);
-        cx.report.figure("repairs", dual.stats.repairs);
-        cx.report.figure("restarted", dual.stats.restarted);
-        cx.report.figure("projected_vertices", projected.moved);
-        cx.report.figure("boundary_left", projected.boundary_left);
-        Ok(out)
     }
+}
+
+/// The positions of `coarse`'s boundary vertices (`topo`: its adjacency, if at hand). They
+/// lie on the input's boundary (the dual before put them there): the projection of the
+/// output's boundary starts from them.
+fn boundary_points(coarse: &Mesh, topo: Option<&Topology>) -> Vec<DVec3> {
+    match topo {
+        Some(t) => (0..coarse.n_vertices() as u32)
+            .filter(|&v| t.is_boundary_vertex(v))
+            .map(|v| coarse.positions[v as usize])
+            .collect(),
+        None => Vec::new(),
+    }
+}
+
+/// `fine` split uniformly once more (reading the adjacency `topo` when at hand), and the
+/// split's adjacency derived from it when it can be (`lean`: without the vertex
+/// neighbours).
+fn subdivide(
+    fine: &Mesh,
+    topo: Option<&Topology>,
+    lean: bool,
+) -> Result<(Mesh, Option<Topology>), StageError> {
+    let all = vec![true; fine.n_faces()];
+    let next = coarsen_stage_refine::split_once_with(fine, &all, topo)
+        .map_err(|e| StageError::Input(e.to_string()))?
+        .0;
+    let derived = topo.and_then(|t| match lean {
+        true => t.of_split_lean(fine, &next),
+        false => t.of_split(fine, &next),
+    });
+    Ok((next, derived))
+}
+
+/// One level's clustering of `fine` (adjacency `topo`) into `n` regions from `start`, its
+/// passes told to the run's progress.
+fn cluster_level(
+    fine: &Mesh,
+    topo: &Topology,
+    start: Start,
+    n: usize,
+    cvt: &CvtParams,
+    done: u32,
+    cx: &Context<'_>,
+) -> Result<coarsen_stage_cvt::Clustering, StageError> {
+    let progress = cx.progress;
+    progress.begin(Postprocess::KIND, u64::from(cvt.max_passes));
+    let clustering =
+        coarsen_stage_cvt::cluster_from(fine, topo, start, n, cvt, None, |pass, moves, energy| {
+            progress.advance(
+                u64::from(pass),
+                &format!("level {done}: {moves} moves, energy {energy:.4e}"),
+            );
+        })
+        .map_err(|e| StageError::Input(format!("`{}`: {e}", Postprocess::KIND)))?;
+    progress.end();
+    Ok(clustering)
+}
+
+/// Pulls `out` onto the input surface, the vertices of its boundary onto the input's
+/// boundary from the coarse boundary vertices `rim`, which lie on it (the dual put them on
+/// the subdivided coarse boundary, whose edges cut across the input's bays); moves that
+/// would spoil a face are undone, and all of them (with a warning) when the projection
+/// would degenerate faces.
+fn project(
+    out: &mut Mesh,
+    rim: &[DVec3],
+    facing: &coarsen_metrics::Facing<'_>,
+    cx: &mut Context<'_>,
+) -> Result<coarsen_stage_dual::Pulled, StageError> {
+    let topo = Topology::try_build(out)
+        .map_err(|e| StageError::Internal(format!("`{}`: {e}", Postprocess::KIND)))?;
+    let pull = Pull {
+        rim,
+        interior: true,
+        min_move: 0.0,
+    };
+    let diag2 = cx.original.bbox().diagonal().powi(2);
+    Ok(match pull_onto_input(out, &topo, facing, pull, diag2) {
+        Some(p) => p,
+        None => {
+            cx.report.warn(
+                "projection onto the input would degenerate faces: vertices left where the dual put them",
+            );
+            coarsen_stage_dual::Pulled::default()
+        }
+    })
+}
+
+/// The stage's figures.
+fn report(
+    cx: &mut Context<'_>,
+    levels: &Levels,
+    stats: &coarsen_stage_dual::DualStats,
+    projected: &coarsen_stage_dual::Pulled,
+) {
+    let (r, log) = (&mut *cx.report, &levels.log);
+    r.figure("subdivisions", levels.done);
+    r.figure("fine_faces", levels.fine.n_faces());
+    r.figure("passes_per_level", &levels.passes);
+    r.figure("passes", log.moves.len());
+    r.figure("initial_energy", log.initial_energy);
+    r.figure("moves_per_pass", &log.moves);
+    r.figure("energy_per_pass", &log.energy);
+    r.figure("repairs", stats.repairs);
+    r.figure("restarted", stats.restarted);
+    r.figure("projected_vertices", projected.moved);
+    r.figure("boundary_left", projected.boundary_left);
 }
 
 /// Face label naming each fine face's coarse face while the stage runs.
