@@ -282,7 +282,8 @@ pub fn repaired(
 
 impl Repaired {
     /// The rest of [`dual`] for the `mesh` and repaired `labels` this came from: the
-    /// placement and what follows.
+    /// placement, the fixes of flat triangles and of triangles facing away from the
+    /// surface, the output mesh with its vertex origins.
     pub fn finish(
         self,
         mesh: &Mesh,
@@ -297,7 +298,6 @@ impl Repaired {
             stats,
             boundary,
         } = self;
-        let boundary = &boundary;
         // One index of the surface serves the placement and the flipped-face test.
         let own;
         let facing = match surface {
@@ -311,197 +311,23 @@ impl Repaired {
         let (start, members) = faces_by_cluster(labels, n);
         let centroids = cluster_centroids(mesh, &start, &members);
         let (mut positions, on_boundary, quadric_fallbacks) =
-            place(mesh, boundary, labels, &centroids, placement, facing.bvh());
+            place(mesh, &boundary, labels, &centroids, placement, facing.bvh());
         let boundary_clusters = on_boundary.iter().filter(|&&b| b).count();
-        // A degenerate output face (e.g. three closest vertices in a row on a flat part), or
-        // one facing away from the input surface nearest its centroid (closest-vertex placement
-        // on a curved part), gets its clusters' vertices moved to the projected centroids, the
-        // most central choice (the report's `degenerate_fixes`).
-        let diag2 = mesh.bbox().diagonal().powi(2);
-        let flat = |f: &[u32; 3], positions: &[DVec3]| {
-            let [a, b, c] = f.map(|i| positions[i as usize]);
-            coarsen_geom::triangle::area(a, b, c) <= 1e-10 * diag2
+        let fixes = Fixes {
+            mesh,
+            labels,
+            faces: &faces,
+            facing,
+            boundary: &boundary,
+            centroids: &centroids,
+            on_boundary: &on_boundary,
+            fix_facing,
+            diag2: mesh.bbox().diagonal().powi(2),
+            n,
         };
-        let away = |f: &[u32; 3], positions: &[DVec3]| {
-            let [a, b, c] = f.map(|i| positions[i as usize]);
-            facing.faces_away(a, b, c)
-        };
-        // Per output face: whether it faces away (the costly test, run in parallel, and again
-        // only for faces whose vertices move).
-        let mut turned: Vec<bool> = faces.par_iter().map(|f| away(f, &positions)).collect();
-        // The clusters (output vertices) of the faces `pick` selects, ascending.
-        let clusters_of = |pick: &dyn Fn(usize) -> bool| -> Vec<u32> {
-            let mut v: Vec<u32> = (0..faces.len())
-                .filter(|&i| pick(i))
-                .flat_map(|i| faces[i])
-                .collect();
-            v.sort_unstable();
-            v.dedup();
-            v
-        };
-        // With `fix_facing`, clusters on the input boundary (whose vertices the placement put
-        // on it) stay out of this first move: they try points of their boundary edges first
-        // below, and leave the boundary only when none of those will do.
-        let rim = |c: usize| fix_facing && on_boundary[c];
-        let mut bad = clusters_of(&|i| flat(&faces[i], &positions) || turned[i]);
-        bad.retain(|&c| !rim(c as usize));
-        if !bad.is_empty() {
-            // Unsnapped: a boundary cluster between two others on a straight boundary would
-            // otherwise give a flat triangle; its vertex then stays just inside the boundary.
-            let projected: Vec<DVec3> = bad
-                .par_iter()
-                .map(|&c| {
-                    let g = centroids[c as usize];
-                    facing.bvh().closest_point(g).map_or(g, |h| h.point)
-                })
-                .collect();
-            let mut changed = vec![false; n];
-            for (&c, p) in bad.iter().zip(projected) {
-                positions[c as usize] = p;
-                changed[c as usize] = true;
-            }
-            turned
-                .par_iter_mut()
-                .zip(&faces)
-                .filter(|(_, f)| f.iter().any(|&c| changed[c as usize]))
-                .for_each(|(t, f)| *t = away(f, &positions));
-        }
-        let mut moved = bad.len();
-        let still = clusters_of(&|i| flat(&faces[i], &positions) || (fix_facing && turned[i]));
-        if !still.is_empty() {
-            // Centroids in a row (e.g. thin clusters along a straight strip), or a face across a
-            // part thinner than a cluster (nearest the opposite sheet): each vertex of such a
-            // triangle tries points of its cluster's faces. Against flat triangles it takes, of
-            // those that leave none of its triangles flat, the one with the fewest facing away
-            // (nearest first); against faces facing away, one that leaves fewer facing away and
-            // none flat, the one whose triangles keep the largest smallest angle.
-            let mut involved = vec![false; n];
-            still.iter().for_each(|&c| involved[c as usize] = true);
-            let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
-            for (f, &c) in labels.iter().enumerate() {
-                if involved[c as usize] {
-                    members[c as usize].push(f as u32);
-                }
-            }
-            // The boundary edges of the involved clusters kept on the boundary above.
-            let mut edges_of: Vec<Vec<[DVec3; 2]>> = vec![Vec::new(); n];
-            for &(f, ends) in &boundary.edges {
-                let c = labels[f as usize] as usize;
-                if involved[c] && rim(c) {
-                    edges_of[c].push(ends.map(|v| mesh.positions[v as usize]));
-                }
-            }
-            let mut around: Vec<Vec<usize>> = vec![Vec::new(); n];
-            for (i, f) in faces.iter().enumerate() {
-                f.iter()
-                    .filter(|&&c| involved[c as usize])
-                    .for_each(|&c| around[c as usize].push(i));
-            }
-            for &c in &still {
-                // (flat, facing away) triangles around c.
-                let score = |positions: &[DVec3]| {
-                    around[c as usize].iter().fold((0, 0), |(fl, aw), &i| {
-                        let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
-                        (
-                            fl + flat(&faces[i], positions) as usize,
-                            aw + facing.faces_away(a, b, cc) as usize,
-                        )
-                    })
-                };
-                // The smallest angle of the triangles around c.
-                let smallest_angle = |positions: &[DVec3]| {
-                    around[c as usize]
-                        .iter()
-                        .map(|&i| {
-                            let [a, b, cc] = faces[i].map(|k| positions[k as usize]);
-                            coarsen_geom::triangle::min_angle(a, b, cc)
-                        })
-                        .fold(f64::INFINITY, f64::min)
-                };
-                let here = positions[c as usize];
-                let now = score(&positions);
-                if now.0 == 0 && now.1 == 0 {
-                    continue;
-                }
-                // A cluster kept on the boundary first tries the ends and middles of its
-                // boundary edges (nearest first): of those that leave none of its triangles
-                // flat or facing away, the one with the largest smallest angle.
-                let mut on_rim: Vec<(f64, u64, DVec3)> = edges_of[c as usize]
-                    .iter()
-                    .enumerate()
-                    .flat_map(|(i, &[a, b])| {
-                        [a, a.lerp(b, 0.5), b]
-                            .into_iter()
-                            .enumerate()
-                            .map(move |(k, p)| {
-                                (p.distance_squared(here), (i as u64) << 2 | k as u64, p)
-                            })
-                    })
-                    .collect();
-                on_rim.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                let mut kept = None;
-                for (_, _, p) in on_rim {
-                    positions[c as usize] = p;
-                    if score(&positions) != (0, 0) {
-                        continue;
-                    }
-                    let shape = smallest_angle(&positions);
-                    if kept.is_none_or(|(_, w)| shape > w) {
-                        kept = Some((p, shape));
-                    }
-                }
-                if let Some((p, _)) = kept {
-                    positions[c as usize] = p;
-                    moved += 1;
-                    continue;
-                }
-                positions[c as usize] = here;
-                // Each face's centroid, and the points halfway from it to the face's corners
-                // (the centroids alone are in a row too under a fan of faces on a straight line).
-                let mut cand: Vec<(f64, u64, DVec3)> = members[c as usize]
-                    .iter()
-                    .flat_map(|&f| {
-                        let g = mesh.face_centroid(f as usize);
-                        let [a, b, cc] = mesh.corners(f as usize);
-                        [g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(cc, 0.5)]
-                            .into_iter()
-                            .enumerate()
-                            .map(move |(k, p)| {
-                                (p.distance_squared(here), (u64::from(f) << 2) | k as u64, p)
-                            })
-                    })
-                    .collect();
-                // And the nearest point of the surface's side the cluster faces: across a
-                // part thinner than a cluster, the side its triangles belong on.
-                if now.1 > 0 {
-                    let normal = mesh.faces_cross(&members[c as usize]);
-                    if let Some(p) = facing.project_facing(centroids[c as usize], normal) {
-                        cand.push((p.distance_squared(here), u64::MAX, p));
-                    }
-                }
-                cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                let mut best: Option<((usize, usize), DVec3, f64)> = None;
-                for (_, _, p) in cand {
-                    positions[c as usize] = p;
-                    let sc = score(&positions);
-                    if sc.0 > 0 || (now.0 == 0 && sc.1 >= now.1) {
-                        continue;
-                    }
-                    // Flat triangles: the nearest of the fewest facing away (angles not looked at).
-                    let shape = match now.0 {
-                        0 => smallest_angle(&positions),
-                        _ => 0.0,
-                    };
-                    if best.is_none_or(|(b, _, w)| sc.1 < b.1 || (sc.1 == b.1 && shape > w)) {
-                        best = Some((sc, p, shape));
-                    }
-                }
-                positions[c as usize] = best.map_or(here, |(_, p, _)| p);
-                moved += best.is_some() as usize;
-            }
-        }
-        let degenerate = faces.iter().find(|f| flat(f, &positions));
-        if let Some(f) = degenerate {
+        let (mut moved, turned) = fixes.to_projected_centroids(&mut positions);
+        moved += fixes.to_better_points(&mut positions, &turned);
+        if let Some(f) = faces.iter().find(|f| fixes.flat(f, &positions)) {
             return Err(DualError::Unrepaired(format!(
                 "the output vertex of cluster {} lies on a degenerate triangle",
                 f[0]
@@ -526,6 +352,297 @@ impl Repaired {
             quadric_fallbacks,
             degenerate_fixes: moved,
         })
+    }
+}
+
+/// What the fixes after the placement read: a degenerate output face (e.g. three closest
+/// vertices in a row on a flat part), or one facing away from the input surface nearest
+/// its centroid (closest-vertex placement on a curved part), gets its clusters' vertices
+/// moved (the report's `degenerate_fixes`).
+struct Fixes<'a> {
+    mesh: &'a Mesh,
+    labels: &'a [u32],
+    /// The output faces, over the clusters.
+    faces: &'a [[u32; 3]],
+    facing: &'a Facing<'a>,
+    boundary: &'a Boundary,
+    centroids: &'a [DVec3],
+    /// Per cluster: placed on the input boundary.
+    on_boundary: &'a [bool],
+    fix_facing: bool,
+    /// The squared diagonal of the mesh's box, the scale of a flat triangle.
+    diag2: f64,
+    /// Clusters.
+    n: usize,
+}
+
+/// What the second fix reads around the clusters it tries to move.
+struct Around {
+    /// Per cluster: its faces of the clustered mesh.
+    members: Vec<Vec<u32>>,
+    /// Per cluster kept on the boundary: its boundary edges.
+    edges_of: Vec<Vec<[DVec3; 2]>>,
+    /// Per cluster: the output faces at its vertex.
+    faces: Vec<Vec<usize>>,
+}
+
+impl Fixes<'_> {
+    /// Whether output face `f` is degenerate at `positions`.
+    fn flat(&self, f: &[u32; 3], positions: &[DVec3]) -> bool {
+        let [a, b, c] = f.map(|i| positions[i as usize]);
+        coarsen_geom::triangle::area(a, b, c) <= 1e-10 * self.diag2
+    }
+
+    /// Whether output face `f` faces away from the input surface at `positions`.
+    fn away(&self, f: &[u32; 3], positions: &[DVec3]) -> bool {
+        let [a, b, c] = f.map(|i| positions[i as usize]);
+        self.facing.faces_away(a, b, c)
+    }
+
+    /// With `fix_facing`, clusters on the input boundary (whose vertices the placement put
+    /// on it) stay out of the first move: they try points of their boundary edges first,
+    /// and leave the boundary only when none of those will do.
+    fn rim(&self, c: usize) -> bool {
+        self.fix_facing && self.on_boundary[c]
+    }
+
+    /// The clusters (output vertices) of the faces `pick` selects, ascending.
+    fn clusters_of(&self, pick: impl Fn(usize) -> bool) -> Vec<u32> {
+        let mut v: Vec<u32> = (0..self.faces.len())
+            .filter(|&i| pick(i))
+            .flat_map(|i| self.faces[i])
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
+    /// The first fix: the vertices of flat faces and faces facing away go to their
+    /// clusters' projected centroids, the most central choice. Returns how many moved,
+    /// and per output face whether it faces away now.
+    fn to_projected_centroids(&self, positions: &mut [DVec3]) -> (usize, Vec<bool>) {
+        // Per output face: whether it faces away (the costly test, run in parallel, and
+        // again only for faces whose vertices move).
+        let mut turned: Vec<bool> = self
+            .faces
+            .par_iter()
+            .map(|f| self.away(f, positions))
+            .collect();
+        let mut bad = self.clusters_of(|i| self.flat(&self.faces[i], positions) || turned[i]);
+        bad.retain(|&c| !self.rim(c as usize));
+        if !bad.is_empty() {
+            // Unsnapped: a boundary cluster between two others on a straight boundary would
+            // otherwise give a flat triangle; its vertex then stays just inside the boundary.
+            let projected: Vec<DVec3> = bad
+                .par_iter()
+                .map(|&c| {
+                    let g = self.centroids[c as usize];
+                    self.facing.bvh().closest_point(g).map_or(g, |h| h.point)
+                })
+                .collect();
+            let mut changed = vec![false; self.n];
+            for (&c, p) in bad.iter().zip(projected) {
+                positions[c as usize] = p;
+                changed[c as usize] = true;
+            }
+            turned
+                .par_iter_mut()
+                .zip(self.faces)
+                .filter(|(_, f)| f.iter().any(|&c| changed[c as usize]))
+                .for_each(|(t, f)| *t = self.away(f, positions));
+        }
+        (bad.len(), turned)
+    }
+
+    /// The second fix, for the triangles still flat (or, with `fix_facing`, facing away:
+    /// `turned`). Centroids in a row (e.g. thin clusters along a straight strip), or a face
+    /// across a part thinner than a cluster (nearest the opposite sheet): each vertex of
+    /// such a triangle tries points of its cluster ([`Fixes::to_better_point`]). Returns
+    /// how many moved.
+    fn to_better_points(&self, positions: &mut [DVec3], turned: &[bool]) -> usize {
+        let still = self.clusters_of(|i| {
+            self.flat(&self.faces[i], positions) || (self.fix_facing && turned[i])
+        });
+        if still.is_empty() {
+            return 0;
+        }
+        let around = self.around(&still);
+        still
+            .iter()
+            .filter(|&&c| self.to_better_point(c, &around, positions))
+            .count()
+    }
+
+    /// The faces, boundary edges and output faces of the clusters `involved`.
+    fn around(&self, involved_clusters: &[u32]) -> Around {
+        let n = self.n;
+        let mut involved = vec![false; n];
+        involved_clusters
+            .iter()
+            .for_each(|&c| involved[c as usize] = true);
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for (f, &c) in self.labels.iter().enumerate() {
+            if involved[c as usize] {
+                members[c as usize].push(f as u32);
+            }
+        }
+        // The boundary edges of the involved clusters kept on the boundary by the first fix.
+        let mut edges_of: Vec<Vec<[DVec3; 2]>> = vec![Vec::new(); n];
+        for &(f, ends) in &self.boundary.edges {
+            let c = self.labels[f as usize] as usize;
+            if involved[c] && self.rim(c) {
+                edges_of[c].push(ends.map(|v| self.mesh.positions[v as usize]));
+            }
+        }
+        let mut faces: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, f) in self.faces.iter().enumerate() {
+            f.iter()
+                .filter(|&&c| involved[c as usize])
+                .for_each(|&c| faces[c as usize].push(i));
+        }
+        Around {
+            members,
+            edges_of,
+            faces,
+        }
+    }
+
+    /// The (flat, facing away) counts of the output triangles around cluster `c`.
+    fn score(&self, c: u32, around: &Around, positions: &[DVec3]) -> (usize, usize) {
+        around.faces[c as usize]
+            .iter()
+            .fold((0, 0), |(fl, aw), &i| {
+                let f = &self.faces[i];
+                (
+                    fl + self.flat(f, positions) as usize,
+                    aw + self.away(f, positions) as usize,
+                )
+            })
+    }
+
+    /// The smallest angle of the output triangles around cluster `c`.
+    fn smallest_angle(&self, c: u32, around: &Around, positions: &[DVec3]) -> f64 {
+        around.faces[c as usize]
+            .iter()
+            .map(|&i| {
+                let [a, b, cc] = self.faces[i].map(|k| positions[k as usize]);
+                coarsen_geom::triangle::min_angle(a, b, cc)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Moves cluster `c`'s vertex to a better point, if one will do: a cluster kept on the
+    /// boundary first tries points of its boundary edges ([`Fixes::rim_point`]), then
+    /// every cluster points of its faces and of the surface ([`Fixes::inner_point`]).
+    /// Returns whether it moved.
+    fn to_better_point(&self, c: u32, around: &Around, positions: &mut [DVec3]) -> bool {
+        let now = self.score(c, around, positions);
+        if now.0 == 0 && now.1 == 0 {
+            return false;
+        }
+        if let Some(p) = self.rim_point(c, around, positions) {
+            positions[c as usize] = p;
+            return true;
+        }
+        match self.inner_point(c, now, around, positions) {
+            Some(p) => {
+                positions[c as usize] = p;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Of the ends and middles of cluster `c`'s boundary edges (nearest first), those that
+    /// leave none of its triangles flat or facing away, the one with the largest smallest
+    /// angle. `positions` comes back as it came.
+    fn rim_point(&self, c: u32, around: &Around, positions: &mut [DVec3]) -> Option<DVec3> {
+        let here = positions[c as usize];
+        let mut on_rim: Vec<(f64, u64, DVec3)> = around.edges_of[c as usize]
+            .iter()
+            .enumerate()
+            .flat_map(|(i, &[a, b])| {
+                [a, a.lerp(b, 0.5), b]
+                    .into_iter()
+                    .enumerate()
+                    .map(move |(k, p)| (p.distance_squared(here), (i as u64) << 2 | k as u64, p))
+            })
+            .collect();
+        on_rim.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut kept = None;
+        for (_, _, p) in on_rim {
+            positions[c as usize] = p;
+            if self.score(c, around, positions) != (0, 0) {
+                continue;
+            }
+            let shape = self.smallest_angle(c, around, positions);
+            if kept.is_none_or(|(_, w)| shape > w) {
+                kept = Some((p, shape));
+            }
+        }
+        positions[c as usize] = here;
+        kept.map(|(p, _)| p)
+    }
+
+    /// Each face's centroid of cluster `c`, and the points halfway from it to the face's
+    /// corners (the centroids alone are in a row too under a fan of faces on a straight
+    /// line), and against faces facing away the nearest point of the surface's side the
+    /// cluster faces (across a part thinner than a cluster, the side its triangles belong
+    /// on). Against flat triangles (`now`: the current score) it takes, of those that
+    /// leave none of its triangles flat, the one with the fewest facing away (nearest
+    /// first); against faces facing away, one that leaves fewer facing away and none flat,
+    /// the one whose triangles keep the largest smallest angle. `positions` comes back as
+    /// it came.
+    fn inner_point(
+        &self,
+        c: u32,
+        now: (usize, usize),
+        around: &Around,
+        positions: &mut [DVec3],
+    ) -> Option<DVec3> {
+        let (mesh, here) = (self.mesh, positions[c as usize]);
+        let members = &around.members[c as usize];
+        let mut cand: Vec<(f64, u64, DVec3)> = members
+            .iter()
+            .flat_map(|&f| {
+                let g = mesh.face_centroid(f as usize);
+                let [a, b, cc] = mesh.corners(f as usize);
+                [g, g.lerp(a, 0.5), g.lerp(b, 0.5), g.lerp(cc, 0.5)]
+                    .into_iter()
+                    .enumerate()
+                    .map(move |(k, p)| {
+                        (p.distance_squared(here), (u64::from(f) << 2) | k as u64, p)
+                    })
+            })
+            .collect();
+        if now.1 > 0 {
+            let normal = mesh.faces_cross(members);
+            if let Some(p) = self
+                .facing
+                .project_facing(self.centroids[c as usize], normal)
+            {
+                cand.push((p.distance_squared(here), u64::MAX, p));
+            }
+        }
+        cand.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut best: Option<((usize, usize), DVec3, f64)> = None;
+        for (_, _, p) in cand {
+            positions[c as usize] = p;
+            let sc = self.score(c, around, positions);
+            if sc.0 > 0 || (now.0 == 0 && sc.1 >= now.1) {
+                continue;
+            }
+            // Flat triangles: the nearest of the fewest facing away (angles not looked at).
+            let shape = match now.0 {
+                0 => self.smallest_angle(c, around, positions),
+                _ => 0.0,
+            };
+            if best.is_none_or(|(b, _, w)| sc.1 < b.1 || (sc.1 == b.1 && shape > w)) {
+                best = Some((sc, p, shape));
+            }
+        }
+        positions[c as usize] = here;
+        best.map(|(_, p, _)| p)
     }
 }
 
@@ -896,70 +1013,89 @@ impl Stage for DualStage {
         let d = repaired
             .finish(&mesh, &labels, p.placement, facing.as_ref(), p.fix_facing)
             .map_err(stage_error)?;
-        // Beyond the dual's own input: when its boundary has left the run's input's (after
-        // a simplifier, whose boundary edges are chords of the input's), the boundary
-        // vertices go onto the input's own boundary, from the dual input's boundary
-        // vertices. A boundary on the input's (a refinement's or a subdivision's) is left to
-        // the dual, which may have kept a vertex inside on purpose (a flat triangle).
         let mut d = d;
-        let mut pulled = Pulled::default();
-        if let Some(facing) = &facing {
-            let diag = cx.original.bbox().diagonal();
-            let tol = 1e-9 * diag;
-            let off = rim.par_iter().any(|&p| {
-                facing
-                    .project_boundary(p)
-                    .is_some_and(|q| q.distance(p) > tol)
-            });
-            if off {
-                let out_topo = Topology::try_build(&d.mesh)
-                    .map_err(|e| StageError::Internal(format!("`{}`: {e}", Self::KIND)))?;
-                let pull = Pull {
-                    rim: &rim,
-                    interior: false,
-                    min_move: 1e-12 * diag,
-                };
-                match pull_onto_input(&mut d.mesh, &out_topo, facing, pull, diag * diag) {
-                    Some(p) => pulled = p,
-                    None => cx.report.warn(
-                        "moving the boundary vertices onto the input's boundary would degenerate faces: they stay on the clustered mesh's boundary",
-                    ),
-                }
-            }
-        }
-        let r = &mut *cx.report;
-        r.figure("boundary_pulled", pulled.moved);
-        r.figure("boundary_left", pulled.boundary_left);
-        r.figure("vertices", d.mesh.n_vertices());
-        r.figure("faces", d.mesh.n_faces());
-        r.figure("placement", p.placement);
-        r.figure("repairs", d.stats.repairs);
-        r.figure("repair_rounds", d.stats.repair_rounds);
-        r.figure("problems", d.stats.first_problems);
-        r.figure("boundary_clusters", d.boundary_clusters);
-        r.figure("quadric_fallbacks", d.quadric_fallbacks);
-        r.figure("degenerate_fixes", d.degenerate_fixes);
-        r.figure("restarted", d.stats.restarted);
-        r.figure("rebuilt", d.stats.rebuilt);
-        if d.stats.rebuilt {
-            r.warn(
-                "splitting could not repair the clustering (parts too thin for compact clusters): \
-                 the clusters to blame were rebuilt from single faces merged back to the count"
-                    .to_string(),
-            );
-        } else if d.stats.repairs > 0 {
-            let restart = if d.stats.restarted {
-                ", started again from the clustering as it came after splitting whole boundary \
-                 loops had not converged (the splits counted since)"
-            } else {
-                ""
-            };
-            r.warn(format!(
-                "the clustering was repaired: {} clusters split (each paid for by a merge elsewhere) in {} rounds{restart}",
-                d.stats.repairs, d.stats.repair_rounds
-            ));
-        }
+        let pulled = match &facing {
+            Some(facing) => pull_boundary(&mut d.mesh, &rim, facing, cx)?,
+            None => Pulled::default(),
+        };
+        report(cx.report, p, &d, &pulled);
         Ok(d.mesh)
+    }
+}
+
+/// Beyond the dual's own input: when its boundary has left the run's input's (after a
+/// simplifier, whose boundary edges are chords of the input's), the boundary vertices of
+/// `out` go onto the input's own boundary, from the dual input's boundary vertices `rim`.
+/// A boundary on the input's (a refinement's or a subdivision's) is left to the dual,
+/// which may have kept a vertex inside on purpose (a flat triangle).
+fn pull_boundary(
+    out: &mut Mesh,
+    rim: &[DVec3],
+    facing: &Facing<'_>,
+    cx: &mut Context<'_>,
+) -> Result<Pulled, StageError> {
+    let diag = cx.original.bbox().diagonal();
+    let tol = 1e-9 * diag;
+    let off = rim.par_iter().any(|&p| {
+        facing
+            .project_boundary(p)
+            .is_some_and(|q| q.distance(p) > tol)
+    });
+    if !off {
+        return Ok(Pulled::default());
+    }
+    let out_topo = Topology::try_build(out)
+        .map_err(|e| StageError::Internal(format!("`{}`: {e}", DualStage::KIND)))?;
+    let pull = Pull {
+        rim,
+        interior: false,
+        min_move: 1e-12 * diag,
+    };
+    Ok(
+        match pull_onto_input(out, &out_topo, facing, pull, diag * diag) {
+            Some(p) => p,
+            None => {
+                cx.report.warn(
+                    "moving the boundary vertices onto the input's boundary would degenerate faces: they stay on the clustered mesh's boundary",
+                );
+                Pulled::default()
+            }
+        },
+    )
+}
+
+/// The stage's figures, and a warning when the clustering was repaired.
+fn report(r: &mut coarsen_stage::StageReport, p: &DualParams, d: &Dual, pulled: &Pulled) {
+    r.figure("boundary_pulled", pulled.moved);
+    r.figure("boundary_left", pulled.boundary_left);
+    r.figure("vertices", d.mesh.n_vertices());
+    r.figure("faces", d.mesh.n_faces());
+    r.figure("placement", p.placement);
+    r.figure("repairs", d.stats.repairs);
+    r.figure("repair_rounds", d.stats.repair_rounds);
+    r.figure("problems", d.stats.first_problems);
+    r.figure("boundary_clusters", d.boundary_clusters);
+    r.figure("quadric_fallbacks", d.quadric_fallbacks);
+    r.figure("degenerate_fixes", d.degenerate_fixes);
+    r.figure("restarted", d.stats.restarted);
+    r.figure("rebuilt", d.stats.rebuilt);
+    if d.stats.rebuilt {
+        r.warn(
+            "splitting could not repair the clustering (parts too thin for compact clusters): \
+             the clusters to blame were rebuilt from single faces merged back to the count"
+                .to_string(),
+        );
+    } else if d.stats.repairs > 0 {
+        let restart = if d.stats.restarted {
+            ", started again from the clustering as it came after splitting whole boundary \
+             loops had not converged (the splits counted since)"
+        } else {
+            ""
+        };
+        r.warn(format!(
+            "the clustering was repaired: {} clusters split (each paid for by a merge elsewhere) in {} rounds{restart}",
+            d.stats.repairs, d.stats.repair_rounds
+        ));
     }
 }
 
