@@ -101,6 +101,107 @@ pub struct PassLog {
     pub slept: u64,
 }
 
+/// The clusterer's layout of a mesh: vertices along a Morton curve of their positions,
+/// faces by their first corner on that curve (`coarsen_mesh::order`), or the mesh's own
+/// order.
+struct Layout<'a> {
+    /// Laid out along the curve (also when the mesh was in that order already).
+    curve: bool,
+    /// The mesh's own order, its tables borrowed.
+    own_tables: bool,
+    /// Layout position → vertex; empty in the mesh's own order.
+    vorder: Vec<u32>,
+    perm: FacePerm,
+    /// Each face's corners (layout positions) by layout position.
+    corners: Cow<'a, [[u32; 3]]>,
+}
+
+impl<'a> Layout<'a> {
+    /// The layout of `mesh`: along the curve when `curve`, where a mesh already in that
+    /// order (the runner renumbers large inputs so) is laid out as it is.
+    fn of(mesh: &'a Mesh, curve: bool) -> Layout<'a> {
+        let nf = mesh.n_faces();
+        let along = curve && is_along_curve(mesh);
+        let layout = match curve && !along {
+            true => CurveOrder::of(mesh),
+            false => None,
+        };
+        let curve = along || layout.is_some();
+        let own_tables = layout.is_none();
+        // Layout position → vertex, vertex → layout position, layout position → face;
+        // empty when the layout is the mesh's own order.
+        let (vorder, vmap, order) = match layout {
+            Some(o) => (o.vertices, o.vertex_rank, o.faces),
+            None => (Vec::new(), Vec::new(), Vec::new()),
+        };
+        let perm = match own_tables {
+            true => FacePerm::Identity(nf),
+            false => {
+                let mut rank = vec![0u32; nf];
+                for (i, &f) in order.iter().enumerate() {
+                    rank[f as usize] = i as u32;
+                }
+                FacePerm::Map { order, rank }
+            }
+        };
+        let corners: Cow<'a, [[u32; 3]]> = match own_tables {
+            true => Cow::Borrowed(&mesh.faces),
+            false => Cow::Owned(
+                (0..nf)
+                    .into_par_iter()
+                    .map(|i| mesh.faces[perm.order(i) as usize].map(|v| vmap[v as usize]))
+                    .collect(),
+            ),
+        };
+        drop(vmap);
+        Layout {
+            curve,
+            own_tables,
+            vorder,
+            perm,
+            corners,
+        }
+    }
+}
+
+/// [`ClusterError::SkippedFace`] for a face of the `nf` that `topo` skips,
+/// [`ClusterError::BadDensity`] for a density that is not finite and positive.
+fn check_input(nf: usize, topo: &Topology, density: Option<&[f64]>) -> Result<(), ClusterError> {
+    if let Some(face) = (0..nf).find(|&f| topo.is_skipped_face(f as u32)) {
+        return Err(ClusterError::SkippedFace { face });
+    }
+    if let Some(d) = density
+        && let Some((vertex, &value)) = d
+            .iter()
+            .enumerate()
+            .find(|(_, x)| !(x.is_finite() && **x > 0.0))
+    {
+        return Err(ClusterError::BadDensity { vertex, value });
+    }
+    Ok(())
+}
+
+/// Per face in layout order: the faces across its three edges (layout ranks), `NONE`
+/// across a boundary edge or an edge of three or more faces.
+fn face_neighbours(topo: &Topology, perm: &FacePerm) -> Vec<[u32; 3]> {
+    (0..perm.len())
+        .into_par_iter()
+        .map(|i| {
+            let f = perm.order(i);
+            topo.face_edges(f)
+                .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
+                    Some(&[a, b]) => perm.rank(if a == f { b } else { a } as usize),
+                    _ => NONE,
+                })
+        })
+        .collect()
+}
+
+/// A bit per face of `nf`, all clear.
+fn bits(nf: usize) -> Vec<AtomicU64> {
+    (0..nf.div_ceil(64)).map(|_| AtomicU64::new(0)).collect()
+}
+
 /// The clusterer's face layout against the mesh's face numbering; the identity (a mesh
 /// laid out in its own order, or one the runner renumbered along the curve already) is
 /// kept as its length alone (two arrays of a face each fewer: 36 MB at 4.4M faces).
@@ -229,59 +330,20 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
         derive: bool,
     ) -> Result<Self, ClusterError> {
         let nf = mesh.n_faces();
-        if let Some(face) = (0..nf).find(|&f| topo.is_skipped_face(f as u32)) {
-            return Err(ClusterError::SkippedFace { face });
-        }
-        if let Some(d) = density
-            && let Some((vertex, &value)) = d
-                .iter()
-                .enumerate()
-                .find(|(_, x)| !(x.is_finite() && **x > 0.0))
-        {
-            return Err(ClusterError::BadDensity { vertex, value });
-        }
+        check_input(nf, topo, density)?;
         // Normalised coordinates: centred, unit diagonal, so the sums keep their digits
         // (and the curve order below is drawn in the same ones).
         let (center, scale) = unit_box(mesh);
         let nv = mesh.n_vertices();
         let pos_of = |v: u32| (mesh.positions[v as usize] - center) * scale;
-        // The layout: vertices along a Morton curve of their positions, faces by their
-        // first corner on that curve (`coarsen_mesh::order`). A mesh already in that order (the runner renumbers large inputs so)
-        // is laid out as it is, its own tables borrowed.
-        let along = curve && is_along_curve(mesh);
-        let layout = match curve && !along {
-            true => CurveOrder::of(mesh),
-            false => None,
-        };
-        let curve = along || layout.is_some();
-        let own_tables = layout.is_none();
-        // Layout position → vertex, vertex → layout position, layout position → face;
-        // empty when the layout is the mesh's own order.
-        let (vorder, vmap, order) = match layout {
-            Some(o) => (o.vertices, o.vertex_rank, o.faces),
-            None => (Vec::new(), Vec::new(), Vec::new()),
-        };
+        let Layout {
+            curve,
+            own_tables,
+            vorder,
+            perm,
+            corners,
+        } = Layout::of(mesh, curve);
         let vertex_at = |i: usize| if own_tables { i as u32 } else { vorder[i] };
-        let perm = match own_tables {
-            true => FacePerm::Identity(nf),
-            false => {
-                let mut rank = vec![0u32; nf];
-                for (i, &f) in order.iter().enumerate() {
-                    rank[f as usize] = i as u32;
-                }
-                FacePerm::Map { order, rank }
-            }
-        };
-        let corners: Cow<'a, [[u32; 3]]> = match own_tables {
-            true => Cow::Borrowed(&mesh.faces),
-            false => Cow::Owned(
-                (0..nf)
-                    .into_par_iter()
-                    .map(|i| mesh.faces[perm.order(i) as usize].map(|v| vmap[v as usize]))
-                    .collect(),
-            ),
-        };
-        drop(vmap);
         let face_point = |i: usize, [a, b, c]: [DVec3; 3]| {
             let rho = density.map_or(1.0, |d| {
                 mesh.faces[perm.order(i) as usize]
@@ -345,17 +407,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
                 topo.n_vertex_fans(v) == 1 && !topo.is_boundary_vertex(v)
             })
             .collect();
-        let nbr: Vec<[u32; 3]> = (0..nf)
-            .into_par_iter()
-            .map(|i| {
-                let f = perm.order(i);
-                topo.face_edges(f)
-                    .map(|e| match (e != NONE).then(|| topo.edge_faces(e)) {
-                        Some(&[a, b]) => perm.rank(if a == f { b } else { a } as usize),
-                        _ => NONE,
-                    })
-            })
-            .collect();
+        let nbr = face_neighbours(topo, &perm);
         Ok(Clusterer {
             energy,
             perm,
@@ -696,54 +748,13 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             // Nothing labelled yet: nothing to minimise.
             return PassLog::default();
         }
-        let words = nf.div_ceil(64);
-        let bitset = || (0..words).map(|_| AtomicU64::new(0)).collect::<Vec<_>>();
-        let (mut cur, mut next) = (bitset(), bitset());
-        let set =
-            |bits: &[AtomicU64], f: u32| bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
-        match start {
-            // Every face: whole words at once.
-            None => cur.iter_mut().enumerate().for_each(|(w, word)| {
-                *word.get_mut() = match nf - 64 * w {
-                    64.. => u64::MAX,
-                    left => (1 << left) - 1,
-                }
-            }),
-            Some(faces) => faces.iter().filter(|&&f| (f as usize) < nf).for_each(|&f| {
-                set(&cur, self.perm.rank(f as usize));
-            }),
-        }
+        let bitset = || bits(nf);
+        let (mut cur, mut next) = (self.first_active(start), bitset());
         let mut log = PassLog {
             initial_energy: self.total_energy(),
             ..PassLog::default()
         };
-        // Parts: clusters in Morton order of their centroids, cut into ranges of about
-        // equal face counts, renumbered so that each part is one range of labels.
-        let n_parts = if nf >= PARALLEL_MIN_FACES && n >= 64 * PARTS {
-            PARTS
-        } else {
-            1
-        };
-        let order: Vec<u32> = if n_parts == 1 {
-            (0..n as u32).collect()
-        } else {
-            let mut keyed: Vec<(u64, u32)> = (0..n)
-                .map(|c| (morton(self.sums[c].centroid_or_zero()), c as u32))
-                .collect();
-            keyed.sort_unstable();
-            keyed.into_iter().map(|(_, c)| c).collect()
-        };
-        let mut starts = vec![0u32];
-        let mut run = 0.0;
-        let total: f64 = self.sums.iter().map(|s| s.count).sum();
-        for (i, &c) in order.iter().enumerate() {
-            run += self.sums[c as usize].count;
-            if starts.len() < n_parts && run >= total * starts.len() as f64 / n_parts as f64 {
-                starts.push(i as u32 + 1);
-            }
-        }
-        starts.push(n as u32);
-        starts.dedup();
+        let (order, starts) = self.parts();
         let mut new_of = vec![0u32; n];
         for (i, &c) in order.iter().enumerate() {
             new_of[c as usize] = i as u32;
@@ -755,15 +766,8 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             .collect();
         let mut sums: Vec<Sums> = order.iter().map(|&c| self.sums[c as usize]).collect();
         let mut terms: Vec<f64> = order.iter().map(|&c| self.terms[c as usize]).collect();
-        // Per cluster: its faces' area vectors summed, for the fold guard.
         let guard = self.fold_guard;
-        let mut normals = vec![DVec3::ZERO; n];
-        if guard {
-            for (corners, l) in self.corners.iter().zip(&labels) {
-                let [a, b, c] = corners.map(|v| self.pos[v as usize]);
-                normals[l.load(Relaxed) as usize] += (b - a).cross(c - a);
-            }
-        }
+        let mut normals = self.cluster_normals(&labels, n);
         let mut last_mod = vec![0u32; n];
         let mut sleepers = vec![Vec::new(); n];
         let asleep = bitset();
@@ -832,6 +836,73 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
             self.terms[c as usize] = terms[i];
         }
         log
+    }
+
+    /// The faces [`Clusterer::minimize`]'s first pass tests (by layout rank): those of
+    /// `start`, or every face.
+    fn first_active(&self, start: Option<&[u32]>) -> Vec<AtomicU64> {
+        let nf = self.perm.len();
+        let mut cur = bits(nf);
+        match start {
+            // Every face: whole words at once.
+            None => cur.iter_mut().enumerate().for_each(|(w, word)| {
+                *word.get_mut() = match nf - 64 * w {
+                    64.. => u64::MAX,
+                    left => (1 << left) - 1,
+                }
+            }),
+            Some(faces) => faces.iter().filter(|&&f| (f as usize) < nf).for_each(|&f| {
+                let f = self.perm.rank(f as usize);
+                cur[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
+            }),
+        }
+        cur
+    }
+
+    /// The parts the passes sweep side by side: the clusters in Morton order of their
+    /// centroids (in their own order when one part does), and where each part starts in
+    /// that order (ranges of about equal face counts), the total last.
+    fn parts(&self) -> (Vec<u32>, Vec<u32>) {
+        let (nf, n) = (self.perm.len(), self.sums.len());
+        let n_parts = if nf >= PARALLEL_MIN_FACES && n >= 64 * PARTS {
+            PARTS
+        } else {
+            1
+        };
+        let order: Vec<u32> = if n_parts == 1 {
+            (0..n as u32).collect()
+        } else {
+            let mut keyed: Vec<(u64, u32)> = (0..n)
+                .map(|c| (morton(self.sums[c].centroid_or_zero()), c as u32))
+                .collect();
+            keyed.sort_unstable();
+            keyed.into_iter().map(|(_, c)| c).collect()
+        };
+        let mut starts = vec![0u32];
+        let mut run = 0.0;
+        let total: f64 = self.sums.iter().map(|s| s.count).sum();
+        for (i, &c) in order.iter().enumerate() {
+            run += self.sums[c as usize].count;
+            if starts.len() < n_parts && run >= total * starts.len() as f64 / n_parts as f64 {
+                starts.push(i as u32 + 1);
+            }
+        }
+        starts.push(n as u32);
+        starts.dedup();
+        (order, starts)
+    }
+
+    /// Per cluster of `labels` (by layout face; `n` clusters): its faces' area vectors
+    /// summed, for the fold guard (zeros without it).
+    fn cluster_normals(&self, labels: &[AtomicU32], n: usize) -> Vec<DVec3> {
+        let mut normals = vec![DVec3::ZERO; n];
+        if self.fold_guard {
+            for (corners, l) in self.corners.iter().zip(labels) {
+                let [a, b, c] = corners.map(|v| self.pos[v as usize]);
+                normals[l.load(Relaxed) as usize] += (b - a).cross(c - a);
+            }
+        }
+        normals
     }
 
     /// Per cluster: whether its faces are connected across edges (a check for tests and
