@@ -124,27 +124,31 @@ impl<'a> Locator<'a> {
     }
 }
 
-impl Pipeline {
-    /// Parses and checks a pipeline file; `file` names it in diagnostics.
-    ///
-    /// Every problem is reported, not only the first; nothing is run.
-    pub fn parse(
-        text: &str,
-        file: &str,
-        registry: &Registry,
-        overrides: &Overrides,
-    ) -> Result<Pipeline, Diagnostics> {
-        let loc = Locator::new(file, text);
-        let raw: RawFile = toml::from_str(text).map_err(|e| {
-            let message = e.message().trim().to_string();
-            Diagnostics(vec![Diagnostic {
-                origin: loc.at(e.span()),
-                message,
-            }])
-        })?;
-        let mut diags = Vec::new();
+/// What the `[pipeline]` header gives (with the defaults and the command line's target).
+struct Header {
+    name: String,
+    description: String,
+    target: Option<Target>,
+    inputs: Vec<AttrRef>,
+}
 
-        let (header, header_span) = match raw.pipeline {
+/// One parse of a pipeline file: what it reads besides the file, and the problems found.
+struct Parser<'a> {
+    loc: &'a Locator<'a>,
+    registry: &'a Registry,
+    overrides: &'a Overrides,
+    /// The ids the file's stages give.
+    ids: Vec<String>,
+    /// Per `--set`: whether some stage took it.
+    set_used: Vec<bool>,
+    diags: Vec<Diagnostic>,
+}
+
+impl Parser<'_> {
+    /// The header's fields, defaulted (the name from `file`'s stem), the target the
+    /// command line's if it gives one, checked.
+    fn header(&mut self, raw: Option<Spanned<RawHeader>>, file: &str) -> Header {
+        let (header, header_span) = match raw {
             Some(h) => {
                 let span = h.span();
                 (Some(h.into_inner()), Some(span))
@@ -164,129 +168,139 @@ impl Pipeline {
             .as_ref()
             .map(|h| h.inputs.clone())
             .unwrap_or_default();
-        let target = overrides.target.or(header.as_ref().and_then(|h| h.target));
+        let overridden = self.overrides.target;
+        let target = overridden.or(header.as_ref().and_then(|h| h.target));
         if let Some(t) = target
             && let Err(message) = t.check()
         {
-            let origin = if overrides.target.is_some() {
-                "command line".into()
-            } else {
-                loc.at(header_span)
+            let origin = match overridden {
+                Some(_) => "command line".into(),
+                None => self.loc.at(header_span),
             };
-            diags.push(Diagnostic { origin, message });
+            self.diags.push(Diagnostic { origin, message });
         }
-        if raw.stage.is_empty() {
-            diags.push(Diagnostic {
-                origin: file.to_string(),
-                message: "the pipeline has no [[stage]] table".into(),
-            });
+        Header {
+            name,
+            description,
+            target,
+            inputs,
         }
+    }
 
-        // A --set selector names a stage id when some stage has that id, else a kind.
-        let ids: Vec<String> = raw
-            .stage
-            .iter()
-            .filter_map(|s| s.get_ref().iter().find(|(k, _)| k.get_ref() == "id"))
-            .filter_map(|(_, v)| v.get_ref().as_str().map(str::to_string))
-            .collect();
-        let mut set_used = vec![false; overrides.sets.len()];
-        let mut stages = Vec::new();
-        for raw_stage in raw.stage {
-            let stage_span = raw_stage.span();
-            let mut table = raw_stage.into_inner();
-            let origin = loc.at(Some(stage_span.clone()));
-            let kind_value = take(&mut table, "kind");
-            let id_value = take(&mut table, "id");
-            let Some((kind_span, kind_value)) = kind_value else {
-                diags.push(Diagnostic {
-                    origin,
-                    message: "[[stage]] has no `kind`".into(),
+    /// One `[[stage]]` table built by its kind's descriptor, the command line's `--set`
+    /// values applied; `None` (with the problems noted) when it cannot be.
+    fn stage(&mut self, raw_stage: Spanned<RawStage>) -> Option<PipelineStage> {
+        let loc = self.loc;
+        let stage_span = raw_stage.span();
+        let mut table = raw_stage.into_inner();
+        let origin = loc.at(Some(stage_span.clone()));
+        let kind_value = take(&mut table, "kind");
+        let id_value = take(&mut table, "id");
+        let Some((kind_span, kind_value)) = kind_value else {
+            self.diags.push(Diagnostic {
+                origin,
+                message: "[[stage]] has no `kind`".into(),
+            });
+            return None;
+        };
+        let Some(kind) = kind_value.as_str() else {
+            self.diags.push(Diagnostic {
+                origin: loc.at(Some(kind_span)),
+                message: "`kind` must be a string".into(),
+            });
+            return None;
+        };
+        let id = match id_value {
+            Some((_, toml::Value::String(s))) => Some(s),
+            Some((span, _)) => {
+                self.diags.push(Diagnostic {
+                    origin: loc.at(Some(span)),
+                    message: "`id` must be a string".into(),
                 });
-                continue;
-            };
-            let Some(kind) = kind_value.as_str() else {
-                diags.push(Diagnostic {
+                None
+            }
+            None => None,
+        };
+        let descriptor = match self.registry.lookup(kind) {
+            Ok(d) => d,
+            Err(e) => {
+                self.diags.push(Diagnostic {
                     origin: loc.at(Some(kind_span)),
-                    message: "`kind` must be a string".into(),
+                    message: e.to_string(),
                 });
-                continue;
-            };
-            let id = match id_value {
-                Some((_, toml::Value::String(s))) => Some(s),
-                Some((span, _)) => {
-                    diags.push(Diagnostic {
-                        origin: loc.at(Some(span)),
-                        message: "`id` must be a string".into(),
-                    });
-                    None
-                }
-                None => None,
-            };
-            let descriptor = match registry.lookup(kind) {
-                Ok(d) => d,
-                Err(e) => {
-                    diags.push(Diagnostic {
-                        origin: loc.at(Some(kind_span)),
-                        message: e.to_string(),
-                    });
-                    continue;
-                }
-            };
-            let mut spans: BTreeMap<String, Range<usize>> = BTreeMap::new();
-            let mut params = toml::Table::new();
-            for (k, v) in table {
-                spans.insert(k.get_ref().clone(), k.span());
-                params.insert(k.into_inner(), v.into_inner());
+                return None;
             }
-            // Overrides from the command line replace the file's values.
-            let mut overridden: BTreeMap<String, String> = BTreeMap::new();
-            for (i, set) in overrides.sets.iter().enumerate() {
-                let hit = if ids.contains(&set.selector) {
-                    id.as_deref() == Some(set.selector.as_str())
-                } else {
-                    set.selector == descriptor.kind
-                };
-                if hit {
-                    set_used[i] = true;
-                    params.insert(set.key.clone(), set.value.clone());
-                    overridden.insert(set.key.clone(), set.raw.clone());
+        };
+        let mut spans: BTreeMap<String, Range<usize>> = BTreeMap::new();
+        let mut params = toml::Table::new();
+        for (k, v) in table {
+            spans.insert(k.get_ref().clone(), k.span());
+            params.insert(k.into_inner(), v.into_inner());
+        }
+        let overridden = self.apply_sets(descriptor.kind, id.as_deref(), &mut params);
+        match (descriptor.build)(&params) {
+            Ok(stage) => Some(PipelineStage {
+                kind: descriptor.kind,
+                id,
+                stage,
+                origin,
+            }),
+            Err(issues) => {
+                for issue in issues {
+                    let (origin, message) = match issue.key.as_deref() {
+                        // `--set kind.key=value` already names the key: not twice.
+                        Some(k) if overridden.contains_key(k) => (
+                            format!("--set {}", overridden[k]),
+                            issue
+                                .message
+                                .strip_prefix(&format!("{k}: "))
+                                .unwrap_or(&issue.message),
+                        ),
+                        Some(k) => (
+                            loc.at(spans.get(k).cloned().or(Some(stage_span.clone()))),
+                            issue.message.as_str(),
+                        ),
+                        None => (loc.at(Some(stage_span.clone())), issue.message.as_str()),
+                    };
+                    self.diags.push(Diagnostic {
+                        origin,
+                        message: format!("{}: {message}", descriptor.kind),
+                    });
                 }
-            }
-            match (descriptor.build)(&params) {
-                Ok(stage) => stages.push(PipelineStage {
-                    kind: descriptor.kind,
-                    id,
-                    stage,
-                    origin,
-                }),
-                Err(issues) => {
-                    for issue in issues {
-                        let (origin, message) = match issue.key.as_deref() {
-                            // `--set kind.key=value` already names the key: not twice.
-                            Some(k) if overridden.contains_key(k) => (
-                                format!("--set {}", overridden[k]),
-                                issue
-                                    .message
-                                    .strip_prefix(&format!("{k}: "))
-                                    .unwrap_or(&issue.message),
-                            ),
-                            Some(k) => (
-                                loc.at(spans.get(k).cloned().or(Some(stage_span.clone()))),
-                                issue.message.as_str(),
-                            ),
-                            None => (loc.at(Some(stage_span.clone())), issue.message.as_str()),
-                        };
-                        diags.push(Diagnostic {
-                            origin,
-                            message: format!("{}: {message}", descriptor.kind),
-                        });
-                    }
-                }
+                None
             }
         }
-        for (set, used) in overrides.sets.iter().zip(set_used) {
+    }
+
+    /// Puts the command line's `--set` values for the stage of `kind` and `id` into its
+    /// `params` (they replace the file's); returns them by key, as written.
+    fn apply_sets(
+        &mut self,
+        kind: &str,
+        id: Option<&str>,
+        params: &mut toml::Table,
+    ) -> BTreeMap<String, String> {
+        let mut overridden = BTreeMap::new();
+        for (i, set) in self.overrides.sets.iter().enumerate() {
+            let hit = if self.ids.contains(&set.selector) {
+                id == Some(set.selector.as_str())
+            } else {
+                set.selector == kind
+            };
+            if hit {
+                self.set_used[i] = true;
+                params.insert(set.key.clone(), set.value.clone());
+                overridden.insert(set.key.clone(), set.raw.clone());
+            }
+        }
+        overridden
+    }
+
+    /// A problem for each `--set` that no stage took.
+    fn unused_sets(&mut self) {
+        for (set, &used) in self.overrides.sets.iter().zip(&self.set_used) {
             if !used {
-                diags.push(Diagnostic {
+                self.diags.push(Diagnostic {
                     origin: format!("--set {}", set.raw),
                     message: format!(
                         "no stage of this pipeline has the id or kind `{}`",
@@ -295,7 +309,60 @@ impl Pipeline {
                 });
             }
         }
+    }
+}
 
+impl Pipeline {
+    /// Parses and checks a pipeline file; `file` names it in diagnostics.
+    ///
+    /// Every problem is reported, not only the first; nothing is run.
+    pub fn parse(
+        text: &str,
+        file: &str,
+        registry: &Registry,
+        overrides: &Overrides,
+    ) -> Result<Pipeline, Diagnostics> {
+        let loc = Locator::new(file, text);
+        let raw: RawFile = toml::from_str(text).map_err(|e| {
+            let message = e.message().trim().to_string();
+            Diagnostics(vec![Diagnostic {
+                origin: loc.at(e.span()),
+                message,
+            }])
+        })?;
+        let mut p = Parser {
+            loc: &loc,
+            registry,
+            overrides,
+            // A --set selector names a stage id when some stage has that id, else a kind.
+            ids: raw
+                .stage
+                .iter()
+                .filter_map(|s| s.get_ref().iter().find(|(k, _)| k.get_ref() == "id"))
+                .filter_map(|(_, v)| v.get_ref().as_str().map(str::to_string))
+                .collect(),
+            set_used: vec![false; overrides.sets.len()],
+            diags: Vec::new(),
+        };
+        let header = p.header(raw.pipeline, file);
+        if raw.stage.is_empty() {
+            p.diags.push(Diagnostic {
+                origin: file.to_string(),
+                message: "the pipeline has no [[stage]] table".into(),
+            });
+        }
+        let stages: Vec<PipelineStage> = raw
+            .stage
+            .into_iter()
+            .filter_map(|raw_stage| p.stage(raw_stage))
+            .collect();
+        p.unused_sets();
+        let Header {
+            name,
+            description,
+            target,
+            inputs,
+        } = header;
         let pipeline = Pipeline {
             name,
             description,
@@ -304,6 +371,7 @@ impl Pipeline {
             stages,
         };
         // The data flow can only be checked when every stage was built.
+        let mut diags = p.diags;
         if diags.is_empty() {
             diags.extend(check::check_flow(&pipeline));
         }
