@@ -37,10 +37,42 @@ pub(crate) fn read(
     name: &str,
     opts: &ReadOptions,
 ) -> Result<(Mesh, Vec<String>), IoError> {
-    let syntax = |line, msg: String| IoError::line(name, line, ErrorKind::Syntax(msg));
     let mut lines = Lines::new(bytes);
     let mut notes = Vec::new();
-    let Some((line, first)) = next_tokens(&mut lines) else {
+    let (nv, nf, count_line) = read_counts(&mut lines, name, &mut notes)?;
+    check_counts(nv, nf, count_line, lines.remaining() as u64, name, opts)?;
+    let (positions, extra_vertex_values) = read_vertices(&mut lines, nv, name)?;
+    let (faces, extra_face_values) = read_faces(&mut lines, nv, nf, name, opts)?;
+    if extra_vertex_values > 0 {
+        notes.push(format!(
+            "{extra_vertex_values} vertices have values after x y z (normals, colours or \
+             texture coordinates); ignored"
+        ));
+    }
+    if extra_face_values > 0 {
+        notes.push(format!(
+            "{extra_face_values} faces have values after their indices (colours); ignored"
+        ));
+    }
+    if next_tokens(&mut lines).is_some() {
+        notes.push("lines after the last face ignored".into());
+    }
+    Ok((Mesh::new(positions, faces), notes))
+}
+
+/// A syntax error at `line` of `name`.
+fn syntax(name: &str, line: usize, msg: String) -> IoError {
+    IoError::line(name, line, ErrorKind::Syntax(msg))
+}
+
+/// The header keyword (prefixes noted) and the counts `vertices faces [edges]`, on its
+/// line or the next: the vertex and face counts and the counts' line.
+fn read_counts(
+    lines: &mut Lines<'_>,
+    name: &str,
+    notes: &mut Vec<String>,
+) -> Result<(u64, u64, usize), IoError> {
+    let Some((line, first)) = next_tokens(lines) else {
         return Err(IoError::file(
             name,
             ErrorKind::NotFormat {
@@ -53,7 +85,7 @@ pub(crate) fn read(
     let mut count_line = line;
     let rest: &[&[u8]] = match first[0].strip_suffix(b"OFF") {
         Some(prefix) => {
-            check_prefix(prefix, name, line, &mut notes)?;
+            check_prefix(prefix, name, line, notes)?;
             &first[1..]
         }
         None if parse_i64(first[0]).is_some() => &first[..],
@@ -82,15 +114,16 @@ pub(crate) fn read(
         for t in toks {
             let n = parse_i64(t)
                 .and_then(|n| u64::try_from(n).ok())
-                .ok_or_else(|| syntax(line, format!("`{}` is not a count", show(t))))?;
+                .ok_or_else(|| syntax(name, line, format!("`{}` is not a count", show(t))))?;
             out.push(n);
         }
         Ok::<(), IoError>(())
     };
     parse_counts(rest, line, &mut counts)?;
     if counts.is_empty() {
-        let Some((line, toks)) = next_tokens(&mut lines) else {
+        let Some((line, toks)) = next_tokens(lines) else {
             return Err(syntax(
+                name,
                 line,
                 "the vertex and face counts are missing".into(),
             ));
@@ -98,19 +131,29 @@ pub(crate) fn read(
         count_line = line;
         parse_counts(&toks, line, &mut counts)?;
     }
-    let (nv, nf) = match counts[..] {
-        [nv, nf] | [nv, nf, _] => (nv, nf),
-        _ => {
-            return Err(syntax(
-                count_line,
-                format!(
-                    "expected `vertices faces [edges]` counts, found {} numbers",
-                    counts.len()
-                ),
-            ));
-        }
-    };
-    let remaining = lines.remaining() as u64;
+    match counts[..] {
+        [nv, nf] | [nv, nf, _] => Ok((nv, nf, count_line)),
+        _ => Err(syntax(
+            name,
+            count_line,
+            format!(
+                "expected `vertices faces [edges]` counts, found {} numbers",
+                counts.len()
+            ),
+        )),
+    }
+}
+
+/// Refuses counts that the `remaining` bytes cannot hold (so that reserving them is
+/// safe), that pass the reader's limits, or that 32-bit indices cannot address.
+fn check_counts(
+    nv: u64,
+    nf: u64,
+    count_line: usize,
+    remaining: u64,
+    name: &str,
+    opts: &ReadOptions,
+) -> Result<(), IoError> {
     // The last line may lack its line break.
     let budget = u128::from(remaining) + 1;
     if u128::from(nv) * u128::from(MIN_VERTEX_BYTES) > budget {
@@ -147,12 +190,22 @@ pub(crate) fn read(
         };
         return Err(IoError::line(name, count_line, kind));
     }
-    // Both counts are bounded by the bytes left, so reserving them is safe.
+    Ok(())
+}
+
+/// The `nv` vertex lines: the positions, and how many lines had values after `x y z`.
+fn read_vertices(
+    lines: &mut Lines<'_>,
+    nv: u64,
+    name: &str,
+) -> Result<(Vec<DVec3>, usize), IoError> {
+    // The count is bounded by the bytes left (`check_counts`), so reserving it is safe.
     let mut positions = Vec::with_capacity(nv as usize);
     let mut extra_vertex_values = 0usize;
     for i in 0..nv {
-        let Some((line, toks)) = next_tokens(&mut lines) else {
+        let Some((line, toks)) = next_tokens(lines) else {
             return Err(syntax(
+                name,
                 lines.line(),
                 format!("the file ends before vertex {i}"),
             ));
@@ -173,12 +226,26 @@ pub(crate) fn read(
         extra_vertex_values += usize::from(toks.len() > 3);
         positions.push(DVec3::from_array(p));
     }
+    Ok((positions, extra_vertex_values))
+}
+
+/// The `nf` face lines over `nv` vertices, each polygon split as a fan from its first
+/// corner: the triangles, and how many lines had values after their indices.
+fn read_faces(
+    lines: &mut Lines<'_>,
+    nv: u64,
+    nf: u64,
+    name: &str,
+    opts: &ReadOptions,
+) -> Result<(Vec<[u32; 3]>, usize), IoError> {
+    // The count is bounded by the bytes left (`check_counts`), so reserving it is safe.
     let mut faces: Vec<[u32; 3]> = Vec::with_capacity(nf as usize);
     let mut extra_face_values = 0usize;
     let mut poly: Vec<u32> = Vec::new();
     for i in 0..nf {
-        let Some((line, toks)) = next_tokens(&mut lines) else {
+        let Some((line, toks)) = next_tokens(lines) else {
             return Err(syntax(
+                name,
                 lines.line(),
                 format!("the file ends before face {i}"),
             ));
@@ -232,21 +299,7 @@ pub(crate) fn read(
         }
         faces.extend(poly[1..].windows(2).map(|w| [poly[0], w[0], w[1]]));
     }
-    if extra_vertex_values > 0 {
-        notes.push(format!(
-            "{extra_vertex_values} vertices have values after x y z (normals, colours or \
-             texture coordinates); ignored"
-        ));
-    }
-    if extra_face_values > 0 {
-        notes.push(format!(
-            "{extra_face_values} faces have values after their indices (colours); ignored"
-        ));
-    }
-    if next_tokens(&mut lines).is_some() {
-        notes.push("lines after the last face ignored".into());
-    }
-    Ok((Mesh::new(positions, faces), notes))
+    Ok((faces, extra_face_values))
 }
 
 /// Accepts the `ST`, `C` and `N` prefixes of the header keyword (in that order).

@@ -207,104 +207,15 @@ fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
         match keyword {
             b"end_header" => break,
             b"comment" | b"obj_info" => {}
-            b"format" => {
-                let (enc, version) = match args[..] {
-                    [e, v] => (e, v),
-                    _ => return syntax(line, format!("malformed format line `{shown}`")),
-                };
-                encoding = Some(match enc {
-                    b"ascii" => Encoding::Ascii,
-                    b"binary_little_endian" => Encoding::Le,
-                    b"binary_big_endian" => Encoding::Be,
-                    _ => {
-                        return Err((
-                            line,
-                            HeaderProblem::Unsupported(format!(
-                                "format `{}`",
-                                crate::text::show(enc)
-                            )),
-                        ));
-                    }
-                });
-                if !version.starts_with(b"1") {
-                    return Err((
-                        line,
-                        HeaderProblem::Unsupported(format!(
-                            "PLY version {}",
-                            crate::text::show(version)
-                        )),
-                    ));
-                }
-            }
-            b"element" => {
-                let [name, count] = args[..] else {
-                    return syntax(line, format!("malformed element line `{shown}`"));
-                };
-                let Some(count) = std::str::from_utf8(count)
-                    .ok()
-                    .and_then(|c| c.parse::<u64>().ok())
-                else {
-                    return syntax(line, format!("malformed element count in `{shown}`"));
-                };
-                let name = String::from_utf8_lossy(name).into_owned();
-                if elements.iter().any(|e| e.name == name) && name != "tristrips" {
-                    return syntax(line, format!("element `{name}` is declared twice"));
-                }
-                elements.push(Element {
-                    name,
-                    count,
-                    props: Vec::new(),
-                });
-            }
+            b"format" => encoding = Some(format_line(&args, line, &shown)?),
+            b"element" => elements.push(element_line(&args, line, &shown, &elements)?),
             b"property" => {
                 let Some(element) = elements.last_mut() else {
                     return syntax(line, "property before any element".into());
                 };
-                let ty = |t: &[u8]| {
-                    Scalar::from_name(t).ok_or_else(|| {
-                        (
-                            line,
-                            HeaderProblem::Syntax(format!(
-                                "unknown property type `{}`",
-                                crate::text::show(t)
-                            )),
-                        )
-                    })
-                };
-                let (kind, name) = match args[..] {
-                    [b"list", count, item, name] => {
-                        let count = ty(count)?;
-                        if count.is_float() {
-                            return syntax(
-                                line,
-                                format!(
-                                    "list count type `{}` is not an integer type",
-                                    count.name()
-                                ),
-                            );
-                        }
-                        (
-                            PropKind::List {
-                                count,
-                                item: ty(item)?,
-                            },
-                            name,
-                        )
-                    }
-                    [t, name] if t != b"list" => (PropKind::Scalar(ty(t)?), name),
-                    _ => return syntax(line, format!("malformed property line `{shown}`")),
-                };
-                let name = String::from_utf8_lossy(name).into_owned();
-                if element.props.iter().any(|p| p.name == name) {
-                    return syntax(
-                        line,
-                        format!(
-                            "property `{name}` appears twice in element `{}`",
-                            element.name
-                        ),
-                    );
-                }
-                element.props.push(Property { name, kind });
+                element
+                    .props
+                    .push(property_line(&args, line, &shown, element)?);
             }
             _ => return syntax(line, format!("unknown header line `{shown}`")),
         }
@@ -318,6 +229,126 @@ fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
         body: pos,
         lines: line,
     })
+}
+
+/// A syntax problem at header line `line`.
+fn syntax_at(line: usize, msg: String) -> HeaderError {
+    (line, HeaderProblem::Syntax(msg))
+}
+
+/// The encoding a `format ENCODING VERSION` line (its arguments `args`, at `line`, shown
+/// as `shown`) names; only version 1.
+fn format_line(args: &[&[u8]], line: usize, shown: &str) -> Result<Encoding, HeaderError> {
+    let (enc, version) = match args[..] {
+        [e, v] => (e, v),
+        _ => return Err(syntax_at(line, format!("malformed format line `{shown}`"))),
+    };
+    let encoding = match enc {
+        b"ascii" => Encoding::Ascii,
+        b"binary_little_endian" => Encoding::Le,
+        b"binary_big_endian" => Encoding::Be,
+        _ => {
+            return Err((
+                line,
+                HeaderProblem::Unsupported(format!("format `{}`", crate::text::show(enc))),
+            ));
+        }
+    };
+    if !version.starts_with(b"1") {
+        return Err((
+            line,
+            HeaderProblem::Unsupported(format!("PLY version {}", crate::text::show(version))),
+        ));
+    }
+    Ok(encoding)
+}
+
+/// The element an `element NAME COUNT` line declares (none declared twice among
+/// `elements`, but triangle strips).
+fn element_line(
+    args: &[&[u8]],
+    line: usize,
+    shown: &str,
+    elements: &[Element],
+) -> Result<Element, HeaderError> {
+    let [name, count] = args[..] else {
+        return Err(syntax_at(line, format!("malformed element line `{shown}`")));
+    };
+    let Some(count) = std::str::from_utf8(count)
+        .ok()
+        .and_then(|c| c.parse::<u64>().ok())
+    else {
+        return Err(syntax_at(
+            line,
+            format!("malformed element count in `{shown}`"),
+        ));
+    };
+    let name = String::from_utf8_lossy(name).into_owned();
+    if elements.iter().any(|e| e.name == name) && name != "tristrips" {
+        return Err(syntax_at(
+            line,
+            format!("element `{name}` is declared twice"),
+        ));
+    }
+    Ok(Element {
+        name,
+        count,
+        props: Vec::new(),
+    })
+}
+
+/// The property a `property TYPE NAME` or `property list COUNT ITEM NAME` line declares
+/// for `element` (no name twice in it; a list's count of an integer type).
+fn property_line(
+    args: &[&[u8]],
+    line: usize,
+    shown: &str,
+    element: &Element,
+) -> Result<Property, HeaderError> {
+    let ty = |t: &[u8]| {
+        Scalar::from_name(t).ok_or_else(|| {
+            syntax_at(
+                line,
+                format!("unknown property type `{}`", crate::text::show(t)),
+            )
+        })
+    };
+    let (kind, name) = match args[..] {
+        [b"list", count, item, name] => {
+            let count = ty(count)?;
+            if count.is_float() {
+                return Err(syntax_at(
+                    line,
+                    format!("list count type `{}` is not an integer type", count.name()),
+                ));
+            }
+            (
+                PropKind::List {
+                    count,
+                    item: ty(item)?,
+                },
+                name,
+            )
+        }
+        [t, name] if t != b"list" => (PropKind::Scalar(ty(t)?), name),
+        _ => {
+            return Err(syntax_at(
+                line,
+                format!("malformed property line `{shown}`"),
+            ));
+        }
+    };
+    let name = String::from_utf8_lossy(name).into_owned();
+    if element.props.iter().any(|p| p.name == name) {
+        return Err(syntax_at(
+            line,
+            format!(
+                "property `{name}` appears twice in element `{}`",
+                element.name
+            ),
+        ));
+    }
+    Ok(Property { name, kind })
 }
 
 /// How a group of scalar properties becomes one attribute column.
