@@ -340,45 +340,183 @@ pub(crate) fn fit(
     tol: f64,
     samples: &[(DVec3, bool)],
 ) -> (usize, usize) {
-    let Origins {
-        before,
-        mut v_from,
-        mut f_from,
-    } = Origins::start(mesh);
-    let carry = before.is_some();
+    let origins = Origins::start(mesh);
+    let guard = fit_guard(mesh, floor);
+    let mut run = Fitting {
+        mesh,
+        surface,
+        samples,
+        limits: Limits {
+            max_pairs: max_pairs as usize,
+            cos_turn,
+            floor,
+            tol,
+            guard,
+        },
+        carry: origins.before.is_some(),
+        v_from: origins.v_from,
+        f_from: origins.f_from,
+        given_up: vec![false; samples.len()],
+        active: (0..samples.len() as u32).collect(),
+        first: true,
+        tris: Vec::new(),
+        done: 0,
+        fails: 0,
+    };
+    while run.done < run.limits.max_pairs && run.round() {}
+    let Fitting {
+        mesh,
+        done,
+        given_up,
+        v_from,
+        f_from,
+        ..
+    } = run;
+    if let Some(before) = origins.before.filter(|_| done > 0) {
+        carry_attributes(mesh, &before, v_from, f_from);
+    }
+    (done, given_up.iter().filter(|&&g| g).count())
+}
+
+/// The smallest angle [`fit`] lets a new face have: [`FIT_GUARD`] of `floor` or of the
+/// mesh's smallest angle, whichever is lower (of the mesh's without a floor).
+fn fit_guard(mesh: &Mesh, floor: f64) -> f64 {
     let smallest = (0..mesh.n_faces())
         .map(|f| {
             let [a, b, c] = mesh.corners(f);
             triangle::min_angle(a, b, c)
         })
         .fold(f64::INFINITY, f64::min);
-    let guard = FIT_GUARD
+    FIT_GUARD
         * if floor > 0.0 {
             floor.min(smallest)
         } else {
             smallest
-        };
-    // Points no split, collapse or pull could bring nearer: left alone from then on.
-    let mut given_up = vec![false; samples.len()];
-    // The points looked at: after the first round, only those that were beyond `tol` (the
-    // edits keep the others within it), or without a bound beyond [`FIT_FROM`] of the
-    // farthest.
-    let mut active: Vec<u32> = (0..samples.len() as u32).collect();
-    let mut first = true;
-    let mut tris = Vec::new();
-    let mut done = 0;
-    // Far points given up in a row since the last edit.
-    let mut fails = 0;
-    'rounds: while done < max_pairs as usize {
-        let Ok(topo) = Topology::try_build(mesh) else {
-            break;
-        };
-        let n_edges = topo.n_edges();
-        if n_edges == 0 || mesh.n_faces() == 0 {
-            break;
         }
-        let bvh = Bvh::build(&mesh.positions, &mesh.faces);
-        let mut far: Vec<(f64, u32, u32)> = active
+}
+
+/// The bounds of one [`fit`].
+struct Limits {
+    max_pairs: usize,
+    cos_turn: f64,
+    floor: f64,
+    tol: f64,
+    /// The smallest angle of a new face ([`fit_guard`]).
+    guard: f64,
+}
+
+/// What [`fit`] carries from round to round.
+struct Fitting<'m, 's> {
+    mesh: &'m mut Mesh,
+    surface: &'m Surface<'s>,
+    samples: &'m [(DVec3, bool)],
+    limits: Limits,
+    /// Whether the origins below are kept (the mesh has attributes).
+    carry: bool,
+    v_from: Vec<Vec<(u32, f64)>>,
+    f_from: Vec<u32>,
+    /// Points no split, collapse or pull could bring nearer: left alone from then on.
+    given_up: Vec<bool>,
+    /// The points looked at: after the first round, only those that were beyond `tol`
+    /// (the edits keep the others within it), or without a bound beyond [`FIT_FROM`] of the
+    /// farthest.
+    active: Vec<u32>,
+    first: bool,
+    tris: Vec<[DVec3; 3]>,
+    /// Edits made.
+    done: usize,
+    /// Far points given up in a row since the last edit.
+    fails: usize,
+}
+
+/// The mesh of one round as its edits read it (the edits touch no vertex twice in a round,
+/// so what they read stays true for the vertices not yet touched).
+struct RoundMesh<'t> {
+    topo: &'t Topology,
+    built: Built<'t>,
+    boundary_edges: Vec<u32>,
+    /// Collapse candidates, least surface moved first: (error, length, edge).
+    collapses: Vec<(f64, f64, u32)>,
+    /// The largest bound at which each collapse candidate was refused this round
+    /// (infinite: not plannable): refused at no larger one either, it is not planned
+    /// again. A candidate whose ends are not touched keeps its neighbourhood all round
+    /// (every edit marks the vertices of the faces it changes and moves).
+    refused_at: Vec<f64>,
+    touched: Vec<bool>,
+}
+
+/// A split planned at a far point: edge `edge` split at `at`, the faces `old` replaced by
+/// `new` (the new vertex written [`NEW_VERTEX`]), `around` the vertices of `old`.
+struct SplitPlan {
+    edge: u32,
+    at: DVec3,
+    old: Vec<u32>,
+    new: Vec<[u32; 3]>,
+    around: Vec<u32>,
+}
+
+/// The new vertex of a planned split, until the collapse paired with it frees one.
+const NEW_VERTEX: u32 = u32::MAX;
+
+/// What one far point's visit did to the round.
+enum Visited {
+    /// Nothing, or an edit after which the round goes on.
+    Next,
+    /// An edit that changed the face indices: the round ends.
+    Reindexed,
+}
+
+impl Fitting<'_, '_> {
+    /// One round: the far points, then an edit at each in turn. False when [`fit`] ends.
+    fn round(&mut self) -> bool {
+        let Ok(topo) = Topology::try_build(self.mesh) else {
+            return false;
+        };
+        if topo.n_edges() == 0 || self.mesh.n_faces() == 0 {
+            return false;
+        }
+        let far = self.far_points();
+        let Some(&(d_max, _, _)) = far.first() else {
+            return false;
+        };
+        let tol = self.limits.tol;
+        if d_max.is_nan() || d_max <= tol {
+            return false;
+        }
+        let ends = boundary_neighbours(&topo, self.mesh.n_vertices());
+        let mut round = self.round_mesh(&topo, &ends);
+        let mut made = 0;
+        for &(d, iv, f) in far
+            .iter()
+            .take_while(|x| x.0 >= FIT_BAND * d_max && x.0 > tol)
+        {
+            if self.done >= self.limits.max_pairs {
+                break;
+            }
+            if self.fails >= FIT_MAX_FAILS {
+                return false;
+            }
+            let before = self.done;
+            let visited = self.visit(&mut round, d, iv, f);
+            made += self.done - before;
+            if let Visited::Reindexed = visited {
+                break;
+            }
+        }
+        made > 0
+            || far
+                .iter()
+                .any(|x| x.0 > tol && !self.given_up[x.1 as usize])
+    }
+
+    /// The active points not given up with their distance to the mesh and nearest face,
+    /// farthest first; after the first round's, only the points beyond the bound stay
+    /// active.
+    fn far_points(&mut self) -> Vec<(f64, u32, u32)> {
+        let bvh = Bvh::build(&self.mesh.positions, &self.mesh.faces);
+        let (samples, given_up) = (self.samples, &self.given_up);
+        let mut far: Vec<(f64, u32, u32)> = self
+            .active
             .par_iter()
             .filter(|&&i| !given_up[i as usize])
             .filter_map(|&i| {
@@ -386,38 +524,37 @@ pub(crate) fn fit(
                     .map(|h| (h.distance(), i, h.face))
             })
             .collect();
-        if std::mem::take(&mut first) {
+        if std::mem::take(&mut self.first) {
             let d_max = far.iter().map(|x| x.0).fold(0.0, f64::max);
+            let tol = self.limits.tol;
             let keep = if tol > 0.0 { tol } else { FIT_FROM * d_max };
             far.retain(|x| x.0 > keep);
-            active = far.iter().map(|x| x.1).collect();
-            active.sort_unstable();
+            self.active = far.iter().map(|x| x.1).collect();
+            self.active.sort_unstable();
         }
         far.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-        let Some(&(d_max, _, _)) = far.first() else {
-            break;
-        };
-        if d_max.is_nan() || d_max <= tol {
-            break;
-        }
-        let len = |e: u32| edge_length(mesh, &topo, e);
+        far
+    }
+
+    /// The round's view of the mesh (adjacency `topo`, boundary neighbours `ends`) and its
+    /// collapse candidates: edges shorter than the mean, ranked by the surface their
+    /// collapse at the midpoint moves.
+    fn round_mesh<'t>(&mut self, topo: &'t Topology, ends: &'t [Vec<u32>]) -> RoundMesh<'t> {
+        let mesh = &*self.mesh;
+        let n_edges = topo.n_edges();
+        let len = |e: u32| edge_length(mesh, topo, e);
         let mean = (0..n_edges as u32).map(len).sum::<f64>() / n_edges as f64;
-        let ends = boundary_neighbours(&topo, mesh.n_vertices());
-        let built = Built {
-            topo: &topo,
-            ends: &ends,
-        };
         let boundary_edges: Vec<u32> = (0..n_edges as u32)
             .filter(|&e| topo.is_boundary_edge(e))
             .collect();
-        // Collapse candidates, least surface moved first (at the edge's midpoint).
+        let tris = &mut self.tris;
         let mut collapses: Vec<(f64, f64, u32)> = (0..n_edges as u32)
             .map(|e| (len(e), e))
             .filter(|&(l, _)| l < mean)
             .map(|(l, e)| {
                 let [a, b] = topo.edge(e);
                 let mid = mesh.positions[a as usize].lerp(mesh.positions[b as usize], 0.5);
-                (collapse_error(mesh, &topo, e, mid, &mut tris), l, e)
+                (collapse_error(mesh, topo, e, mid, tris), l, e)
             })
             .collect();
         collapses.sort_by(|x, y| {
@@ -425,246 +562,288 @@ pub(crate) fn fit(
                 .then(x.1.total_cmp(&y.1))
                 .then(x.2.cmp(&y.2))
         });
-        // The largest bound at which each collapse candidate was refused this round
-        // (infinite: not plannable): refused at no larger one either, it is not planned
-        // again. A candidate whose ends are not touched keeps its neighbourhood all round
-        // (every edit marks the vertices of the faces it changes and moves).
-        let mut refused_at = vec![f64::NEG_INFINITY; collapses.len()];
-        let mut touched = vec![false; mesh.n_vertices()];
-        let mut made = 0;
-        for &(d, iv, f) in far
-            .iter()
-            .take_while(|x| x.0 >= FIT_BAND * d_max && x.0 > tol)
-        {
-            if done >= max_pairs as usize {
-                break;
-            }
-            if fails >= FIT_MAX_FAILS {
-                break 'rounds;
-            }
-            let face = mesh.faces[f as usize];
-            if face.iter().any(|&w| touched[w as usize]) {
-                continue;
-            }
-            let (p, on_boundary) = samples[iv as usize];
-            // The edges to split, nearest to `p` first.
-            let seg = |e: u32| {
-                let [a, b] = topo.edge(e);
-                closest_point_on_segment(p, mesh.positions[a as usize], mesh.positions[b as usize])
-                    .0
-                    .distance(p)
-            };
-            let mut edges: Vec<(f64, u32)> = if on_boundary {
-                boundary_edges.iter().map(|&e| (seg(e), e)).collect()
+        RoundMesh {
+            topo,
+            built: Built { topo, ends },
+            boundary_edges,
+            refused_at: vec![f64::NEG_INFINITY; collapses.len()],
+            collapses,
+            touched: vec![false; mesh.n_vertices()],
+        }
+    }
+
+    /// The far point `iv` (at distance `d`, nearest face `f`): a split there paired with a
+    /// collapse, or a pull, or the point given up.
+    fn visit(&mut self, round: &mut RoundMesh<'_>, d: f64, iv: u32, f: u32) -> Visited {
+        let face = self.mesh.faces[f as usize];
+        if face.iter().any(|&w| round.touched[w as usize]) {
+            return Visited::Next;
+        }
+        let (p, on_boundary) = self.samples[iv as usize];
+        let edges = self.split_edges(round, p, on_boundary, f);
+        let Some(split) = self.plan_split_at(round, &edges, p, on_boundary, d) else {
+            // No split fits here: pull the nearest end of the nearest edge towards `p`.
+            let l = &self.limits;
+            if pull(
+                self.mesh,
+                round.topo,
+                self.surface,
+                &edges,
+                p,
+                on_boundary,
+                l.tol.max(FIT_TRADE * d),
+                l.guard,
+                l.cos_turn,
+                &mut round.touched,
+                &mut self.tris,
+            ) {
+                self.done += 1;
+                self.fails = 0;
             } else {
-                topo.face_edges(f)
-                    .into_iter()
-                    .filter(|&e| topo.edge_faces(e).len() == 2)
-                    .map(|e| (seg(e), e))
-                    .collect()
-            };
-            edges.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-            if on_boundary {
-                edges.truncate(2);
+                self.given_up[iv as usize] = true;
+                self.fails += 1;
             }
-            const M: u32 = u32::MAX;
-            let mut plan = None;
-            'edges: for &(_, s) in &edges {
-                let [c, dd] = topo.edge(s);
-                let around: Vec<u32> = topo
-                    .edge_faces(s)
-                    .iter()
-                    .flat_map(|&g| mesh.faces[g as usize])
-                    .collect();
-                if around.iter().any(|&w| touched[w as usize]) {
-                    continue;
-                }
-                let mid = mesh.positions[c as usize].lerp(mesh.positions[dd as usize], 0.5);
-                let half = p.lerp(mid, 0.5);
-                let half = if on_boundary {
-                    surface.project_boundary_along(p, half, BOUNDARY_REACH * p.distance(mid))
-                } else {
-                    surface.project(half)
-                };
-                for at in std::iter::once(p).chain(half) {
-                    let split = if on_boundary {
-                        plan_boundary_split(mesh, &topo, surface, s, M, at, cos_turn)
-                            .map(|(o, n)| (o.to_vec(), n.to_vec()))
-                    } else {
-                        plan_split(mesh, &built, Some(surface), s, M, at, cos_turn)
-                            .map(|(o, n)| (o.to_vec(), n.to_vec()))
-                    };
-                    let Some((old, new)) = split else {
-                        continue;
-                    };
-                    let shape_ok = new.iter().all(|t| {
-                        let [a, b, c] = t.map(|w| {
-                            if w == M {
-                                at
-                            } else {
-                                mesh.positions[w as usize]
-                            }
-                        });
-                        triangle::min_angle(a, b, c) >= guard
-                    }) && {
-                        tris.clear();
-                        tris.extend(new.iter().map(|t| {
-                            t.map(|w| {
-                                if w == M {
-                                    at
-                                } else {
-                                    mesh.positions[w as usize]
-                                }
-                            })
-                        }));
-                        !leaves_input(surface, &tris, tol.max(FIT_TRADE * d))
-                    };
-                    if shape_ok {
-                        plan = Some((s, at, old, new, around.clone()));
-                        break 'edges;
-                    }
-                }
-            }
-            let Some((s, at, old, new, around)) = plan else {
-                // No split fits here: pull the nearest end of the nearest edge towards `p`.
-                if pull(
-                    mesh,
-                    &topo,
-                    surface,
-                    &edges,
-                    p,
-                    on_boundary,
-                    tol.max(FIT_TRADE * d),
-                    guard,
-                    cos_turn,
-                    &mut touched,
-                    &mut tris,
-                ) {
-                    done += 1;
-                    made += 1;
-                    fails = 0;
-                } else {
-                    given_up[iv as usize] = true;
-                    fails += 1;
-                }
-                continue;
-            };
-            // Distance the split removes (the far point's distance is at most this after).
-            let gain = d - at.distance(p);
-            let mut chosen = None;
-            let bound = tol.max(FIT_TRADE * gain);
-            for (i, &(err, _, k)) in collapses.iter().enumerate() {
-                if err > bound {
-                    break;
-                }
-                let [a, b] = topo.edge(k);
-                if touched[a as usize]
-                    || touched[b as usize]
-                    || around.contains(&a)
-                    || around.contains(&b)
-                    || bound <= refused_at[i]
-                {
-                    continue;
-                }
-                let Some(col) = plan_collapse(mesh, &built, Some(surface), k, cos_turn, floor)
-                else {
-                    refused_at[i] = f64::INFINITY;
-                    continue;
-                };
-                if collapse_error(mesh, &topo, k, col.at, &mut tris) > bound
-                    || leaves_input(surface, &tris, bound)
-                {
-                    refused_at[i] = bound;
-                    continue;
-                }
-                chosen = Some(col);
-                break;
-            }
-            let Some(col) = chosen else {
-                given_up[iv as usize] = true;
-                fails += 1;
-                continue;
-            };
-            fails = 0;
+            return Visited::Next;
+        };
+        // Distance the split removes (the far point's distance is at most this after).
+        let gain = d - split.at.distance(p);
+        let Some(col) = self.pick_collapse(round, &split, gain) else {
+            self.given_up[iv as usize] = true;
+            self.fails += 1;
+            return Visited::Next;
+        };
+        self.fails = 0;
+        self.done += 1;
+        match self.apply_pair(round, split, col) {
+            true => Visited::Reindexed,
+            false => Visited::Next,
+        }
+    }
+
+    /// The edges a split for point `p` (nearest face `f`) may cut, nearest to `p` first:
+    /// the interior edges of `f`, or for a point of the input's boundary the two nearest
+    /// boundary edges.
+    fn split_edges(
+        &self,
+        round: &RoundMesh<'_>,
+        p: DVec3,
+        on_boundary: bool,
+        f: u32,
+    ) -> Vec<(f64, u32)> {
+        let (mesh, topo) = (&*self.mesh, round.topo);
+        let seg = |e: u32| {
+            let [a, b] = topo.edge(e);
+            closest_point_on_segment(p, mesh.positions[a as usize], mesh.positions[b as usize])
+                .0
+                .distance(p)
+        };
+        let mut edges: Vec<(f64, u32)> = if on_boundary {
+            round.boundary_edges.iter().map(|&e| (seg(e), e)).collect()
+        } else {
+            topo.face_edges(f)
+                .into_iter()
+                .filter(|&e| topo.edge_faces(e).len() == 2)
+                .map(|e| (seg(e), e))
+                .collect()
+        };
+        edges.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        if on_boundary {
+            edges.truncate(2);
+        }
+        edges
+    }
+
+    /// The first split of `edges` whose faces round none of the touched vertices, at `p`
+    /// or halfway to the edge's midpoint on the input, whose new faces keep the angle guard
+    /// and stay near the input (within `tol` or [`FIT_TRADE`] of `d`).
+    fn plan_split_at(
+        &mut self,
+        round: &RoundMesh<'_>,
+        edges: &[(f64, u32)],
+        p: DVec3,
+        on_boundary: bool,
+        d: f64,
+    ) -> Option<SplitPlan> {
+        let (mesh, topo, surface) = (&*self.mesh, round.topo, self.surface);
+        let l = &self.limits;
+        for &(_, s) in edges {
             let [c, dd] = topo.edge(s);
-            let new: Vec<[u32; 3]> = new
+            let around: Vec<u32> = topo
+                .edge_faces(s)
                 .iter()
-                .map(|t| t.map(|w| if w == M { col.gone } else { w }))
+                .flat_map(|&g| mesh.faces[g as usize])
                 .collect();
-            for v in [col.keep, col.gone] {
-                for &g in topo.vertex_faces(v) {
-                    for w in mesh.faces[g as usize] {
-                        touched[w as usize] = true;
-                    }
+            if around.iter().any(|&w| round.touched[w as usize]) {
+                continue;
+            }
+            let mid = mesh.positions[c as usize].lerp(mesh.positions[dd as usize], 0.5);
+            let half = p.lerp(mid, 0.5);
+            let half = if on_boundary {
+                surface.project_boundary_along(p, half, BOUNDARY_REACH * p.distance(mid))
+            } else {
+                surface.project(half)
+            };
+            for at in std::iter::once(p).chain(half) {
+                let split = if on_boundary {
+                    plan_boundary_split(mesh, topo, surface, s, NEW_VERTEX, at, l.cos_turn)
+                        .map(|(o, n)| (o.to_vec(), n.to_vec()))
+                } else {
+                    plan_split(
+                        mesh,
+                        &round.built,
+                        Some(surface),
+                        s,
+                        NEW_VERTEX,
+                        at,
+                        l.cos_turn,
+                    )
+                    .map(|(o, n)| (o.to_vec(), n.to_vec()))
+                };
+                let Some((old, new)) = split else {
+                    continue;
+                };
+                let place = |t: &[u32; 3]| {
+                    t.map(|w| match w {
+                        NEW_VERTEX => at,
+                        w => mesh.positions[w as usize],
+                    })
+                };
+                let shape_ok = new.iter().all(|t| {
+                    let [a, b, c] = place(t);
+                    triangle::min_angle(a, b, c) >= l.guard
+                }) && {
+                    self.tris.clear();
+                    self.tris.extend(new.iter().map(place));
+                    !leaves_input(surface, &self.tris, l.tol.max(FIT_TRADE * d))
+                };
+                if shape_ok {
+                    return Some(SplitPlan {
+                        edge: s,
+                        at,
+                        old,
+                        new,
+                        around,
+                    });
                 }
             }
-            for &w in &around {
-                touched[w as usize] = true;
-            }
-            if carry {
-                if col.at != mesh.positions[col.keep as usize] {
-                    v_from[col.keep as usize] =
-                        blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
-                }
-                v_from[col.gone as usize] =
-                    blend_origins(&v_from[c as usize], &v_from[dd as usize]);
-            }
-            // Each new face's parent in the mesh `fit` started from.
-            let parents: Vec<u32> = (0..new.len())
-                .map(|i| old[i * old.len() / new.len()])
-                .map(|g| if carry { f_from[g as usize] } else { g })
-                .collect();
-            for &g in topo.vertex_faces(col.gone) {
-                for w in &mut mesh.faces[g as usize] {
-                    if *w == col.gone {
-                        *w = col.keep;
-                    }
-                }
-            }
-            mesh.positions[col.keep as usize] = col.at;
-            mesh.positions[col.gone as usize] = at;
-            // The split's faces and the collapse's freed ones take the new faces; a slot
-            // left over is removed, a face left over is appended (then the face indices
-            // change: the round ends).
-            let mut slots: Vec<u32> = old.iter().chain(&col.freed).copied().collect();
-            let reindexed = slots.len() != new.len();
-            for (i, t) in new.into_iter().enumerate() {
-                let parent = parents[i];
-                match slots.get(i) {
-                    Some(&g) => {
-                        mesh.faces[g as usize] = t;
-                        if carry {
-                            f_from[g as usize] = parent;
-                        }
-                    }
-                    None => {
-                        mesh.faces.push(t);
-                        if carry {
-                            f_from.push(parent);
-                        }
-                    }
-                }
-            }
-            let mut extra = slots.split_off(parents.len().min(slots.len()));
-            extra.sort_unstable_by(|x, y| y.cmp(x));
-            for g in extra {
-                mesh.faces.swap_remove(g as usize);
-                if carry {
-                    f_from.swap_remove(g as usize);
-                }
-            }
-            done += 1;
-            made += 1;
-            if reindexed {
+        }
+        None
+    }
+
+    /// The least-moving collapse to pair with `split` (it moves the surface by at most
+    /// `tol` or [`FIT_TRADE`] of `gain`), away from the split and the touched vertices.
+    fn pick_collapse(
+        &mut self,
+        round: &mut RoundMesh<'_>,
+        split: &SplitPlan,
+        gain: f64,
+    ) -> Option<Collapse> {
+        let (mesh, topo, surface) = (&*self.mesh, round.topo, self.surface);
+        let l = &self.limits;
+        let bound = l.tol.max(FIT_TRADE * gain);
+        for (i, &(err, _, k)) in round.collapses.iter().enumerate() {
+            if err > bound {
                 break;
             }
+            let [a, b] = topo.edge(k);
+            if round.touched[a as usize]
+                || round.touched[b as usize]
+                || split.around.contains(&a)
+                || split.around.contains(&b)
+                || bound <= round.refused_at[i]
+            {
+                continue;
+            }
+            let Some(col) =
+                plan_collapse(mesh, &round.built, Some(surface), k, l.cos_turn, l.floor)
+            else {
+                round.refused_at[i] = f64::INFINITY;
+                continue;
+            };
+            if collapse_error(mesh, topo, k, col.at, &mut self.tris) > bound
+                || leaves_input(surface, &self.tris, bound)
+            {
+                round.refused_at[i] = bound;
+                continue;
+            }
+            return Some(col);
         }
-        if made == 0 && !far.iter().any(|x| x.0 > tol && !given_up[x.1 as usize]) {
-            break;
+        None
+    }
+
+    /// Makes the split and the collapse: the collapse's freed vertex becomes the split's
+    /// new one, the split's and the collapse's faces take the new faces (a slot left over
+    /// is removed, a face left over appended). True when the face indices changed.
+    fn apply_pair(&mut self, round: &mut RoundMesh<'_>, split: SplitPlan, col: Collapse) -> bool {
+        let (mesh, topo) = (&mut *self.mesh, round.topo);
+        let [c, dd] = topo.edge(split.edge);
+        let new: Vec<[u32; 3]> = split
+            .new
+            .iter()
+            .map(|t| t.map(|w| if w == NEW_VERTEX { col.gone } else { w }))
+            .collect();
+        for v in [col.keep, col.gone] {
+            for &g in topo.vertex_faces(v) {
+                for w in mesh.faces[g as usize] {
+                    round.touched[w as usize] = true;
+                }
+            }
         }
+        for &w in &split.around {
+            round.touched[w as usize] = true;
+        }
+        let carry = self.carry;
+        if carry {
+            let v_from = &mut self.v_from;
+            if col.at != mesh.positions[col.keep as usize] {
+                v_from[col.keep as usize] =
+                    blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+            }
+            v_from[col.gone as usize] = blend_origins(&v_from[c as usize], &v_from[dd as usize]);
+        }
+        let old = &split.old;
+        // Each new face's parent in the mesh `fit` started from.
+        let parents: Vec<u32> = (0..new.len())
+            .map(|i| old[i * old.len() / new.len()])
+            .map(|g| if carry { self.f_from[g as usize] } else { g })
+            .collect();
+        for &g in topo.vertex_faces(col.gone) {
+            for w in &mut mesh.faces[g as usize] {
+                if *w == col.gone {
+                    *w = col.keep;
+                }
+            }
+        }
+        mesh.positions[col.keep as usize] = col.at;
+        mesh.positions[col.gone as usize] = split.at;
+        let mut slots: Vec<u32> = old.iter().chain(&col.freed).copied().collect();
+        let reindexed = slots.len() != new.len();
+        let f_from = &mut self.f_from;
+        for (i, t) in new.into_iter().enumerate() {
+            let parent = parents[i];
+            match slots.get(i) {
+                Some(&g) => {
+                    mesh.faces[g as usize] = t;
+                    if carry {
+                        f_from[g as usize] = parent;
+                    }
+                }
+                None => {
+                    mesh.faces.push(t);
+                    if carry {
+                        f_from.push(parent);
+                    }
+                }
+            }
+        }
+        let mut extra = slots.split_off(parents.len().min(slots.len()));
+        extra.sort_unstable_by(|x, y| y.cmp(x));
+        for g in extra {
+            mesh.faces.swap_remove(g as usize);
+            if carry {
+                f_from.swap_remove(g as usize);
+            }
+        }
+        reindexed
     }
-    if let Some(before) = before.filter(|_| done > 0) {
-        carry_attributes(mesh, &before, v_from, f_from);
-    }
-    (done, given_up.iter().filter(|&&g| g).count())
 }
