@@ -143,13 +143,47 @@ pub(crate) fn diagnose(
 ) -> Diagnosis {
     let mut p = Problems::default();
     let mut bad = vec![false; n];
-    // Per cluster, in parallel: its pieces (flood fills within the cluster) and the faces
-    // minus the edges of its Euler characteristic (each edge counted once per cluster).
+    let (pieces, mut chi) = pieces_and_chi(mesh, topo, labels, n);
+    let mut faces = Vec::new();
+    for range in around_vertices(topo, labels) {
+        range.around.iter().for_each(|&c| chi[c as usize] += 1);
+        for c in range.twice {
+            if !bad[c as usize] {
+                bad[c as usize] = true;
+                p.pinched += 1;
+            }
+        }
+        faces.extend(range.faces);
+    }
+    for c in 0..n {
+        if pieces[c] != 1 {
+            bad[c] = true;
+            p.disconnected += 1;
+        } else if chi[c] != 1 {
+            bad[c] = true;
+            p.not_disc += 1;
+        }
+    }
+    check_boundary_loops(topo, labels, n, marking, &mut bad, &mut p);
+    if !p.any() {
+        check_dual(&faces, n, expect, &mut bad, &mut p);
+    }
+    Diagnosis {
+        faces,
+        bad: (0..n as u32).filter(|&c| bad[c as usize]).collect(),
+        problems: p,
+    }
+}
+
+/// Per cluster, in parallel: its pieces (flood fills within the cluster) and the faces
+/// minus the edges of its Euler characteristic (each edge counted once per cluster; the
+/// vertices are added by [`around_vertices`]).
+fn pieces_and_chi(mesh: &Mesh, topo: &Topology, labels: &[u32], n: usize) -> (Vec<u32>, Vec<i64>) {
     let (start, members) = faces_by_cluster(labels, n);
     let seen: Vec<AtomicBool> = (0..mesh.n_faces())
         .map(|_| AtomicBool::new(false))
         .collect();
-    let (pieces, mut chi): (Vec<u32>, Vec<i64>) = (0..n)
+    (0..n)
         .into_par_iter()
         .map(|c| {
             let own = &members[start[c]..start[c + 1]];
@@ -194,16 +228,17 @@ pub(crate) fn diagnose(
             }
             (pieces, chi)
         })
-        .unzip();
-    drop(seen);
-    drop(members);
-    // Per vertex, in parallel over ranges: the clusters around it (the vertices of the
-    // Euler characteristics), the clusters met twice (pinched there: runs of one or two
-    // clusters cannot repeat one, equal neighbours are merged) and the dual faces, each
-    // range's lists in vertex order.
+        .unzip()
+}
+
+/// Per vertex, in parallel over ranges: the clusters around it (the vertices of the
+/// Euler characteristics), the clusters met twice (pinched there: runs of one or two
+/// clusters cannot repeat one, equal neighbours are merged) and the dual faces, each
+/// range's lists in vertex order.
+fn around_vertices(topo: &Topology, labels: &[u32]) -> Vec<AroundRange> {
     const RANGE: usize = 1 << 13;
     let nv = topo.n_vertices();
-    let ranges: Vec<AroundRange> = (0..nv.div_ceil(RANGE))
+    (0..nv.div_ceil(RANGE))
         .into_par_iter()
         .map(|k| {
             let (mut around, mut twice, mut faces) = (Vec::new(), Vec::new(), Vec::new());
@@ -229,33 +264,19 @@ pub(crate) fn diagnose(
                 faces,
             }
         })
-        .collect();
-    let mut faces = Vec::new();
-    for AroundRange {
-        around,
-        twice,
-        faces: f,
-    } in ranges
-    {
-        around.iter().for_each(|&c| chi[c as usize] += 1);
-        for c in twice {
-            if !bad[c as usize] {
-                bad[c as usize] = true;
-                p.pinched += 1;
-            }
-        }
-        faces.extend(f);
-    }
-    for c in 0..n {
-        if pieces[c] != 1 {
-            bad[c] = true;
-            p.disconnected += 1;
-        } else if chi[c] != 1 {
-            bad[c] = true;
-            p.not_disc += 1;
-        }
-    }
-    // Boundary loops: at least three clusters along each, each met once over all loops.
+        .collect()
+}
+
+/// Boundary loops: at least three clusters along each, each met once over all loops;
+/// the clusters blamed (by `marking`) are marked in `bad`.
+fn check_boundary_loops(
+    topo: &Topology,
+    labels: &[u32],
+    n: usize,
+    marking: LoopMarking,
+    bad: &mut [bool],
+    p: &mut Problems,
+) {
     let mut on_loop = vec![NONE; n];
     for i in 0..topo.n_boundary_loops() {
         let lp = topo.boundary_loop(i);
@@ -287,14 +308,6 @@ pub(crate) fn diagnose(
                 seq.iter().for_each(|&c| bad[c as usize] = true);
             }
         }
-    }
-    if !p.any() {
-        check_dual(&faces, n, expect, &mut bad, &mut p);
-    }
-    Diagnosis {
-        faces,
-        bad: (0..n as u32).filter(|&c| bad[c as usize]).collect(),
-        problems: p,
     }
 }
 
@@ -372,68 +385,147 @@ pub(crate) fn repair(
     n: usize,
     bad: &[u32],
 ) -> (Vec<u32>, usize) {
-    let nf = mesh.n_faces();
-    // Faces per cluster (CSR).
-    let mut off = vec![0u32; n + 1];
-    labels.iter().for_each(|&c| off[c as usize + 1] += 1);
-    for i in 0..n {
-        off[i + 1] += off[i];
-    }
-    let mut pos = off.clone();
-    let mut members = vec![0u32; nf];
-    for (f, &c) in labels.iter().enumerate() {
-        members[pos[c as usize] as usize] = f as u32;
-        pos[c as usize] += 1;
-    }
-    // Cluster adjacency and boundary contact.
-    let mut pairs: Vec<(u32, u32)> = Vec::new();
-    let mut on_boundary = vec![false; n];
-    for e in 0..topo.n_edges() as u32 {
-        let ef = topo.edge_faces(e);
-        if ef.len() == 1 {
-            on_boundary[labels[ef[0] as usize] as usize] = true;
-        } else {
-            let (a, b) = (labels[ef[0] as usize], labels[ef[1] as usize]);
-            if a != b {
-                pairs.push((a, b));
-                pairs.push((b, a));
-            }
-        }
-    }
-    pairs.sort_unstable();
-    pairs.dedup();
-    let mut adj_off = vec![0usize; n + 1];
-    pairs
-        .iter()
-        .for_each(|&(a, _)| adj_off[a as usize + 1] += 1);
-    for i in 0..n {
-        adj_off[i + 1] += adj_off[i];
-    }
-    let adj = |c: u32| &pairs[adj_off[c as usize]..adj_off[c as usize + 1]];
-    // Clusters that may not be merged: the bad ones and their neighbours.
-    let mut blocked = on_boundary.clone();
-    for &c in bad {
-        blocked[c as usize] = true;
-        adj(c).iter().for_each(|&(_, d)| blocked[d as usize] = true);
-    }
-    let mut by_size: Vec<u32> = (0..n as u32).collect();
-    by_size.sort_by_key(|&c| (off[c as usize + 1] - off[c as usize], c));
-    let mut next_free = 0usize;
-    let mut next_loose = 0usize;
-    // Clusters that may not take part in a merge at all: the bad ones, and those used.
-    let mut used = vec![false; n];
-    bad.iter().for_each(|&c| used[c as usize] = true);
+    let graph = ClusterGraph::new(mesh, topo, labels, n);
+    let mut picker = MergePicker::new(&graph, bad);
     let mut changed = Vec::new();
     let mut splits = 0;
-    let mut dist = vec![u32::MAX; nf];
+    let mut dist = vec![u32::MAX; mesh.n_faces()];
     for &c in bad {
-        let faces = &members[off[c as usize] as usize..off[c as usize + 1] as usize];
+        let faces = graph.members(c);
         if faces.len() < 2 {
             continue;
         }
-        // A pair (x merged into y) far from every problem and the boundary; failing
-        // that, any pair of clusters neither bad nor touched in this round.
-        let mut pick = None;
+        let Some((x, y)) = picker.pick(&graph) else {
+            break;
+        };
+        for &f in graph.members(x) {
+            labels[f as usize] = y;
+            changed.push(f);
+        }
+        split_in_two(faces, c, x, nbr, labels, &mut dist);
+        changed.extend_from_slice(faces);
+        splits += 1;
+    }
+    (changed, splits)
+}
+
+/// The clusters of a labelling as [`repair`] reads them: each one's faces, its
+/// neighbours, and whether it touches the boundary.
+struct ClusterGraph {
+    /// Where each cluster's faces start in `members` (one more entry than clusters).
+    off: Vec<u32>,
+    members: Vec<u32>,
+    /// Neighbouring pairs (a, b), sorted, both ways round.
+    pairs: Vec<(u32, u32)>,
+    /// Where each cluster's pairs start.
+    adj_off: Vec<usize>,
+    on_boundary: Vec<bool>,
+}
+
+impl ClusterGraph {
+    /// The graph of the `n` clusters `labels` gives the faces of `mesh` (adjacency `topo`).
+    fn new(mesh: &Mesh, topo: &Topology, labels: &[u32], n: usize) -> ClusterGraph {
+        let mut off = vec![0u32; n + 1];
+        labels.iter().for_each(|&c| off[c as usize + 1] += 1);
+        for i in 0..n {
+            off[i + 1] += off[i];
+        }
+        let mut pos = off.clone();
+        let mut members = vec![0u32; mesh.n_faces()];
+        for (f, &c) in labels.iter().enumerate() {
+            members[pos[c as usize] as usize] = f as u32;
+            pos[c as usize] += 1;
+        }
+        let mut pairs: Vec<(u32, u32)> = Vec::new();
+        let mut on_boundary = vec![false; n];
+        for e in 0..topo.n_edges() as u32 {
+            let ef = topo.edge_faces(e);
+            if ef.len() == 1 {
+                on_boundary[labels[ef[0] as usize] as usize] = true;
+            } else {
+                let (a, b) = (labels[ef[0] as usize], labels[ef[1] as usize]);
+                if a != b {
+                    pairs.push((a, b));
+                    pairs.push((b, a));
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut adj_off = vec![0usize; n + 1];
+        pairs
+            .iter()
+            .for_each(|&(a, _)| adj_off[a as usize + 1] += 1);
+        for i in 0..n {
+            adj_off[i + 1] += adj_off[i];
+        }
+        ClusterGraph {
+            off,
+            members,
+            pairs,
+            adj_off,
+            on_boundary,
+        }
+    }
+
+    /// The faces of cluster `c`.
+    fn members(&self, c: u32) -> &[u32] {
+        &self.members[self.off[c as usize] as usize..self.off[c as usize + 1] as usize]
+    }
+
+    /// The faces cluster `c` has.
+    fn size(&self, c: u32) -> u32 {
+        self.off[c as usize + 1] - self.off[c as usize]
+    }
+
+    /// The clusters next to `c`, as pairs `(c, d)`.
+    fn adj(&self, c: u32) -> &[(u32, u32)] {
+        &self.pairs[self.adj_off[c as usize]..self.adj_off[c as usize + 1]]
+    }
+}
+
+/// Picks the merges that pay for [`repair`]'s splits, smallest clusters first.
+struct MergePicker {
+    /// Clusters that may not be merged: the bad ones and their neighbours, the boundary's,
+    /// and those merged and their neighbours.
+    blocked: Vec<bool>,
+    /// Clusters that may not take part in a merge at all: the bad ones, and those used.
+    used: Vec<bool>,
+    by_size: Vec<u32>,
+    /// Where the strict and the loose search go on in `by_size`.
+    next_free: usize,
+    next_loose: usize,
+}
+
+impl MergePicker {
+    /// The picker for the clusters of `graph` with the problems `bad`.
+    fn new(graph: &ClusterGraph, bad: &[u32]) -> MergePicker {
+        let n = graph.on_boundary.len();
+        let mut blocked = graph.on_boundary.clone();
+        for &c in bad {
+            blocked[c as usize] = true;
+            graph
+                .adj(c)
+                .iter()
+                .for_each(|&(_, d)| blocked[d as usize] = true);
+        }
+        let mut by_size: Vec<u32> = (0..n as u32).collect();
+        by_size.sort_by_key(|&c| (graph.size(c), c));
+        let mut used = vec![false; n];
+        bad.iter().for_each(|&c| used[c as usize] = true);
+        MergePicker {
+            blocked,
+            used,
+            by_size,
+            next_free: 0,
+            next_loose: 0,
+        }
+    }
+
+    /// A pair (x merged into y) far from every problem and the boundary; failing that,
+    /// any pair of clusters neither bad nor touched in this round. Both, and their
+    /// neighbours, are blocked from then on.
+    fn pick(&mut self, graph: &ClusterGraph) -> Option<(u32, u32)> {
         for strict in [true, false] {
             let blocked_now = |d: u32, blocked: &[bool], used: &[bool]| {
                 if strict {
@@ -443,92 +535,92 @@ pub(crate) fn repair(
                 }
             };
             let start = if strict {
-                &mut next_free
+                &mut self.next_free
             } else {
-                &mut next_loose
+                &mut self.next_loose
             };
-            while *start < by_size.len() {
-                let x = by_size[*start];
+            while *start < self.by_size.len() {
+                let x = self.by_size[*start];
                 *start += 1;
-                if blocked_now(x, &blocked, &used) {
+                if blocked_now(x, &self.blocked, &self.used) {
                     continue;
                 }
-                let y = adj(x)
+                let y = graph
+                    .adj(x)
                     .iter()
                     .map(|&(_, d)| d)
-                    .filter(|&d| !blocked_now(d, &blocked, &used))
-                    .min_by_key(|&d| (off[d as usize + 1] - off[d as usize], d));
+                    .filter(|&d| !blocked_now(d, &self.blocked, &self.used))
+                    .min_by_key(|&d| (graph.size(d), d));
                 if let Some(y) = y {
-                    pick = Some((x, y));
                     for z in [x, y] {
-                        blocked[z as usize] = true;
-                        used[z as usize] = true;
-                        adj(z).iter().for_each(|&(_, d)| blocked[d as usize] = true);
+                        self.blocked[z as usize] = true;
+                        self.used[z as usize] = true;
+                        graph
+                            .adj(z)
+                            .iter()
+                            .for_each(|&(_, d)| self.blocked[d as usize] = true);
                     }
-                    break;
+                    return Some((x, y));
                 }
             }
-            if pick.is_some() {
-                break;
-            }
         }
-        let Some((x, y)) = pick else {
-            break;
-        };
-        for &f in &members[off[x as usize] as usize..off[x as usize + 1] as usize] {
-            labels[f as usize] = y;
-            changed.push(f);
-        }
-        // Double sweep: the two faces of c farthest apart, then grow both.
-        let far = |from: &[u32], dist: &mut Vec<u32>, labels: &[u32]| -> u32 {
-            let mut q: VecDeque<u32> = VecDeque::new();
-            for &f in from {
-                dist[f as usize] = 0;
-                q.push_back(f);
-            }
-            let mut last = from[0];
-            while let Some(f) = q.pop_front() {
-                last = f;
-                for i in 0..3 {
-                    let g = nbr(f, i);
-                    if g != NONE && labels[g as usize] == c && dist[g as usize] == u32::MAX {
-                        dist[g as usize] = dist[f as usize] + 1;
-                        q.push_back(g);
-                    }
-                }
-            }
-            last
-        };
-        let reset = |dist: &mut Vec<u32>| faces.iter().for_each(|&f| dist[f as usize] = u32::MAX);
-        reset(&mut dist);
-        let a = far(&[faces[0]], &mut dist, labels);
-        reset(&mut dist);
-        let b = far(&[a], &mut dist, labels);
-        reset(&mut dist);
-        // Two-source growth: faces reached first from b go to x.
-        let mut owner = std::collections::HashMap::new();
-        let mut q: VecDeque<u32> = VecDeque::from([a, b]);
-        owner.insert(a, c);
-        owner.insert(b, x);
+        None
+    }
+}
+
+/// Cuts cluster `c` (its faces `faces`) in two along a double sweep: the two faces
+/// farthest apart, then both grown at once; the faces reached first from the second go
+/// to `x`. `dist` is scratch, all `u32::MAX` on entry and exit.
+fn split_in_two(
+    faces: &[u32],
+    c: u32,
+    x: u32,
+    nbr: &dyn Fn(u32, usize) -> u32,
+    labels: &mut [u32],
+    dist: &mut [u32],
+) {
+    let far = |from: u32, dist: &mut [u32], labels: &[u32]| -> u32 {
+        let mut q: VecDeque<u32> = VecDeque::new();
+        dist[from as usize] = 0;
+        q.push_back(from);
+        let mut last = from;
         while let Some(f) = q.pop_front() {
-            let o = owner[&f];
+            last = f;
             for i in 0..3 {
                 let g = nbr(f, i);
-                if g != NONE && labels[g as usize] == c && !owner.contains_key(&g) {
-                    owner.insert(g, o);
+                if g != NONE && labels[g as usize] == c && dist[g as usize] == u32::MAX {
+                    dist[g as usize] = dist[f as usize] + 1;
                     q.push_back(g);
                 }
             }
         }
-        for &f in faces {
-            if owner.get(&f) == Some(&x) {
-                labels[f as usize] = x;
+        last
+    };
+    let reset = |dist: &mut [u32]| faces.iter().for_each(|&f| dist[f as usize] = u32::MAX);
+    reset(dist);
+    let a = far(faces[0], dist, labels);
+    reset(dist);
+    let b = far(a, dist, labels);
+    reset(dist);
+    let mut owner = std::collections::HashMap::new();
+    let mut q: VecDeque<u32> = VecDeque::from([a, b]);
+    owner.insert(a, c);
+    owner.insert(b, x);
+    while let Some(f) = q.pop_front() {
+        let o = owner[&f];
+        for i in 0..3 {
+            let g = nbr(f, i);
+            if g != NONE && labels[g as usize] == c && !owner.contains_key(&g) {
+                owner.insert(g, o);
+                q.push_back(g);
             }
-            changed.push(f);
         }
-        splits += 1;
     }
-    (changed, splits)
+    for &f in faces {
+        if owner.get(&f) == Some(&x) {
+            labels[f as usize] = x;
+        }
+    }
 }
 
 /// `opts.relax_passes` passes of [`Valette2004`] minimisation (with `opts.fold_guard`)
