@@ -550,108 +550,31 @@ pub(crate) fn rebalance_with(
         mut v_from,
         mut f_from,
     } = Origins::start(mesh);
-    let carry = before.is_some();
     let mut done = 0;
     let mut built = 0;
     let mut kept: Option<Kept> = None;
     while done < max_pairs as usize {
-        // The pair, and the faces around its collapsed vertex before it.
         let found = match kept.as_ref() {
-            Some(k) => {
-                let adjacency = OnMesh {
-                    kept: k,
-                    faces: &mesh.faces,
-                };
-                let id = |_, i: usize| Some(i as u32);
-                find_pair(mesh, &adjacency, &k.edges, id, surface, cos_turn, floor).map(|p| {
-                    let around = k.faces_of[p.col.gone as usize].clone();
-                    (p, around)
-                })
-            }
+            Some(k) => pair_on_kept(mesh, k, surface, cos_turn, floor),
             None => {
                 let Ok(topo) = Topology::try_build(mesh) else {
                     break;
                 };
                 built += 1;
-                let edges = edge_counts(&topo);
-                let ends = boundary_neighbours(&topo, mesh.n_vertices());
-                let adjacency = Built {
-                    topo: &topo,
-                    ends: &ends,
-                };
-                let id = |[a, b]: [u32; 2], _| topo.find_edge(a, b);
-                let found = find_pair(mesh, &adjacency, &edges, id, surface, cos_turn, floor);
+                let (found, edges) = pair_on_built(mesh, &topo, surface, cos_turn, floor);
                 if !fresh {
                     kept = Some(Kept::new(mesh, edges));
                 }
-                found.map(|p| {
-                    let around = topo.vertex_faces(p.col.gone).to_vec();
-                    (p, around)
-                })
+                found
             }
         };
-        let Some((
-            Pair {
-                ends,
-                old,
-                new,
-                at,
-                col,
-            },
-            around_gone,
-        )) = found
-        else {
+        let Some((pair, around_gone)) = found else {
             break;
         };
-        let [c, d] = ends;
-        if carry {
-            if col.at != mesh.positions[col.keep as usize] {
-                v_from[col.keep as usize] =
-                    blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
-            }
-            v_from[col.gone as usize] = blend_origins(&v_from[c as usize], &v_from[d as usize]);
-            let parents = [old[0], old[0], old[1], old[1]].map(|f| f_from[f as usize]);
-            let slots = [old[0], old[1]]
-                .into_iter()
-                .chain(col.freed.iter().copied());
-            for (i, f) in slots.enumerate() {
-                f_from[f as usize] = parents[i];
-            }
-            if col.freed.len() == 1 {
-                f_from.push(parents[3]);
-            }
+        if before.is_some() {
+            carry_pair_origins(mesh, &pair, &mut v_from, &mut f_from);
         }
-        // The faces the pair changes, as they were.
-        let mut changed: Vec<(u32, [u32; 3])> = Vec::new();
-        for &f in around_gone.iter().chain(&old).chain(&col.freed) {
-            if !changed.iter().any(|&(g, _)| g == f) {
-                changed.push((f, mesh.faces[f as usize]));
-            }
-        }
-        // Collapse: `gone` becomes `keep`; its edge's faces are freed.
-        for &f in &around_gone {
-            for w in &mut mesh.faces[f as usize] {
-                if *w == col.gone {
-                    *w = col.keep;
-                }
-            }
-        }
-        mesh.positions[col.keep as usize] = col.at;
-        mesh.positions[col.gone as usize] = at;
-        // The split's two faces and the collapse's freed ones (two, or one on the
-        // boundary: then the last new face is appended).
-        let mut slots = vec![old[0], old[1]];
-        slots.extend(&col.freed);
-        let mut appended = None;
-        for (i, t) in new.into_iter().enumerate() {
-            match slots.get(i) {
-                Some(&f) => mesh.faces[f as usize] = t,
-                None => {
-                    appended = Some(mesh.faces.len() as u32);
-                    mesh.faces.push(t);
-                }
-            }
-        }
+        let (changed, appended) = apply_pair(mesh, pair, &around_gone);
         done += 1;
         // The kept table follows the change.
         if let Some(k) = kept.as_mut() {
@@ -667,4 +590,118 @@ pub(crate) fn rebalance_with(
         carry_attributes(mesh, &before, v_from, f_from);
     }
     (done, built)
+}
+
+/// A pair found, and the faces around its collapsed vertex before it.
+type Found = Option<(Pair, Vec<u32>)>;
+
+/// The next pair found on the table `k` that follows the pairs made, and the faces around
+/// its collapsed vertex before it.
+fn pair_on_kept(
+    mesh: &Mesh,
+    k: &Kept,
+    surface: Option<&Surface<'_>>,
+    cos_turn: f64,
+    floor: f64,
+) -> Found {
+    let adjacency = OnMesh {
+        kept: k,
+        faces: &mesh.faces,
+    };
+    let id = |_, i: usize| Some(i as u32);
+    find_pair(mesh, &adjacency, &k.edges, id, surface, cos_turn, floor).map(|p| {
+        let around = k.faces_of[p.col.gone as usize].clone();
+        (p, around)
+    })
+}
+
+/// The next pair found on `topo`, built for `mesh` as it is, and the faces around its
+/// collapsed vertex before it; with the edges ([`edge_counts`]) that a [`Kept`] table
+/// following the pairs from there starts from.
+fn pair_on_built(
+    mesh: &Mesh,
+    topo: &Topology,
+    surface: Option<&Surface<'_>>,
+    cos_turn: f64,
+    floor: f64,
+) -> (Found, Vec<([u32; 2], u32)>) {
+    let edges = edge_counts(topo);
+    let ends = boundary_neighbours(topo, mesh.n_vertices());
+    let adjacency = Built { topo, ends: &ends };
+    let id = |[a, b]: [u32; 2], _| topo.find_edge(a, b);
+    let found = find_pair(mesh, &adjacency, &edges, id, surface, cos_turn, floor).map(|p| {
+        let around = topo.vertex_faces(p.col.gone).to_vec();
+        (p, around)
+    });
+    (found, edges)
+}
+
+/// Records where the vertices and faces `pair` changes come from: the collapse's kept
+/// vertex blends both ends when it moves, the split's new vertex (the collapse's gone one)
+/// the split edge's ends; each new face has the old face it replaces as parent.
+fn carry_pair_origins(
+    mesh: &Mesh,
+    pair: &Pair,
+    v_from: &mut [Vec<(u32, f64)>],
+    f_from: &mut Vec<u32>,
+) {
+    let (col, old, [c, d]) = (&pair.col, &pair.old, pair.ends);
+    if col.at != mesh.positions[col.keep as usize] {
+        v_from[col.keep as usize] =
+            blend_origins(&v_from[col.keep as usize], &v_from[col.gone as usize]);
+    }
+    v_from[col.gone as usize] = blend_origins(&v_from[c as usize], &v_from[d as usize]);
+    let parents = [old[0], old[0], old[1], old[1]].map(|f| f_from[f as usize]);
+    let slots = [old[0], old[1]]
+        .into_iter()
+        .chain(col.freed.iter().copied());
+    for (i, f) in slots.enumerate() {
+        f_from[f as usize] = parents[i];
+    }
+    if col.freed.len() == 1 {
+        f_from.push(parents[3]);
+    }
+}
+
+/// Makes `pair` (`around_gone`: the faces around its collapsed vertex): the collapse, then
+/// the split's new faces in the split's two faces and the collapse's freed ones (two, or
+/// one on the boundary: then the last new face is appended). Returns the faces changed as
+/// they were, and the appended face.
+fn apply_pair(
+    mesh: &mut Mesh,
+    pair: Pair,
+    around_gone: &[u32],
+) -> (Vec<(u32, [u32; 3])>, Option<u32>) {
+    let Pair {
+        old, new, at, col, ..
+    } = pair;
+    let mut changed: Vec<(u32, [u32; 3])> = Vec::new();
+    for &f in around_gone.iter().chain(&old).chain(&col.freed) {
+        if !changed.iter().any(|&(g, _)| g == f) {
+            changed.push((f, mesh.faces[f as usize]));
+        }
+    }
+    // Collapse: `gone` becomes `keep`; its edge's faces are freed.
+    for &f in around_gone {
+        for w in &mut mesh.faces[f as usize] {
+            if *w == col.gone {
+                *w = col.keep;
+            }
+        }
+    }
+    mesh.positions[col.keep as usize] = col.at;
+    mesh.positions[col.gone as usize] = at;
+    let mut slots = vec![old[0], old[1]];
+    slots.extend(&col.freed);
+    let mut appended = None;
+    for (i, t) in new.into_iter().enumerate() {
+        match slots.get(i) {
+            Some(&f) => mesh.faces[f as usize] = t,
+            None => {
+                appended = Some(mesh.faces.len() as u32);
+                mesh.faces.push(t);
+            }
+        }
+    }
+    (changed, appended)
 }
