@@ -231,6 +231,13 @@ fn convert_and_info_on_a_procedural_mesh() {
     assert_eq!(json["topology"]["genus_total"], 1);
     assert_eq!(json["topology"]["n_boundary_loops"], 0);
     assert_eq!(json["topology"]["n_vertices"], torus.n_vertices());
+    // A smooth closed surface: no feature edge, curve or corner.
+    let counts = &json["features"]["counts"];
+    assert_eq!(counts["sharp_edges"], 0, "{counts}");
+    assert_eq!(
+        (counts["curves"].as_u64(), counts["corners"].as_u64()),
+        (Some(0), Some(0))
+    );
 }
 
 #[test]

@@ -157,6 +157,12 @@ fn info_reports_the_bunny_as_the_shared_readme_describes_it() {
     );
     assert_eq!(json["topology"]["n_boundary_loops"], 5);
     assert_eq!(json["topology"]["genus_total"], 0);
+    // Every boundary edge is a feature edge (the default options).
+    let features = &json["features"]["counts"];
+    assert_eq!(
+        features["boundary_edges"],
+        json["topology"]["n_boundary_edges"]
+    );
     // The input's angle figures, as an independent tool measured them (metrics.md).
     let q = &json["quality"];
     assert!(

@@ -319,7 +319,10 @@ pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
         load::load(path, weld)?
     };
     let mesh = &input.mesh;
-    let topo = Topology::build(mesh).summary(mesh);
+    let adjacency = Topology::build(mesh);
+    let topo = adjacency.summary(mesh);
+    let feature_opts = coarsen_features::FeatureOptions::default();
+    let features = coarsen_features::Features::detect(mesh, &adjacency, &feature_opts).counts();
     let quality = coarsen_metrics::quality(mesh).map_err(anyhow::Error::from)?;
     let bbox = mesh.bbox();
     if json {
@@ -332,6 +335,7 @@ pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
             "area": mesh.area(),
             "attributes": attribute_list(mesh),
             "topology": topo,
+            "features": {"options": feature_opts, "counts": features},
             "quality": quality,
         });
         outln!(
@@ -358,6 +362,16 @@ pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
     );
     outln!("  area               {:.6}", mesh.area());
     print_topology(&topo);
+    outln!(
+        "  features           {} sharp edges (over {}°), {} boundary, {} of 3+ faces; {} curves ({} closed), {} corners",
+        features.sharp_edges,
+        feature_opts.angle_deg,
+        features.boundary_edges,
+        features.junction_edges,
+        features.curves,
+        features.closed_curves,
+        features.corners
+    );
     outln!(
         "  angles             min {:.2}°, mean of minimum {:.2}°, {:.2} % of faces under 30°",
         quality.alpha_min_deg,

@@ -14,7 +14,6 @@
 use crate::error::{MetricsError, Role};
 use crate::prepare::{Prepared, map_chunks};
 use crate::validity::topology;
-use coarsen_geom::triangle;
 use coarsen_mesh::Mesh;
 use coarsen_spatial::Bvh;
 use serde::{Deserialize, Serialize};
@@ -60,24 +59,12 @@ pub struct FeatureEdges {
 }
 
 /// The input's edges whose two faces turn by more than `angle_deg`, as vertex pairs in the
-/// order of the input's edge table.
+/// order of the input's edge table ([`coarsen_features::sharp_edges`] on a checked input).
 pub fn sharp_edges(input: &Mesh, angle_deg: f64) -> Result<Vec<[u32; 2]>, MetricsError> {
     let prepared = Prepared::new(input, Role::Input)?;
     let topo = topology(&prepared, Role::Input)?;
-    let cos_limit = angle_deg.to_radians().cos();
-    let normal = |f: u32| {
-        let [a, b, c] = input.corners(f as usize);
-        triangle::cross(a, b, c)
-    };
-    Ok((0..topo.n_edges() as u32)
-        .filter(|&e| match topo.edge_faces(e) {
-            &[f, g] => {
-                let (n, m) = (normal(f), normal(g));
-                let lengths = n.length() * m.length();
-                lengths > 0.0 && n.dot(m) < cos_limit * lengths
-            }
-            _ => false,
-        })
+    Ok(coarsen_features::sharp_edges(input, &topo, angle_deg)
+        .into_iter()
         .map(|e| topo.edge(e))
         .collect())
 }
