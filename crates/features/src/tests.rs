@@ -1,34 +1,9 @@
 use super::*;
 use coarsen_mesh::DVec3;
 
-/// An axis-aligned unit box split into 12 triangles, outward facing.
+/// A unit cube of 12 triangles.
 fn cube() -> Mesh {
-    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-    let positions = vec![
-        p(0.0, 0.0, 0.0),
-        p(1.0, 0.0, 0.0),
-        p(1.0, 1.0, 0.0),
-        p(0.0, 1.0, 0.0),
-        p(0.0, 0.0, 1.0),
-        p(1.0, 0.0, 1.0),
-        p(1.0, 1.0, 1.0),
-        p(0.0, 1.0, 1.0),
-    ];
-    let faces = vec![
-        [0, 2, 1],
-        [0, 3, 2],
-        [4, 5, 6],
-        [4, 6, 7],
-        [0, 1, 5],
-        [0, 5, 4],
-        [1, 2, 6],
-        [1, 6, 5],
-        [2, 3, 7],
-        [2, 7, 6],
-        [3, 0, 4],
-        [3, 4, 7],
-    ];
-    Mesh::new(positions, faces)
+    coarsen_shapes::cube(1.0, 1).unwrap()
 }
 
 /// An open tube of radius 1 along z: `around` segments, `rows` rows of faces.

@@ -12,6 +12,7 @@
 //! | [`torus`]`(R, r, n, m)` | genus 1 | n·m | 2·n·m |
 //! | [`bumpy_sphere`]`(r, k, a, f)` | sphere | as `icosphere` | as `icosphere` |
 //! | [`double_torus`]`(size, res)` | genus 2 | see its docs | see its docs |
+//! | [`cube`]`(size, n)` | sphere, 12 sharp edges, 8 corners | 6n² + 2 | 12n² |
 //! | [`plane_grid`]`(nx, ny, size)` | disc, 1 boundary loop | (nx + 1)(ny + 1) | 2·nx·ny |
 //! | [`disk_with_holes`]`(h, res, size)` | h holes, h + 1 loops | see its docs | see its docs |
 //!
@@ -359,6 +360,53 @@ fn push_quad(faces: &mut Vec<[Index; 3]>, q: [Index; 4]) {
     faces.push([q[0], q[2], q[3]]);
 }
 
+/// A cube of side `size` centred at the origin, each side an `n × n` grid of squares
+/// split into two triangles: the smallest CAD part, with sharp edges and corners. Lattice
+/// point `(i, j, k)` (each in `0..=n`, at least one at 0 or `n`) lies at
+/// `(i, j, k) · size / n − size / 2`; vertices are numbered in the order the sides first
+/// use them (−x, +x, −y, +y, −z, +z).
+pub fn cube(size: f64, n: u32) -> Result<Mesh, ShapeError> {
+    let size = positive("size", size)?;
+    let n = at_least("n", n, 1)?;
+    fits("cube", 12u64.saturating_mul(u64::from(n).pow(2)))?;
+    let mut index = std::collections::HashMap::new();
+    let mut positions = Vec::new();
+    let mut id = |p: [u32; 3]| -> Index {
+        *index.entry(p).or_insert_with(|| {
+            positions.push(
+                DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
+                    * (size / f64::from(n))
+                    - DVec3::splat(size / 2.0),
+            );
+            (positions.len() - 1) as Index
+        })
+    };
+    let mut faces = Vec::with_capacity(12 * (n * n) as usize);
+    for axis in 0..3 {
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0, n] {
+            for u in 0..n {
+                for v in 0..n {
+                    let at = |du: u32, dv: u32| {
+                        let mut p = [0; 3];
+                        p[axis] = side;
+                        p[b] = u + du;
+                        p[c] = v + dv;
+                        p
+                    };
+                    // Counter-clockwise about +axis; the side at 0 faces the other way.
+                    let mut q = [at(0, 0), at(1, 0), at(1, 1), at(0, 1)].map(&mut id);
+                    if side == 0 {
+                        q.reverse();
+                    }
+                    push_quad(&mut faces, q);
+                }
+            }
+        }
+    }
+    Ok(Mesh::new(positions, faces))
+}
+
 /// A genus-2 solid: a block `5·size × 3·size × size` (centred at the origin) pierced along
 /// z by two square holes of side `size`, built from cubic cells of side
 /// `size / resolution` and triangulated on its surface.
@@ -593,6 +641,19 @@ mod tests {
         assert_closed_surface(&m, 0);
         // The smallest case: two bands, a double cone.
         assert_closed_surface(&uv_sphere(1.0, 2, 3).unwrap(), 0);
+    }
+
+    #[test]
+    fn a_cube_is_a_closed_box_of_its_size() {
+        for n in [1, 3] {
+            let m = cube(2.0, n).unwrap();
+            let k = (n * n) as usize;
+            assert_eq!((m.n_vertices(), m.n_faces()), (6 * k + 2, 12 * k));
+            assert_closed_surface(&m, 0);
+            assert!((m.signed_volume() - 8.0).abs() < 1e-12);
+            assert!(m.positions.iter().all(|p| p.abs().max_element() == 1.0));
+        }
+        assert!(cube(0.0, 1).is_err() && cube(1.0, 0).is_err());
     }
 
     #[test]
