@@ -149,7 +149,7 @@ fn render_draws_a_measured_map_with_its_colour_bar() {
     // Two cells across of two panels each; two rows of 60 and the bar's strip.
     assert_eq!(info.width, 240);
     assert!(
-        info.height > 120 && info.height <= 120 + 48,
+        info.height > 120 && info.height <= 120 + 58,
         "{}",
         info.height
     );

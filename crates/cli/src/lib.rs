@@ -138,7 +138,7 @@ enum Command {
         /// Camera: auto (the broad side), front, side, top or iso.
         #[arg(long, default_value = "auto")]
         view: coarsen_render::View,
-        /// 1, or 4 for a 2×2 sheet (the view, the other side, from above, three-quarter).
+        /// 1, or 4 for a 2×2 sheet (the view, the other side, from above, from below).
         #[arg(long, default_value_t = 1, value_parser = parse_views)]
         views: u32,
         /// Size of each panel, WIDTHxHEIGHT.

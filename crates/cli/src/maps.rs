@@ -49,7 +49,6 @@ pub fn prepare(
     meshes: &mut [Mesh],
     worst: Option<f64>,
 ) -> Result<ColorScale, String> {
-    let name = field.column();
     // The vertex `quality` column of a fields file is MeshLab's slot for the distance: it
     // would shadow the face column of the same name.
     for m in meshes.iter_mut() {
@@ -57,54 +56,25 @@ pub fn prepare(
     }
     let (range, factor, label, high_is_bad) = match field {
         Field::Distance => {
-            if meshes.iter().any(|m| m.face_attrs.scalar(name).is_none()) {
-                return Err(
-                    "--attribute distance needs two meshes (INPUT OUTPUT), or a file \
-                     written by `coarsen metrics --fields`"
-                        .into(),
-                );
-            }
-            let largest = meshes
-                .iter()
-                .flat_map(|m| m.face_attrs.scalar(name).unwrap_or(&[]).iter())
-                .copied()
-                .filter(|x| x.is_finite())
-                .fold(0.0, f64::max);
-            let (factor, label) = if meshes.len() == 2 {
-                let diagonal = meshes[0].bbox().diagonal();
-                (
-                    100.0 / diagonal,
-                    "distance to the other mesh, % of the input's diagonal".to_string(),
-                )
-            } else {
-                (1.0, "distance to the other mesh, model units".to_string())
-            };
-            ((0.0, largest.max(f64::MIN_POSITIVE)), factor, label, true)
+            let (range, factor, label) = distance_scale(meshes)?;
+            (range, factor, label, true)
         }
         Field::MinAngle | Field::Quality => {
             for m in meshes.iter_mut() {
                 let (angles, q) = coarsen_metrics::shape_fields(m).map_err(|e| e.to_string())?;
                 let values = if field == Field::MinAngle { angles } else { q };
-                m.face_attrs.insert(name, AttrValues::Scalar(values));
+                m.face_attrs
+                    .insert(field.column(), AttrValues::Scalar(values));
             }
             if field == Field::MinAngle {
-                (
-                    (0.0, 60.0),
-                    1.0,
-                    "smallest angle of each face, degrees".into(),
-                    false,
-                )
+                let label = "smallest angle of each face, degrees".into();
+                ((0.0, 60.0), 1.0, label, false)
             } else {
-                (
-                    (0.0, 1.0),
-                    1.0,
-                    "quality Q of each face (1: equilateral)".into(),
-                    false,
-                )
+                let label = "quality Q of each face (1: equilateral)".into();
+                ((0.0, 1.0), 1.0, label, false)
             }
         }
     };
-    let highlight_worst = worst.unwrap_or(0.0) / 100.0;
     let label = match worst {
         Some(p) => format!("{label}; magenta: worst {p} % of faces"),
         None => label,
@@ -114,8 +84,69 @@ pub fn prepare(
         range: Some(range),
         factor,
         high_is_bad,
-        highlight_worst,
+        highlight_worst: worst.unwrap_or(0.0) / 100.0,
     })
+}
+
+/// The distance map is red from this share of each mesh's faces up (the top of its
+/// scale): a few faces far out would otherwise leave the rest of the map all blue.
+const TOP_PERCENTILE: f64 = 0.99;
+
+/// The range, tick factor and caption of the distance map: from 0 to the largest of the
+/// meshes' 99th percentiles, the largest distance named in the caption.
+fn distance_scale(meshes: &[Mesh]) -> Result<((f64, f64), f64, String), String> {
+    let columns: Option<Vec<&[f64]>> = meshes
+        .iter()
+        .map(|m| m.face_attrs.scalar(FACE_DISTANCE))
+        .collect();
+    let Some(columns) = columns else {
+        return Err(
+            "--attribute distance needs two meshes (INPUT OUTPUT), or a file \
+                    written by `coarsen metrics --fields`"
+                .into(),
+        );
+    };
+    let largest = columns
+        .iter()
+        .map(|c| percentile(c, 1.0))
+        .fold(0.0, f64::max);
+    let top = columns
+        .iter()
+        .map(|c| percentile(c, TOP_PERCENTILE))
+        .fold(0.0, f64::max);
+    let (factor, unit) = if meshes.len() == 2 {
+        (
+            100.0 / meshes[0].bbox().diagonal(),
+            "% of the input's diagonal",
+        )
+    } else {
+        (1.0, "model units")
+    };
+    let label = format!(
+        "distance to the other mesh, {unit}; red from each mesh's 99th percentile of faces \
+         up; largest {}",
+        short(largest * factor)
+    );
+    Ok(((0.0, top.max(f64::MIN_POSITIVE)), factor, label))
+}
+
+/// The value a share `q` of the finite `values` lie at or below.
+fn percentile(values: &[f64], q: f64) -> f64 {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    let at = (((v.len() - 1) as f64) * q).round() as usize;
+    *v.select_nth_unstable_by(at, f64::total_cmp).1
+}
+
+/// A figure with three significant digits.
+fn short(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let decimals = (2 - x.abs().log10().floor() as i64).clamp(0, 12) as usize;
+    format!("{x:.decimals$}")
 }
 
 #[cfg(test)]
@@ -134,10 +165,18 @@ mod tests {
             (Some((0.0, 60.0)), false, 0.01)
         );
         assert_eq!(meshes[0].face_attrs.scalar("min_angle").unwrap().len(), 80);
-        assert!(
-            prepare(Field::Distance, &mut meshes, None)
-                .unwrap_err()
-                .contains("two meshes")
-        );
+        let err = prepare(Field::Distance, &mut meshes, None).unwrap_err();
+        assert!(err.contains("two meshes"), "{err}");
+        let d: Vec<f64> = (0..meshes[0].n_faces()).map(|f| f as f64).collect();
+        meshes[0]
+            .face_attrs
+            .insert("distance", AttrValues::Scalar(d));
+        let s = prepare(Field::Distance, &mut meshes, None).unwrap();
+        // 80 faces valued 0..=79: the 99th percentile is 78; the largest is named.
+        assert_eq!(s.range, Some((0.0, 78.0)));
+        assert!(s.label.ends_with("largest 79.0"), "{}", s.label);
+        assert_eq!(short(0.40625), "0.406");
+        assert_eq!(short(1406.2), "1406");
+        assert_eq!(short(0.001234), "0.00123");
     }
 }

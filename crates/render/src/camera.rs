@@ -40,15 +40,15 @@ pub(crate) fn frame(view: View, mesh: &Mesh) -> Frame {
     }
 }
 
-/// The four frames of a 2×2 sheet around `first`: it, the opposite side, from above, and
-/// three-quarter.
+/// The four frames of a 2×2 sheet around `first`: it, the opposite side, from above and
+/// from below, which between them see most of a surface (a bunny's holed base, which no
+/// side view shows, included).
 pub(crate) fn sheet(first: Frame) -> [Frame; 4] {
-    let right = first.right();
     [
         first,
         Frame::new(-first.dir, first.up),
         Frame::new(first.up, -first.dir),
-        Frame::new(first.dir + right + first.up * 0.8, first.up),
+        Frame::new(-first.up, first.dir),
     ]
 }
 

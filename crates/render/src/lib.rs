@@ -67,7 +67,8 @@ impl std::str::FromStr for View {
 /// How a scalar attribute is drawn as a diagnostic map with a colour bar.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ColorScale {
-    /// The caption under the bar (ASCII and °), e.g. "distance to the input, % of diagonal".
+    /// The caption under the bar (ASCII and °; each `; ` starts a line), e.g. "distance to
+    /// the input, % of diagonal".
     pub label: String,
     /// The values at the two ends of the map; `None`: the smallest and largest value over
     /// all meshes drawn.
@@ -89,7 +90,7 @@ pub struct RenderOptions {
     pub height: u32,
     /// Camera direction.
     pub view: View,
-    /// 1, or 4 for a 2×2 sheet: the view, the opposite side, from above, three-quarter.
+    /// 1, or 4 for a 2×2 sheet: the view, the opposite side, from above, from below.
     pub views: u32,
     /// Interpolate vertex normals (else one normal per face).
     pub smooth: bool,
@@ -236,6 +237,8 @@ struct Scaled<'a> {
     columns: Vec<Option<(Domain, &'a [f64])>>,
     lo: f64,
     hi: f64,
+    /// Some value lies below `lo`, above `hi`.
+    clipped: [bool; 2],
 }
 
 impl<'a> Scaled<'a> {
@@ -257,7 +260,14 @@ impl<'a> Scaled<'a> {
                 })
         });
         let (lo, hi) = if lo <= hi { (lo, hi) } else { (0.0, 1.0) };
-        Ok(Scaled { columns, lo, hi })
+        let mut values = columns.iter().flatten().flat_map(|(_, v)| v.iter());
+        let clipped = [values.clone().any(|&x| x < lo), values.any(|&x| x > hi)];
+        Ok(Scaled {
+            columns,
+            lo,
+            hi,
+            clipped,
+        })
     }
 
     /// The colour of value `x`.
@@ -363,11 +373,17 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
     let cols = if frames.len() == 4 { 2 } else { 1 };
     let cell_w = pw * meshes.len();
     let k = if ph >= 500 { 2 } else { 1 };
-    let bar_h = if scaled.is_some() {
-        text::bar_height(k) as usize
-    } else {
-        0
+    let bar = match (&scaled, &opts.scale) {
+        (Some(s), Some(scale)) => Some(text::Bar {
+            lo: s.lo,
+            hi: s.hi,
+            factor: scale.factor,
+            label: &scale.label,
+            clipped: s.clipped,
+        }),
+        _ => None,
     };
+    let bar_h = bar.as_ref().map_or(0, |b| text::bar_height(b, k) as usize);
     let (total_w, grid_h) = (cell_w * cols, ph * frames.len() / cols);
     let mut image = Image {
         width: total_w as u32,
@@ -386,16 +402,27 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
             }
         }
     }
-    if let (Some(s), Some(scale)) = (&scaled, &opts.scale) {
-        let bar = text::Bar {
-            lo: s.lo,
-            hi: s.hi,
-            factor: scale.factor,
-            label: &scale.label,
-        };
-        text::draw_bar(&mut image, grid_h as u32, k, &bar, |x| s.color(x, scale));
+    if cols == 2 {
+        separate_cells(&mut image, cell_w, ph, grid_h);
+    }
+    if let (Some(bar), Some(s), Some(scale)) = (&bar, &scaled, &opts.scale) {
+        text::draw_bar(&mut image, grid_h as u32, k, bar, |x| s.color(x, scale));
     }
     Ok(image)
+}
+
+/// Grey lines between the cells of a 2×2 sheet (`cell_w × cell_h` each, `grid_h` high in
+/// all), so that the panels of one view read as one.
+fn separate_cells(img: &mut Image, cell_w: usize, cell_h: usize, grid_h: usize) {
+    let grey = [185, 185, 185];
+    for y in 0..grid_h as i64 {
+        img.set(cell_w as i64 - 1, y, grey);
+        img.set(cell_w as i64, y, grey);
+    }
+    for x in 0..img.width as i64 {
+        img.set(x, cell_h as i64 - 1, grey);
+        img.set(x, cell_h as i64, grey);
+    }
 }
 
 /// One mesh in one frame, `width × height` RGB bytes: drawn supersampled, then each pixel
@@ -423,6 +450,7 @@ fn panel(
         wire,
         wire_half_width: 0.8 * s as f64,
         outline: opts.wireframe,
+        ambient: if opts.scale.is_some() { 0.6 } else { 0.28 },
     };
     let fine = raster::draw(mesh, colors, &cam, &pass);
     let mut out = Vec::with_capacity(w * h * 3);

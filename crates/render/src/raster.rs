@@ -21,6 +21,9 @@ pub(crate) struct Pass {
     pub wire_half_width: f64,
     /// Outline the silhouette and the folds where the depth jumps (with the wire).
     pub outline: bool,
+    /// The light a face turned edge-on to the light still gets (of 1): low for shape,
+    /// high for a colour map, whose colours must stay readable on every side.
+    pub ambient: f32,
 }
 
 /// The median on-screen edge length of `mesh`'s faces, in pixels of a camera whose scale
@@ -110,7 +113,7 @@ pub(crate) fn draw(
                 let n = (corner_normals[0] * w0 + corner_normals[1] * w1 + corner_normals[2] * w2)
                     .normalize_or_zero();
                 // Two-sided lighting, so open meshes and their insides stay visible.
-                let shade = (0.28 + 0.72 * n.dot(light).abs()) as f32;
+                let shade = pass.ambient + (1.0 - pass.ambient) * n.dot(light).abs() as f32;
                 let mut rgb = [0.0f32; 3];
                 for (k, out) in rgb.iter_mut().enumerate() {
                     let base = corner_colors[0][k] * w0 as f32
@@ -406,14 +409,16 @@ mod tests {
         };
         let img = render(&[&m, &m], &o).unwrap();
         assert_eq!((img.width, img.height), (160, 80));
+        // The inside of a panel (the sheet's grey separators run along its last rows).
         let cell = |cx: u32, cy: u32| -> Vec<[u8; 3]> {
-            (0..40 * 40)
-                .map(|i| img.pixel(cx + i % 40, cy + i / 40))
+            (0..38 * 38)
+                .map(|i| img.pixel(cx + i % 38, cy + i / 38))
                 .collect()
         };
         // Each cell holds the mesh twice side by side; the broad side and the top differ.
-        assert_eq!(cell(0, 0), cell(40, 0));
-        assert_ne!(cell(0, 0), cell(0, 40));
+        assert!(cell(0, 0) == cell(40, 0));
+        assert!(cell(0, 0) != cell(0, 41));
+        assert_eq!(img.pixel(80, 10), [185, 185, 185], "the cells' separator");
         let bad = RenderOptions {
             views: 3,
             ..opts(40)

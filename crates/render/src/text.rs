@@ -39,22 +39,19 @@ pub(crate) fn draw(img: &mut Image, text: &str, x: i64, y: i64, k: u32, color: [
     }
 }
 
-/// A tick label: few digits, more for small magnitudes.
-pub(crate) fn tick_label(x: f64) -> String {
-    let a = x.abs();
-    if a == 0.0 {
-        "0".into()
-    } else if a >= 100.0 {
-        format!("{x:.0}")
-    } else if a >= 10.0 {
-        format!("{x:.1}")
-    } else if a >= 1.0 {
-        format!("{x:.2}")
-    } else if a >= 0.001 {
-        format!("{x:.3}")
-    } else {
-        format!("{x:.1e}")
+/// The label of tick value `x` on a scale whose ticks are `step` apart: enough decimals
+/// to tell neighbouring ticks apart (two more than the step's first digit needs), in
+/// scientific notation below 0.001.
+pub(crate) fn tick_label(x: f64, step: f64) -> String {
+    let step = step.abs();
+    if x == 0.0 {
+        return "0".into();
     }
+    if x.abs() < 1e-2 || !(step > 0.0) {
+        return format!("{x:.2e}");
+    }
+    let decimals = (-step.log10()).ceil() as i64 + 2;
+    format!("{x:.*}", decimals.clamp(0, 6) as usize)
 }
 
 /// What the colour bar shows.
@@ -64,13 +61,21 @@ pub(crate) struct Bar<'a> {
     pub hi: f64,
     /// Tick labels show value × `factor` (e.g. model units as percents of a diagonal).
     pub factor: f64,
-    /// The caption under the ticks.
+    /// The caption under the ticks; each `; ` starts a new line.
     pub label: &'a str,
+    /// Values lie below `lo`, above `hi`: the end ticks read `<lo`, `>hi`.
+    pub clipped: [bool; 2],
+}
+
+impl Bar<'_> {
+    fn lines(&self) -> impl Iterator<Item = &str> {
+        self.label.split("; ")
+    }
 }
 
 /// Height in pixels of the bar's strip at font scale `k`.
-pub(crate) fn bar_height(k: u32) -> u32 {
-    48 * k
+pub(crate) fn bar_height(bar: &Bar<'_>, k: u32) -> u32 {
+    (38 + 10 * bar.lines().count() as u32) * k
 }
 
 /// Draws the colour bar into the strip of `img` starting at row `top`: the gradient of
@@ -99,14 +104,24 @@ pub(crate) fn draw_bar(
             img.set(x, y, ink);
         }
         let v = bar.lo + (bar.hi - bar.lo) * i as f64 / 4.0;
-        let s = tick_label(v * bar.factor);
+        let mut s = tick_label(v * bar.factor, (bar.hi - bar.lo) / 4.0 * bar.factor);
+        if i == 0 && bar.clipped[0] {
+            s.insert(0, '<');
+        } else if i == 4 && bar.clipped[1] {
+            s.insert(0, '>');
+        }
         let tw = width(&s, k) as i64;
         let tx = (x - tw / 2).clamp(0, (w - tw).max(0));
         draw(img, &s, tx, ticks_y + k as i64, k, ink);
     }
-    let lw = width(bar.label, k) as i64;
-    let ly = ticks_y + 12 * k as i64;
-    draw(img, bar.label, ((w - lw) / 2).max(2), ly, k, ink);
+    let mut ly = ticks_y + 12 * k as i64;
+    for line in bar.lines() {
+        // A line too wide for the picture at scale `k` is drawn at scale 1.
+        let k_line = if width(line, k) as i64 + 4 > w { 1 } else { k };
+        let lw = width(line, k_line) as i64;
+        draw(img, line, ((w - lw) / 2).max(2), ly, k_line, ink);
+        ly += 10 * k as i64;
+    }
 }
 
 #[cfg(test)]
@@ -140,24 +155,28 @@ mod tests {
     }
 
     #[test]
-    fn tick_labels_keep_a_few_significant_digits() {
-        assert_eq!(tick_label(0.0), "0");
-        assert_eq!(tick_label(0.40625), "0.406");
-        assert_eq!(tick_label(2.5), "2.50");
-        assert_eq!(tick_label(45.0), "45.0");
-        assert_eq!(tick_label(120.0), "120");
-        assert_eq!(tick_label(0.00012), "1.2e-4");
+    fn tick_labels_tell_neighbouring_ticks_apart() {
+        assert_eq!(tick_label(0.0, 0.1), "0");
+        assert_eq!(tick_label(0.149, 0.149), "0.149");
+        assert_eq!(tick_label(0.298, 0.149), "0.298");
+        assert_eq!(tick_label(45.0, 15.0), "45.0");
+        assert_eq!(tick_label(120.0, 300.0), "120");
+        assert_eq!(tick_label(0.00106, 0.00035), "1.06e-3");
+        assert_eq!(tick_label(0.0106, 0.0035), "0.01060");
+        assert_eq!(tick_label(2.0, f64::NAN), "2.00e0");
     }
 
     #[test]
     fn the_bar_runs_through_the_map_from_left_to_right() {
-        let mut img = blank(200, bar_height(1));
         let bar = Bar {
             lo: 0.0,
             hi: 1.0,
             factor: 100.0,
-            label: "distance",
+            label: "distance; second line",
+            clipped: [false, true],
         };
+        assert_eq!(bar_height(&bar, 2), 2 * bar_height(&bar, 1));
+        let mut img = blank(200, bar_height(&bar, 1));
         draw_bar(&mut img, 0, 1, &bar, |v| [v as f32, 0.0, 1.0 - v as f32]);
         let (left, right) = (img.pixel(22, 10), img.pixel(177, 10));
         assert!(left[2] > 240 && left[0] < 15, "{left:?}");
