@@ -1,7 +1,9 @@
 //! One function per subcommand.
 
 use crate::load;
-use crate::{BatchArgs, Failure, LodArgs, RunArgs, TargetArgs, batch, html, maps, progress};
+use crate::{
+    BatchArgs, Failure, LodArgs, RunArgs, TargetArgs, batch, html, maps, progress, viewer,
+};
 use anyhow::Context as _;
 use coarsen_io::{PlyEncoding, WriteOptions};
 use coarsen_mesh::Mesh;
@@ -118,9 +120,10 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
         if let (Some(path), Some(original)) = (&args.html, &original) {
             let measured =
                 coarsen_metrics::measure_with_fields(original, &mesh, &Default::default());
-            if let Ok((_, fields)) = &measured {
+            let viewer = measured.as_ref().ok().map(|(_, fields)| {
                 html::maps_of(r, original, &mesh, fields);
-            }
+                viewer::for_report(original, &mesh, fields)
+            });
             let metrics = measured.map(|(m, _)| m);
             let input_quality = coarsen_metrics::quality(original).ok();
             let mut notes = r.errors.borrow().clone();
@@ -131,6 +134,7 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
                 &report,
                 metrics.as_ref().ok(),
                 input_quality.as_ref(),
+                viewer.as_deref(),
                 &r.pictures.borrow(),
                 &notes,
             );

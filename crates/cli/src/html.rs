@@ -217,7 +217,7 @@ fn histogram_svg(output: &[u32], input: Option<&[u32]>) -> String {
     let (w, h, bar) = (480.0, 160.0, 480.0 / output.len().max(1) as f64);
     let mut s = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{}\" role=\"img\" aria-label=\"smallest angles\">",
-        h + 30.0
+        h + 34.0
     );
     for (i, &p) in out.iter().enumerate() {
         let bh = p / max * h;
@@ -257,7 +257,8 @@ fn histogram_svg(output: &[u32], input: Option<&[u32]>) -> String {
         }
         let _ = write!(
             s,
-            "<text x=\"{w}\" y=\"12\" font-size=\"11\" text-anchor=\"end\">bars: output · dashed: input · % of each mesh's faces</text>"
+            "<text x=\"{w}\" y=\"{}\" font-size=\"11\" text-anchor=\"end\">bars: output · dashed: input · % of each mesh's faces</text>",
+            h + 28.0
         );
     }
     s.push_str("</svg>");
@@ -269,6 +270,7 @@ pub fn page(
     report: &RunReport,
     metrics: Option<&MetricsReport>,
     input_quality: Option<&Quality>,
+    viewer: Option<&str>,
     pictures: &[Picture],
     notes: &[String],
 ) -> String {
@@ -294,6 +296,9 @@ pub fn page(
         report.output_faces,
         report.seconds
     );
+    if let Some(v) = viewer {
+        h.push_str(v);
+    }
     h.push_str("<h2>Pictures</h2><div id=\"pictures\">");
     for p in pictures {
         h.push_str(&img(p));
@@ -351,6 +356,14 @@ pub fn page(
         h.push_str("</table><h3>Smallest angle of each triangle</h3>");
         let input_bins = input_quality.map(|q| q.min_angle_histogram.as_slice());
         h.push_str(&histogram_svg(&q.min_angle_histogram, input_bins));
+    }
+    let plots = crate::plots::stage_plots(report);
+    if !plots.is_empty() {
+        h.push_str("<h2>How the stages went</h2><div id=\"plots\">");
+        for p in plots {
+            h.push_str(&p);
+        }
+        h.push_str("</div>");
     }
     h.push_str("<h2>Stages</h2><table id=\"stages\"><tr><th>#</th><th>stage</th><th>faces before</th><th>faces after</th><th>vertices after</th><th>seconds</th></tr>");
     for s in &report.stages {

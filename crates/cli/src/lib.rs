@@ -33,7 +33,9 @@ mod commands;
 mod html;
 mod load;
 mod maps;
+mod plots;
 mod progress;
+mod viewer;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;

@@ -131,7 +131,7 @@ fn distance_scale(meshes: &[Mesh]) -> Result<((f64, f64), f64, String), String> 
 }
 
 /// The value a share `q` of the finite `values` lie at or below.
-fn percentile(values: &[f64], q: f64) -> f64 {
+pub(crate) fn percentile(values: &[f64], q: f64) -> f64 {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     if v.is_empty() {
         return 0.0;

@@ -164,6 +164,8 @@ impl Image {
         let mut enc = png::Encoder::new(&mut out, self.width, self.height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        // Reports embed many pictures: the smaller files are worth the slower encoding.
+        enc.set_compression(png::Compression::High);
         let mut w = enc
             .write_header()
             .map_err(|e| RenderError::Png(e.to_string()))?;
