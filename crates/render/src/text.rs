@@ -47,7 +47,7 @@ pub(crate) fn tick_label(x: f64, step: f64) -> String {
     if x == 0.0 {
         return "0".into();
     }
-    if x.abs() < 1e-2 || !(step > 0.0) {
+    if x.abs() < 1e-2 || step.is_nan() || step <= 0.0 {
         return format!("{x:.2e}");
     }
     let decimals = (-step.log10()).ceil() as i64 + 2;
