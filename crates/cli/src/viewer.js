@@ -209,10 +209,12 @@
   // The address may set the view: `#turn=DEGREES&colour=distance&mode=overlay&wire=0`.
   location.hash.slice(1).split("&").forEach(function (kv) {
     var p = kv.split("="), key = p[0], value = decodeURIComponent(p[1] || "");
+    if (["turn", "wire", "colour", "mode"].indexOf(key) < 0) return;
     if (key === "turn") view.yaw += (+value || 0) * Math.PI / 180;
     else if (key === "wire") view.wire = value !== "0";
     else if (key === "colour" || key === "mode") view[key] = value;
-    var control = document.querySelector("#viewer-controls [name=" + key + "]" + (key === "mode" ? "[value=" + value + "]" : ""));
+    var controls = document.querySelectorAll("#viewer-controls [name=" + key + "]");
+    var control = Array.prototype.filter.call(controls, function (c) { return key !== "mode" || c.value === value; })[0];
     if (control && key === "mode") control.checked = true;
     else if (control && key === "colour") control.value = value;
     else if (control && key === "wire") control.checked = view.wire;
