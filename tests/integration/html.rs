@@ -189,11 +189,11 @@ fn pixels(path: &Path) -> (u32, u32, Vec<u8>) {
     (info.width, info.height, rgb)
 }
 
-/// The viewer loads without console errors, WebGL draws, and a scripted turn changes a
-/// picture that is not blank.
+/// The viewer loads without console errors (its regions and overlay on), WebGL draws, and
+/// a scripted turn changes a picture that is not blank.
 fn viewer_draws_and_turns(browser: &str, dir: &Path, url: &str) {
     let dom = with_webgl(browser, &dir.join("profile3"))
-        .args(["--dump-dom", url])
+        .args(["--dump-dom", &format!("{url}#colour=regions&mode=overlay")])
         .output()
         .unwrap();
     let log = String::from_utf8_lossy(&dom.stderr);

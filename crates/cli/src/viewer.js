@@ -68,6 +68,44 @@
     for (v = 0; v < m.nv; v++) curv[v] = area[v] > 0 ? deficit[v] / area[v] : 0;
     m.minAngle = minAngle; m.curvature = curv;
   }
+  // A distinct colour for label `l`: hues a golden-ratio turn apart, two lightnesses.
+  function labelColour(l) {
+    var h = (l * 0.6180339887) % 1, s = l % 2 ? 0.55 : 0.65, v = l % 2 ? 0.75 : 0.95;
+    var i = Math.floor(h * 6), f = h * 6 - i, p = v * (1 - s), q = v * (1 - f * s), t = v * (1 - (1 - f) * s);
+    return [[v, t, p], [q, v, p], [p, v, t], [p, q, v], [t, p, v], [v, p, q]][i % 6];
+  }
+  // Each vertex of `m` labelled by the nearest vertex of `to` (a grid of `to`'s vertices,
+  // searched in growing shells): the region of the input each output vertex stands for.
+  function nearestLabels(m, to) {
+    var lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity], k, v;
+    for (v = 0; v < to.nv; v++) for (k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], to.pos[3 * v + k]); hi[k] = Math.max(hi[k], to.pos[3 * v + k]); }
+    var side = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / Math.max(1, Math.cbrt(to.nv)) || 1;
+    var cell = function (p, k) { return Math.floor((p - lo[k]) / side); };
+    var grid = new Map(), key = function (i, j, l) { return ((i + 1024) * 4096 + (j + 1024)) * 4096 + (l + 1024); };
+    for (v = 0; v < to.nv; v++) {
+      var g = key(cell(to.pos[3 * v], 0), cell(to.pos[3 * v + 1], 1), cell(to.pos[3 * v + 2], 2));
+      if (!grid.has(g)) grid.set(g, []);
+      grid.get(g).push(v);
+    }
+    var labels = new Uint32Array(m.nv);
+    for (v = 0; v < m.nv; v++) {
+      var p = [m.pos[3 * v], m.pos[3 * v + 1], m.pos[3 * v + 2]], c = [0, 1, 2].map(function (k) { return cell(p[k], k); });
+      var best = -1, bestD = Infinity;
+      for (var r = 0; r < 64 && (best < 0 || (r - 1) * side < Math.sqrt(bestD)); r++) {
+        for (var i = -r; i <= r; i++) for (var j = -r; j <= r; j++) for (var l = -r; l <= r; l++) {
+          if (Math.max(Math.abs(i), Math.abs(j), Math.abs(l)) !== r) continue;
+          var list = grid.get(key(c[0] + i, c[1] + j, c[2] + l));
+          if (!list) continue;
+          list.forEach(function (u) {
+            var d = Math.pow(to.pos[3 * u] - p[0], 2) + Math.pow(to.pos[3 * u + 1] - p[1], 2) + Math.pow(to.pos[3 * u + 2] - p[2], 2);
+            if (d < bestD) { bestD = d; best = u; }
+          });
+        }
+      }
+      labels[v] = Math.max(best, 0);
+    }
+    return labels;
+  }
   function robustRange(values) {
     var s = Array.prototype.slice.call(values).filter(isFinite).sort(function (x, y) { return x - y; });
     if (!s.length) return [0, 1];
@@ -86,7 +124,8 @@
         else if (mode === "curvature") {
           var t = (m.curvature[m.faces[3 * f + k]] - curvRange[0]) / (curvRange[1] - curvRange[0]);
           col = badness(t);
-        } else col = m.plain;
+        } else if (mode === "regions") col = labelColour(m.labels[m.faces[3 * f + k]]);
+        else col = m.plain;
         out.set(col, 9 * f + 3 * k);
       }
     }
@@ -137,6 +176,8 @@
   meshes[0].plain = [0.72, 0.72, 0.76]; meshes[1].plain = [0.55, 0.75, 0.95];
   meshes.forEach(function (m) { shape(m); upload(m); });
   var curvRange = robustRange(meshes[1].curvature);
+  meshes[0].labels = nearestLabels(meshes[0], meshes[1]);
+  meshes[1].labels = new Uint32Array(meshes[1].nv).map(function (_, i) { return i; });
   var lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   meshes.forEach(function (m) { for (var i = 0; i < m.pos.length; i++) { lo[i % 3] = Math.min(lo[i % 3], m.pos[i]); hi[i % 3] = Math.max(hi[i % 3], m.pos[i]); } });
   var centre = [0, 1, 2].map(function (k) { return (lo[k] + hi[k]) / 2; });

@@ -2,7 +2,9 @@
 //! (positions as 16-bit fractions of their box, faces as varint deltas, one byte of
 //! distance per face, all base64) and a small WebGL viewer written for the report
 //! (`viewer.js`: orbit, zoom, side by side or overlaid, wire on/off, colour by distance,
-//! smallest angle or curvature). No library is vendored: the viewer needs a few hundred
+//! smallest angle, curvature, or regions: each output vertex a hue, each input vertex
+//! that of the output vertex nearest it, which for a CVT output is close to its
+//! clusters). No library is vendored: the viewer needs a few hundred
 //! lines, where three.js would add some 600 kB to every report.
 
 use base64::Engine as _;
@@ -93,7 +95,8 @@ pub fn section(input: &Embedded<'_>, output: &Embedded<'_>, note: Option<&str>) 
          <label>colour by <select name=\"colour\"><option value=\"plain\">nothing</option>\
          <option value=\"distance\">distance to the other mesh</option>\
          <option value=\"min_angle\">smallest angle</option>\
-         <option value=\"curvature\">curvature (angle deficit)</option></select></label></div>\
+         <option value=\"curvature\">curvature (angle deficit)</option>\
+         <option value=\"regions\">regions (input: nearest output vertex)</option></select></label></div>\
          <canvas id=\"viewer\" width=\"1000\" height=\"460\" style=\"border:1px solid #ddd;max-width:100%;cursor:grab\"></canvas>\
          <p id=\"viewer-status\">The view needs JavaScript and WebGL.</p>",
     );
