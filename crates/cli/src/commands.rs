@@ -1,7 +1,9 @@
 //! One function per subcommand.
 
 use crate::load;
-use crate::{BatchArgs, Failure, LodArgs, RunArgs, TargetArgs, batch, html, progress};
+use crate::{
+    BatchArgs, Failure, LodArgs, RunArgs, TargetArgs, batch, html, maps, progress, viewer,
+};
 use anyhow::Context as _;
 use coarsen_io::{PlyEncoding, WriteOptions};
 use coarsen_mesh::Mesh;
@@ -116,12 +118,26 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
             r.write_all(dir)?;
         }
         if let (Some(path), Some(original)) = (&args.html, &original) {
-            let metrics = coarsen_metrics::measure(Some(original), &mesh, &Default::default());
+            let measured =
+                coarsen_metrics::measure_with_fields(original, &mesh, &Default::default());
+            let viewer = measured.as_ref().ok().map(|(_, fields)| {
+                html::maps_of(r, original, &mesh, fields);
+                viewer::for_report(original, &mesh, fields)
+            });
+            let metrics = measured.map(|(m, _)| m);
+            let input_quality = coarsen_metrics::quality(original).ok();
             let mut notes = r.errors.borrow().clone();
             if let Err(e) = &metrics {
                 notes.push(format!("metrics not available: {e}"));
             }
-            let page = html::page(&report, metrics.as_ref().ok(), &r.pictures.borrow(), &notes);
+            let page = html::page(
+                &report,
+                metrics.as_ref().ok(),
+                input_quality.as_ref(),
+                viewer.as_deref(),
+                &r.pictures.borrow(),
+                &notes,
+            );
             write_atomically(path, page.as_bytes())?;
         }
     }
@@ -228,17 +244,36 @@ pub fn batch(args: BatchArgs, quiet: bool) -> CmdResult {
 pub fn render(
     meshes: &[PathBuf],
     output: &Path,
-    opts: &coarsen_render::RenderOptions,
+    mut opts: coarsen_render::RenderOptions,
+    worst: Option<f64>,
 ) -> CmdResult {
     for m in meshes {
         load::ensure_not_input(Some(m), output)?;
     }
-    let loaded = meshes
-        .iter()
-        .map(|m| load::load(m, false))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let refs: Vec<&coarsen_mesh::Mesh> = loaded.iter().map(|l| &l.mesh).collect();
-    let image = coarsen_render::render(&refs, opts).map_err(anyhow::Error::from)?;
+    let field = opts.attribute.as_deref().and_then(maps::Field::named);
+    if worst.is_some() && field.is_none() {
+        return Err(Failure::Usage(
+            "--worst needs --attribute distance, min_angle or quality".into(),
+        ));
+    }
+    let loaded = match field {
+        Some(maps::Field::Distance) if meshes.len() == 2 => {
+            let (a, b) = (load::open(&meshes[0])?, load::open(&meshes[1])?);
+            let fidelity = Default::default();
+            let (_, a, b) = coarsen::measure_fields(a, b, &fidelity).map_err(failure)?;
+            vec![a, b]
+        }
+        _ => meshes
+            .iter()
+            .map(|m| load::load(m, false).map(|l| l.mesh))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+    };
+    let mut loaded = loaded;
+    if let Some(field) = field {
+        opts.scale = Some(maps::prepare(field, &mut loaded, worst).map_err(Failure::Usage)?);
+    }
+    let refs: Vec<&coarsen_mesh::Mesh> = loaded.iter().collect();
+    let image = coarsen_render::render(&refs, &opts).map_err(anyhow::Error::from)?;
     let png = image.to_png().map_err(anyhow::Error::from)?;
     write_atomically(output, &png)?;
     Ok(())
@@ -444,15 +479,59 @@ pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResu
     Ok(())
 }
 
+/// Where `coarsen metrics` writes the meshes with their fields.
+pub struct FieldFiles {
+    /// The output with its fields (`--fields`).
+    pub output: Option<PathBuf>,
+    /// The input with its fields (`--input-fields`).
+    pub input: Option<PathBuf>,
+}
+
+impl FieldFiles {
+    /// Refuses a fields file that is not PLY (only PLY holds the scalar columns) or that
+    /// names a mesh being read.
+    fn check(&self, input: &Path, output: &Path) -> CmdResult {
+        for path in self.output.iter().chain(&self.input) {
+            if coarsen_io::Format::from_path(path) != Some(coarsen_io::Format::Ply) {
+                return Err(Failure::Usage(format!(
+                    "fields are written as PLY (scalar properties): `{}` does not end in .ply",
+                    path.display()
+                )));
+            }
+            load::ensure_not_input(Some(input), path)?;
+            load::ensure_not_input(Some(output), path)?;
+        }
+        if self.output.is_some() && self.output == self.input {
+            return Err(Failure::Usage(
+                "--fields and --input-fields name the same file".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 pub fn metrics(
     input: &Path,
     output: &Path,
     json: bool,
     fidelity: coarsen_metrics::FidelityOptions,
+    files: &FieldFiles,
 ) -> CmdResult {
+    files.check(input, output)?;
     let opts = coarsen_metrics::MetricsOptions { fidelity };
-    let report =
-        coarsen::measure(load::open(input)?, load::open(output)?, &opts).map_err(failure)?;
+    let (a, b) = (load::open(input)?, load::open(output)?);
+    let report = if files.output.is_none() && files.input.is_none() {
+        coarsen::measure(a, b, &opts).map_err(failure)?
+    } else {
+        let (report, in_mesh, out_mesh) = coarsen::measure_fields(a, b, &opts).map_err(failure)?;
+        let binary = write_options(false);
+        for (path, mesh) in [(&files.output, &out_mesh), (&files.input, &in_mesh)] {
+            if let Some(path) = path {
+                coarsen_io::write_path(mesh, path, &binary)?;
+            }
+        }
+        report
+    };
     if json {
         outln!(
             "{}",

@@ -1,8 +1,10 @@
 //! Pictures of a run: snapshots after each stage, and the self-contained HTML report.
 
+use crate::maps;
 use base64::Engine as _;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::MetricsReport;
+use coarsen_metrics::Quality;
 use coarsen_pipeline::{RunReport, StageRecord};
 use coarsen_render::{RenderOptions, View};
 use std::cell::RefCell;
@@ -58,8 +60,48 @@ impl Recorder {
             smooth: attribute.is_some(),
             wireframe,
             attribute,
+            ..Default::default()
         };
-        match coarsen_render::render(&[mesh], &opts).and_then(|img| img.to_png()) {
+        self.keep(title, coarsen_render::render(&[mesh], &opts));
+    }
+
+    /// Renders `meshes` side by side (the input first) coloured by a measured `field`,
+    /// with its colour bar, and keeps the picture; `worst` highlights that percent of
+    /// each mesh's worst faces; `sheet` draws four views (a 2×2 sheet).
+    pub fn map(
+        &self,
+        title: String,
+        mut meshes: Vec<Mesh>,
+        field: maps::Field,
+        worst: Option<f64>,
+        sheet: bool,
+    ) {
+        let scale = match maps::prepare(field, &mut meshes, worst) {
+            Ok(s) => s,
+            Err(e) => return self.errors.borrow_mut().push(format!("{title}: {e}")),
+        };
+        // The four views of a sheet, each 3/5 the size, cost about 1.5 single views.
+        let size = if sheet { self.size * 3 / 5 } else { self.size };
+        let opts = RenderOptions {
+            width: size,
+            height: size,
+            view: self.view,
+            views: if sheet { 4 } else { 1 },
+            attribute: Some(field.column().into()),
+            scale: Some(scale),
+            ..Default::default()
+        };
+        let refs: Vec<&Mesh> = meshes.iter().collect();
+        self.keep(title, coarsen_render::render(&refs, &opts));
+    }
+
+    /// Keeps a rendered picture, or the reason it could not be made.
+    fn keep(
+        &self,
+        title: String,
+        image: Result<coarsen_render::Image, coarsen_render::RenderError>,
+    ) {
+        match image.and_then(|img| img.to_png()) {
             Ok(png) => self.pictures.borrow_mut().push(Picture { title, png }),
             Err(e) => self.errors.borrow_mut().push(format!("{title}: {e}")),
         }
@@ -121,6 +163,28 @@ impl Recorder {
     }
 }
 
+/// The report's maps of the output against the input: the distance of each to the other
+/// (far in red: where the output left the surface, e.g. rounded feature edges) and the
+/// smallest angles, the worst 1 % of faces in magenta.
+pub fn maps_of(r: &Recorder, input: &Mesh, output: &Mesh, fields: &coarsen_metrics::Fields) {
+    let (mut a, mut b) = (input.clone(), output.clone());
+    fields.input.attach(&mut a);
+    fields.output.attach(&mut b);
+    let title = "distance: input (to the output) and output (to the input), from four sides \
+                 (top left: the pictures' view; top right: the other side; bottom: from above \
+                 and from below)"
+        .to_string();
+    r.map(title, vec![a, b], maps::Field::Distance, None, true);
+    let title = "smallest angle: input and output, the worst 1 % in magenta".to_string();
+    r.map(
+        title,
+        vec![input.clone(), output.clone()],
+        maps::Field::MinAngle,
+        Some(1.0),
+        false,
+    );
+}
+
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -136,26 +200,38 @@ fn img(p: &Picture) -> String {
     )
 }
 
-/// An SVG bar chart of the smallest-angle histogram (5° bins from 0°).
-fn histogram_svg(bins: &[u32]) -> String {
-    let max = bins.iter().copied().max().unwrap_or(0).max(1) as f64;
-    let (w, h, bar) = (480.0, 160.0, 480.0 / bins.len().max(1) as f64);
+/// An SVG bar chart of the smallest-angle histograms (5° bins from 0°) as percents of
+/// each mesh's faces: the output's in colour (red under 30°), the input's, when given,
+/// overlaid as grey outlines.
+fn histogram_svg(output: &[u32], input: Option<&[u32]>) -> String {
+    let share = |bins: &[u32]| -> Vec<f64> {
+        let n = bins.iter().map(|&b| f64::from(b)).sum::<f64>().max(1.0);
+        bins.iter().map(|&b| 100.0 * f64::from(b) / n).collect()
+    };
+    let (out, inp) = (share(output), input.map(share));
+    let max = out
+        .iter()
+        .chain(inp.iter().flatten())
+        .copied()
+        .fold(1.0, f64::max);
+    let (w, h, bar) = (480.0, 160.0, 480.0 / output.len().max(1) as f64);
     let mut s = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{}\" role=\"img\" aria-label=\"smallest angles\">",
-        h + 30.0
+        h + 34.0
     );
-    for (i, &n) in bins.iter().enumerate() {
-        let bh = n as f64 / max * h;
+    for (i, &p) in out.iter().enumerate() {
+        let bh = p / max * h;
         let x = i as f64 * bar;
         let fill = if i < 6 { "#c2553a" } else { "#3a78c2" };
         let _ = write!(
             s,
-            "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{bh:.1}\" fill=\"{fill}\"><title>{}–{}°: {n}</title></rect>",
+            "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{bh:.1}\" fill=\"{fill}\"><title>output {}–{}°: {} faces ({p:.1} %)</title></rect>",
             x + 1.0,
             h - bh,
             bar - 2.0,
             i * 5,
-            i * 5 + 5
+            i * 5 + 5,
+            output[i]
         );
         let _ = write!(
             s,
@@ -163,6 +239,26 @@ fn histogram_svg(bins: &[u32]) -> String {
             x + bar / 2.0,
             h + 14.0,
             i * 5 + 5
+        );
+    }
+    if let (Some(inp), Some(counts)) = (&inp, input) {
+        for (i, &p) in inp.iter().enumerate() {
+            let bh = p / max * h;
+            let _ = write!(
+                s,
+                "<rect class=\"input\" x=\"{:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{bh:.1}\" fill=\"none\" stroke=\"#333\" stroke-dasharray=\"3 2\"><title>input {}–{}°: {} faces ({p:.1} %)</title></rect>",
+                i as f64 * bar + 3.0,
+                h - bh,
+                bar - 6.0,
+                i * 5,
+                i * 5 + 5,
+                counts.get(i).copied().unwrap_or(0)
+            );
+        }
+        let _ = write!(
+            s,
+            "<text x=\"{w}\" y=\"{}\" font-size=\"11\" text-anchor=\"end\">bars: output · dashed: input · % of each mesh's faces</text>",
+            h + 28.0
         );
     }
     s.push_str("</svg>");
@@ -173,6 +269,8 @@ fn histogram_svg(bins: &[u32]) -> String {
 pub fn page(
     report: &RunReport,
     metrics: Option<&MetricsReport>,
+    input_quality: Option<&Quality>,
+    viewer: Option<&str>,
     pictures: &[Picture],
     notes: &[String],
 ) -> String {
@@ -198,6 +296,9 @@ pub fn page(
         report.output_faces,
         report.seconds
     );
+    if let Some(v) = viewer {
+        h.push_str(v);
+    }
     h.push_str("<h2>Pictures</h2><div id=\"pictures\">");
     for p in pictures {
         h.push_str(&img(p));
@@ -253,7 +354,16 @@ pub fn page(
             ),
         );
         h.push_str("</table><h3>Smallest angle of each triangle</h3>");
-        h.push_str(&histogram_svg(&q.min_angle_histogram));
+        let input_bins = input_quality.map(|q| q.min_angle_histogram.as_slice());
+        h.push_str(&histogram_svg(&q.min_angle_histogram, input_bins));
+    }
+    let plots = crate::plots::stage_plots(report);
+    if !plots.is_empty() {
+        h.push_str("<h2>How the stages went</h2><div id=\"plots\">");
+        for p in plots {
+            h.push_str(&p);
+        }
+        h.push_str("</div>");
     }
     h.push_str("<h2>Stages</h2><table id=\"stages\"><tr><th>#</th><th>stage</th><th>faces before</th><th>faces after</th><th>vertices after</th><th>seconds</th></tr>");
     for s in &report.stages {
@@ -296,8 +406,12 @@ mod tests {
 
     #[test]
     fn histogram_has_one_bar_per_bin_and_escapes_nothing_unsafe() {
-        let svg = histogram_svg(&[0, 3, 9, 1]);
+        let svg = histogram_svg(&[0, 3, 9, 1], None);
         assert_eq!(svg.matches("<rect").count(), 4);
+        let both = histogram_svg(&[0, 3, 9, 1], Some(&[5, 5, 0, 0]));
+        assert_eq!(both.matches("<rect class=\"input\"").count(), 4);
+        // Shares, not counts: the input's 50 % bins are the tallest bars.
+        assert!(both.contains("input 0–5°: 5 faces (50.0 %)"));
         assert!(svg.starts_with("<svg") && svg.ends_with("</svg>"));
         assert_eq!(
             escape("<a href=\"x\">&"),

@@ -32,7 +32,10 @@ mod batch;
 mod commands;
 mod html;
 mod load;
+mod maps;
+mod plots;
 mod progress;
+mod viewer;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -119,21 +122,33 @@ enum Command {
         /// The PNG file to write.
         #[arg(short, long)]
         output: PathBuf,
-        /// Colour by this vertex or face attribute (scalars on a perceptual map, labels by hue).
+        /// Colour by this vertex or face attribute (scalars on a perceptual map, labels by
+        /// hue); `distance` (to the other mesh, or a `--fields` file's), `min_angle` and
+        /// `quality` (Q) are measured and drawn blue (good) to red (bad) with a colour bar.
         #[arg(long)]
         attribute: Option<String>,
-        /// Draw the edges.
+        /// With a measured attribute: paint the worst PERCENT of each mesh's faces magenta.
+        #[arg(long, value_name = "PERCENT", num_args = 0..=1, default_missing_value = "1",
+              value_parser = parse_percent)]
+        worst: Option<f64>,
+        /// Draw the edges (faint on a dense mesh, with its outline).
         #[arg(long)]
         wireframe: bool,
         /// Smooth shading (interpolated vertex normals) instead of flat.
         #[arg(long)]
         smooth: bool,
-        /// Camera: front, side, top or iso.
-        #[arg(long, default_value = "front")]
+        /// Camera: auto (the broad side), front, side, top or iso.
+        #[arg(long, default_value = "auto")]
         view: coarsen_render::View,
+        /// 1, or 4 for a 2×2 sheet (the view, the other side, from above, from below).
+        #[arg(long, default_value_t = 1, value_parser = parse_views)]
+        views: u32,
         /// Size of each panel, WIDTHxHEIGHT.
         #[arg(long, default_value = "800x800", value_parser = parse_size)]
         size: (u32, u32),
+        /// Samples per pixel along each axis, for anti-aliasing (1 for none).
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=4))]
+        supersample: u32,
     },
     /// Rebuild a level of detail from a coarse mesh and its progressive record (`run
     /// --progressive`) by undoing collapses: level 0 is the coarse mesh, the last level the input.
@@ -154,7 +169,29 @@ enum Command {
         /// At least this many distance samples on each mesh's faces.
         #[arg(long, default_value_t = coarsen_metrics::MIN_FACE_SAMPLES, value_name = "N")]
         min_samples: u64,
+        /// Write the output with its fields to this PLY file: vertex `quality` (distance
+        /// to the input), face `distance`, `min_angle`, `quality` (Q) and `flipped`.
+        #[arg(long, value_name = "FILE.ply")]
+        fields: Option<PathBuf>,
+        /// Write the input with its fields (distances to the output) to this PLY file.
+        #[arg(long, value_name = "FILE.ply")]
+        input_fields: Option<PathBuf>,
     },
+}
+
+fn parse_views(s: &str) -> Result<u32, String> {
+    match s.trim() {
+        "1" => Ok(1),
+        "4" => Ok(4),
+        _ => Err(format!("expected 1 or 4 views, got `{s}`")),
+    }
+}
+
+fn parse_percent(s: &str) -> Result<f64, String> {
+    match s.trim().trim_end_matches('%').parse::<f64>() {
+        Ok(p) if p > 0.0 && p <= 100.0 => Ok(p),
+        _ => Err(format!("expected a percent in (0, 100], got `{s}`")),
+    }
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -215,8 +252,8 @@ struct RunArgs {
     /// Write a picture after every stage (and of every attribute a stage adds) to this folder.
     #[arg(long, value_name = "DIR")]
     snapshots: Option<PathBuf>,
-    /// Camera of the pictures: front, side, top or iso.
-    #[arg(long, default_value = "front")]
+    /// Camera of the pictures: auto (the broad side), front, side, top or iso.
+    #[arg(long, default_value = "auto")]
     view: coarsen_render::View,
     /// Write the progressive record of the pipeline's last collapse stage to this file
     /// (for `coarsen lod`); the output must be that stage's mesh.
@@ -399,20 +436,26 @@ where
             meshes,
             output,
             attribute,
+            worst,
             wireframe,
             smooth,
             view,
+            views,
             size,
+            supersample,
         } => {
             let opts = coarsen_render::RenderOptions {
                 width: size.0,
                 height: size.1,
                 view,
+                views,
                 smooth,
                 wireframe,
                 attribute,
+                scale: None,
+                supersample,
             };
-            commands::render(&meshes, &output, &opts)
+            commands::render(&meshes, &output, opts, worst)
         }
         Command::Lod(args) => commands::lod(args, quiet),
         Command::Metrics {
@@ -421,12 +464,18 @@ where
             json,
             samples_per_face,
             min_samples,
+            fields,
+            input_fields,
         } => {
             let fidelity = coarsen_metrics::FidelityOptions {
                 samples_per_face,
                 min_face_samples: min_samples,
             };
-            commands::metrics(&input, &output, json, fidelity)
+            let files = commands::FieldFiles {
+                output: fields,
+                input: input_fields,
+            };
+            commands::metrics(&input, &output, json, fidelity, &files)
         }
     };
     match result {

@@ -228,3 +228,42 @@ pub fn measure(input: Input, output: Input, opts: &MetricsOptions) -> Result<Met
         opts,
     )?)
 }
+
+/// [`measure`], with each mesh's fields (`coarsen_metrics::fields`) attached to it as
+/// attribute columns: the cleaned input and output, in their files' units, the distances
+/// too, ready to be written as PLY for MeshLab or ParaView.
+///
+/// ```
+/// let input = coarsen::Input::new(coarsen::demo(), "input");
+/// let (output, _) = coarsen::remesh(&input.mesh, coarsen::Target::Vertices(800))?;
+/// let output = coarsen::Input::new(output, "output");
+/// let (m, input, output) = coarsen::measure_fields(input, output, &Default::default())?;
+/// let distance = output.vertex_attrs.scalar("quality").unwrap();
+/// assert_eq!(distance.len(), output.n_vertices());
+/// assert!(input.face_attrs.scalar("min_angle").is_some() && m.fidelity.is_some());
+/// # Ok::<(), coarsen::Error>(())
+/// ```
+pub fn measure_fields(
+    input: Input,
+    output: Input,
+    opts: &MetricsOptions,
+) -> Result<(MetricsReport, Mesh, Mesh), Error> {
+    let input = clean(input, false)?;
+    let output = clean(output, false)?;
+    let (report, fields) = coarsen_metrics::measure_with_fields(&input.mesh, &output.mesh, opts)?;
+    let with_fields = |cleaned: &Cleaned, mut f: coarsen_metrics::MeshFields| {
+        // Distances are lengths: back to the file's units as the positions are.
+        let unit = 2f64.powi(-cleaned.scale_exponent);
+        for d in f.vertex_distance.iter_mut().chain(&mut f.face_distance) {
+            *d *= unit;
+        }
+        let mut mesh = cleaned.restore(cleaned.mesh.clone());
+        f.attach(&mut mesh);
+        mesh
+    };
+    let (in_mesh, out_mesh) = (
+        with_fields(&input, fields.input),
+        with_fields(&output, fields.output),
+    );
+    Ok((report, in_mesh, out_mesh))
+}

@@ -435,6 +435,7 @@ impl Outcome {
             refused: Refusals::default(),
             sve: 0.0,
             max_cost: 0.0,
+            costs: CostCurve::default(),
             log: Vec::new(),
         }
     }
@@ -447,6 +448,7 @@ impl Outcome {
         self.refused.add(&next.refused);
         self.sve += next.sve;
         self.max_cost = self.max_cost.max(next.max_cost);
+        self.costs.append(&next.costs);
         self.log.extend(next.log);
         self
     }
@@ -527,8 +529,77 @@ pub struct Outcome {
     pub sve: f64,
     /// The largest cost of a collapse performed (0 when none).
     pub max_cost: f64,
+    /// The collapses' costs in the order performed, binned ([`CostCurve`]).
+    pub costs: CostCurve,
     /// Every collapse, in order (empty unless [`Options::keep_log`]).
     pub log: Vec<CollapseRecord>,
+}
+
+/// The cost of the collapses against their count, in at most [`CostCurve::MAX_BINS`]
+/// bins of consecutive collapses (for a report's plot): each bin holds the count of
+/// collapses up to its end and the largest cost among its own. Bins double in width when
+/// they run out, so the curve stays small on any mesh and costs nothing to keep.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CostCurve {
+    /// `(collapses up to the bin's end, largest cost in the bin)`, in order.
+    pub bins: Vec<(u64, f64)>,
+    /// Collapses per bin while filling (0 counts as 1).
+    width: u64,
+    /// Collapses in the last bin, which takes more while under `width`.
+    fill: u64,
+    /// Collapses so far.
+    count: u64,
+}
+
+impl CostCurve {
+    /// Bins kept at most.
+    pub const MAX_BINS: usize = 512;
+
+    /// Adds the next collapse's cost.
+    #[inline]
+    pub fn push(&mut self, cost: f64) {
+        self.count += 1;
+        match self.bins.last_mut() {
+            Some(last) if self.fill < self.width.max(1) => {
+                *last = (self.count, last.1.max(cost));
+                self.fill += 1;
+            }
+            _ => {
+                self.bins.push((self.count, cost));
+                self.fill = 1;
+            }
+        }
+        if self.bins.len() > Self::MAX_BINS {
+            self.halve();
+        }
+    }
+
+    /// The curve followed by `next`'s collapses.
+    pub fn append(&mut self, next: &CostCurve) {
+        let offset = self.count;
+        self.bins
+            .extend(next.bins.iter().map(|&(end, max)| (end + offset, max)));
+        self.count += next.count;
+        self.width = self.width.max(next.width);
+        while self.bins.len() > Self::MAX_BINS {
+            self.halve();
+        }
+        self.fill = self.width.max(1);
+    }
+
+    /// Joins neighbouring bins in pairs; the bins to come are twice as wide.
+    fn halve(&mut self) {
+        self.bins = self
+            .bins
+            .chunks(2)
+            .map(|pair| {
+                let largest = pair.iter().map(|b| b.1).fold(f64::NEG_INFINITY, f64::max);
+                (pair[pair.len() - 1].0, largest)
+            })
+            .collect();
+        self.width = self.width.max(1) * 2;
+        self.fill = self.width;
+    }
 }
 
 /// Why a mesh cannot be collapsed.
@@ -571,4 +642,39 @@ pub enum CollapseError {
         /// Faces of the mesh built from.
         expected_faces: usize,
     },
+}
+
+#[cfg(test)]
+mod cost_curve_tests {
+    use super::CostCurve;
+
+    #[test]
+    fn the_curve_keeps_every_collapse_in_few_bins_with_their_largest_cost() {
+        let mut c = CostCurve::default();
+        let n = 10_000u64;
+        for i in 0..n {
+            c.push(i as f64 * if i % 7 == 0 { 2.0 } else { 1.0 });
+        }
+        assert!(c.bins.len() <= CostCurve::MAX_BINS && c.bins.len() > CostCurve::MAX_BINS / 4);
+        assert_eq!(c.bins.last().unwrap().0, n);
+        // Ends ascend; each bin's largest is the largest of its own collapses.
+        let mut start = 0;
+        for &(end, largest) in &c.bins {
+            assert!(end > start);
+            let want = (start..end)
+                .map(|i| i as f64 * if i % 7 == 0 { 2.0 } else { 1.0 })
+                .fold(f64::NEG_INFINITY, f64::max);
+            assert_eq!(largest, want, "bin ending at {end}");
+            start = end;
+        }
+        // A second run goes on from the first one's count.
+        let mut more = CostCurve::default();
+        (0..5).for_each(|_| more.push(-1.0));
+        let before = c.bins.len();
+        c.append(&more);
+        assert_eq!(c.bins.last().unwrap(), &(n + 5, -1.0));
+        assert!(c.bins.len() <= before + 5);
+        c.push(3.0);
+        assert_eq!(c.bins.last().unwrap(), &(n + 6, 3.0));
+    }
 }

@@ -1128,6 +1128,7 @@ impl LiveMesh {
             out.collapses += 1;
             out.sve += sve;
             out.max_cost = out.max_cost.max(plan.cost);
+            out.costs.push(plan.cost);
             self.requeue(model, unit, reach, kept, verts, q, s, &mut out.refused);
             let live_estimate = self.n_faces * per_face / 2;
             q.sweep_if_stale(live_estimate, |e| self.is_current(e));

@@ -182,6 +182,7 @@ fn report(
     }
     r.figure("sve", o.sve);
     r.figure("max_cost", o.max_cost);
+    r.figure("cost_curve", &o.costs.bins);
     r.figure("vertices", after.vertices);
     r.figure("faces", after.faces);
     r.figure("stop", o.stop.name());

@@ -154,7 +154,9 @@ pub fn fidelity(
     let (input, output) = (input?, output?);
     let floor = rounding_floor(&input, &output)?;
     let closed = |p: &Prepared, role| topology(p, role).is_ok_and(|t| encloses_volume(&t));
-    let sampled = sample_both(&input, &output, opts, floor, || closed(&input, Role::Input));
+    let sampled = sample_both(&input, &output, opts, floor, false, || {
+        closed(&input, Role::Input)
+    });
     let both_closed = sampled.alongside && closed(&output, Role::Output);
     Ok(figures(&input, &output, &sampled, both_closed))
 }
@@ -182,6 +184,10 @@ pub(crate) struct Sampled<T> {
     forward: Stats,
     /// From the output's samples to the input surface.
     backward: Stats,
+    /// Per-element distances of the input to the output, when asked for.
+    pub forward_field: Option<DistanceField>,
+    /// Per-element distances of the output to the input, when asked for.
+    pub backward_field: Option<DistanceField>,
     /// The tree over the input's faces.
     pub input_bvh: Bvh,
     /// The result of the `alongside` task given to [`sample_both`].
@@ -189,7 +195,8 @@ pub(crate) struct Sampled<T> {
 }
 
 /// Samples both directions of checked meshes (`floor` from [`rounding_floor`]) and runs
-/// `alongside` (e.g. the input's topology) on the same threads.
+/// `alongside` (e.g. the input's topology) on the same threads; with `record`, keeps each
+/// mesh's per-element distances too ([`DistanceField`]).
 ///
 /// The larger mesh's many samples need only the smaller mesh's tree, which is quick to
 /// build, so they are measured while the larger mesh's tree is being built; its fewer
@@ -199,32 +206,37 @@ pub(crate) fn sample_both<T: Send>(
     output: &Prepared,
     opts: &FidelityOptions,
     floor: f64,
+    record: bool,
     alongside: impl FnOnce() -> T + Send,
 ) -> Sampled<T> {
     let build = |p: &Prepared| Bvh::build(&p.mesh.positions, &p.mesh.faces);
     if input.mesh.n_faces() >= output.mesh.n_faces() {
         let output_bvh = build(output);
         let (forward, (input_bvh, alongside)) = rayon::join(
-            || one_side(input, &output_bvh, opts, floor),
+            || one_side(input, &output_bvh, opts, floor, record),
             || rayon::join(|| build(input), alongside),
         );
-        let backward = one_side(output, &input_bvh, opts, floor);
+        let backward = one_side(output, &input_bvh, opts, floor, record);
         Sampled {
-            forward,
-            backward,
+            forward: forward.0,
+            backward: backward.0,
+            forward_field: forward.1,
+            backward_field: backward.1,
             input_bvh,
             alongside,
         }
     } else {
         let (input_bvh, alongside) = rayon::join(|| build(input), alongside);
         let (backward, output_bvh) = rayon::join(
-            || one_side(output, &input_bvh, opts, floor),
+            || one_side(output, &input_bvh, opts, floor, record),
             || build(output),
         );
-        let forward = one_side(input, &output_bvh, opts, floor);
+        let forward = one_side(input, &output_bvh, opts, floor, record);
         Sampled {
-            forward,
-            backward,
+            forward: forward.0,
+            backward: backward.0,
+            forward_field: forward.1,
+            backward_field: backward.1,
             input_bvh,
             alongside,
         }
@@ -294,13 +306,35 @@ impl Stats {
     }
 }
 
+/// The distances of one mesh's elements to the other surface, in model units: what the
+/// fields of [`crate::fields`] are made of.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct DistanceField {
+    /// Each vertex's distance (0 for a vertex no face uses).
+    pub vertex: Vec<f64>,
+    /// Each face's largest distance over its samples: those it owns (module docs), the
+    /// edge searches' points and its corners.
+    pub face: Vec<f64>,
+}
+
 /// Distances from the samples of `from` (see the module docs) to the surface in `to`,
 /// gathered face by face: a face's samples are the vertices and edges it is the first face
 /// to use, then its share of the face samples. All the samples of a face are answered
-/// from the triangles of `to` gathered once for that face ([`Bvh::gather_near`]).
-fn one_side(from: &Prepared, to: &Bvh, opts: &FidelityOptions, floor: f64) -> Stats {
-    one_side_with(from, to, opts, floor, true)
+/// from the triangles of `to` gathered once for that face ([`Bvh::gather_near`]). With
+/// `record`, the per-element distances too.
+fn one_side(
+    from: &Prepared,
+    to: &Bvh,
+    opts: &FidelityOptions,
+    floor: f64,
+    record: bool,
+) -> (Stats, Option<DistanceField>) {
+    one_side_with(from, to, opts, floor, true, record)
 }
+
+/// What one chunk of faces gives: its figures and, when recorded, each face's largest
+/// distance and the distances of the vertices it sampled.
+type ChunkResult = (Stats, Vec<f64>, Vec<(u32, f64)>);
 
 /// [`one_side`], or with `batched` false one walk of the tree per sample: the reference
 /// that the batched queries must match bit for bit.
@@ -310,7 +344,8 @@ fn one_side_with(
     opts: &FidelityOptions,
     floor: f64,
     batched: bool,
-) -> Stats {
+    record: bool,
+) -> (Stats, Option<DistanceField>) {
     let mesh = from.mesh;
     let n_faces = mesh.n_faces();
     let samples = opts.face_samples(n_faces);
@@ -342,9 +377,10 @@ fn one_side_with(
         f64::INFINITY
     };
 
-    let parts = map_chunks(n_faces, CHUNK, |range| {
+    let parts = map_chunks(n_faces, CHUNK, |range| -> ChunkResult {
         let mut stats = Stats::default();
         let mut refined = 0.0f64;
+        let (mut face_max, mut vertex_at) = (Vec::new(), Vec::new());
         let mut near = NearSet::new();
         let distance = |p: DVec3, near: &NearSet| {
             // `to` holds every face of a checked, non-empty mesh: a nearest point exists.
@@ -357,6 +393,7 @@ fn one_side_with(
             d
         };
         for f in range {
+            let mut largest = 0.0f64;
             let corners = mesh.corners(f);
             let owned_vertices = first.vertices_of(mesh, f);
             let edge_points: [u64; 3] = std::array::from_fn(|k| {
@@ -380,8 +417,12 @@ fn one_side_with(
                     .fold(0.0, f64::max);
                 to.gather_near(centre, NEAR_GROW * radius, NEAR_LIMIT, &mut near);
             }
-            for (&corner, _) in corners.iter().zip(owned_vertices).filter(|(_, o)| *o) {
-                measure(corner, &near);
+            for (k, _) in owned_vertices.iter().enumerate().filter(|(_, o)| **o) {
+                let d = measure(corners[k], &near);
+                largest = largest.max(d);
+                if record {
+                    vertex_at.push((mesh.faces[f][k], d));
+                }
             }
             let mut peaks = [(0.0, 0.0); 3];
             for (k, &count) in edge_points.iter().enumerate() {
@@ -391,6 +432,7 @@ fn one_side_with(
                 for i in 1..=count {
                     let t = i as f64 * step;
                     let d = measure(p + (q - p) * t, &near);
+                    largest = largest.max(d);
                     if d > best.0 {
                         best = (d, t);
                     }
@@ -405,22 +447,46 @@ fn one_side_with(
                     let (p, q) = (corners[k], corners[(k + 1) % 3]);
                     let peak = golden_max(lo, hi, |t| distance(p + (q - p) * t, &near));
                     refined = refined.max(peak);
+                    largest = largest.max(peak);
                 }
             }
             for j in 0..n_face {
                 let (u, v) = face_sample(j);
-                measure(a + (b - a) * u + (c - a) * v, &near);
+                largest = largest.max(measure(a + (b - a) * u + (c - a) * v, &near));
+            }
+            if record {
+                face_max.push(largest);
             }
         }
         stats.max = stats.max.max(refined);
-        stats
+        (stats, face_max, vertex_at)
     });
 
     let mut total = Stats::default();
     for part in &parts {
-        total.merge(part);
+        total.merge(&part.0);
     }
-    total
+    (total, record.then(|| assemble_field(mesh, parts)))
+}
+
+/// The per-element distances from the chunks' records: each face's largest distance
+/// raised to its corners' (a face too small for samples of its own still shows the
+/// distance at its corners).
+fn assemble_field(mesh: &Mesh, parts: Vec<ChunkResult>) -> DistanceField {
+    let mut vertex = vec![0.0; mesh.n_vertices()];
+    let mut face = Vec::with_capacity(mesh.n_faces());
+    for (_, faces, vertices) in parts {
+        face.extend(faces);
+        for (v, d) in vertices {
+            vertex[v as usize] = d;
+        }
+    }
+    for (largest, corners) in face.iter_mut().zip(&mesh.faces) {
+        for &v in corners {
+            *largest = largest.max(vertex[v as usize]);
+        }
+    }
+    DistanceField { vertex, face }
 }
 
 /// The largest value `f` takes at the points a golden-section search for its maximum on
@@ -734,8 +800,13 @@ mod tests {
                 samples_per_face: 10,
                 min_face_samples: 0,
             };
-            let batched = one_side_with(&from, &bvh, &opts, floor, true);
-            let reference = one_side_with(&from, &bvh, &opts, floor, false);
+            let (batched, field) = one_side_with(&from, &bvh, &opts, floor, true, true);
+            let (reference, _) = one_side_with(&from, &bvh, &opts, floor, false, false);
+            let (unrecorded, none) = one_side_with(&from, &bvh, &opts, floor, true, false);
+            assert_eq!((unrecorded, none), (batched, None));
+            let field = field.unwrap();
+            let largest = field.face.iter().copied().fold(0.0, f64::max);
+            assert_eq!(largest.to_bits(), batched.max.to_bits());
             assert_eq!(batched.count, reference.count);
             assert_eq!(batched.max.to_bits(), reference.max.to_bits());
             assert_eq!(batched.sum.to_bits(), reference.sum.to_bits());

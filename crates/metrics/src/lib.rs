@@ -13,6 +13,9 @@
 //!   ([`FeatureEdges`]).
 //! * [`measure`] — all three at once, sharing the spatial index and topology, as a
 //!   [`MetricsReport`] that serialises to JSON and prints as a Markdown table.
+//! * [`measure_with_fields`] — the same, with the figures element by element ([`Fields`]:
+//!   distances per vertex and face, smallest angle, quality and flips per face), for maps
+//!   and for other tools (MeshLab, ParaView) to show.
 //!
 //! Every figure is plain data, never NaN, and bit-for-bit the same on any number of
 //! threads: the parallel work is cut into fixed chunks whose partial results are combined
@@ -37,6 +40,7 @@
 pub mod error;
 pub mod features;
 pub mod fidelity;
+pub mod fields;
 mod grid;
 mod prepare;
 pub mod quality;
@@ -47,6 +51,7 @@ pub mod validity;
 pub use error::{MAX_COORDINATE, MetricsError, Role};
 pub use features::{FeatureEdges, FeatureOptions, feature_edges, sharp_edges};
 pub use fidelity::{Fidelity, FidelityOptions, MIN_FACE_SAMPLES, SAMPLES_PER_FACE, fidelity};
+pub use fields::{Fields, MeshFields, shape_fields};
 pub use grid::{GridFacing, LazyGridFacing};
 pub use quality::{Quality, quality};
 pub use validity::{Facing, SurfaceIndex, SurfaceParts, Validity, validity};
@@ -84,6 +89,30 @@ pub fn measure(
     output: &Mesh,
     opts: &MetricsOptions,
 ) -> Result<MetricsReport, MetricsError> {
+    measure_and_record(input, output, opts, false).map(|(report, _)| report)
+}
+
+/// [`measure`] of `output` against `input`, with the fields of both meshes: the same
+/// samples give the figures and the per-element distances (see [`fields`](mod@fields)).
+///
+/// Errors as [`measure`] does.
+pub fn measure_with_fields(
+    input: &Mesh,
+    output: &Mesh,
+    opts: &MetricsOptions,
+) -> Result<(MetricsReport, Fields), MetricsError> {
+    let (report, fields) = measure_and_record(Some(input), output, opts, true)?;
+    // With an input and `record`, the fields are always made.
+    Ok((report, fields.expect("fields recorded")))
+}
+
+/// [`measure`], and with `record` (and an input) the fields of both meshes.
+fn measure_and_record(
+    input: Option<&Mesh>,
+    output: &Mesh,
+    opts: &MetricsOptions,
+    record: bool,
+) -> Result<(MetricsReport, Option<Fields>), MetricsError> {
     let (out, input) = rayon::join(
         || Prepared::new(output, Role::Output),
         || input.map(|m| Prepared::new(m, Role::Input)).transpose(),
@@ -91,29 +120,46 @@ pub fn measure(
     let (out, input) = (out?, input?);
     let out_topology = validity::topology(&out, Role::Output)?;
     let quality = quality::quality_of(&out);
-    let (fidelity, n_flipped) = match &input {
-        None => (None, None),
+    let (fidelity, n_flipped, fields) = match &input {
+        None => (None, None, None),
         Some(inp) => {
             let floor = fidelity::rounding_floor(inp, &out)?;
             // The input's topology (for its closedness and the flip test's edge normals)
             // is built alongside the distances, once.
-            let sampled = fidelity::sample_both(inp, &out, &opts.fidelity, floor, || {
-                validity::topology(inp, Role::Input)
-            });
+            let mut sampled =
+                fidelity::sample_both(inp, &out, &opts.fidelity, floor, record, || {
+                    validity::topology(inp, Role::Input)
+                });
             let in_topology = sampled.alongside.as_ref().map_err(Clone::clone)?;
             let both_closed =
                 validity::encloses_volume(&out_topology) && validity::encloses_volume(in_topology);
             let fid = fidelity::figures(inp, &out, &sampled, both_closed);
-            let n_flipped = validity::count_flipped(&out, inp, &sampled.input_bvh, in_topology);
-            (Some(fid), Some(n_flipped))
+            let (n_flipped, fields) = if record {
+                let flipped = validity::flipped_faces(&out, inp, &sampled.input_bvh, in_topology);
+                let n = flipped.iter().filter(|&&f| f).count();
+                let distances = sampled
+                    .forward_field
+                    .take()
+                    .zip(sampled.backward_field.take());
+                let (forward, backward) = distances.expect("distances recorded");
+                (
+                    n,
+                    Some(fields::of_distances(inp, &out, forward, backward, flipped)),
+                )
+            } else {
+                let n = validity::count_flipped(&out, inp, &sampled.input_bvh, in_topology);
+                (n, None)
+            };
+            (Some(fid), Some(n_flipped), fields)
         }
     };
     let validity = validity::validity_of(&out, &out_topology.summary(output), n_flipped);
-    Ok(MetricsReport {
+    let report = MetricsReport {
         quality,
         fidelity,
         validity,
-    })
+    };
+    Ok((report, fields))
 }
 
 impl MetricsReport {

@@ -187,6 +187,26 @@ pub(crate) fn count_flipped(
     .sum()
 }
 
+/// Which output faces [`count_flipped`] counts, face by face.
+pub(crate) fn flipped_faces(
+    output: &Prepared,
+    input: &Prepared,
+    in_bvh: &Bvh,
+    in_topology: &Topology,
+) -> Vec<bool> {
+    let (out_mesh, in_mesh) = (output.mesh, input.mesh);
+    let normal = |f, bary| surface_normal(in_mesh, in_topology, f, bary);
+    map_chunks(out_mesh.n_faces(), CHUNK, |range| {
+        range
+            .map(|f| {
+                let [a, b, c] = out_mesh.corners(f);
+                faces_away(in_bvh, normal, a, b, c)
+            })
+            .collect::<Vec<bool>>()
+    })
+    .concat()
+}
+
 /// The indexes of an input surface that [`Facing`] reads: its faces around each vertex
 /// (for the normals at vertices and edges), its boundary edges and its face hierarchy.
 /// Owns no reference to the mesh or its adjacency, so a run can build it once, share it,

@@ -28,6 +28,33 @@ pub fn scalar_color(x: f64, lo: f64, hi: f64) -> [f32; 3] {
     ]
 }
 
+/// Control points of a cool-to-warm map (blue → light grey → red), for how bad a value is.
+const BADNESS: [[f32; 3]; 5] = [
+    [0.230, 0.299, 0.754],
+    [0.552, 0.690, 0.996],
+    [0.865, 0.865, 0.865],
+    [0.958, 0.604, 0.483],
+    [0.706, 0.016, 0.150],
+];
+
+/// The colour of badness `t` in `[0, 1]` (clamped; not finite counts as 0): blue for
+/// good, red for bad.
+pub fn badness_color(t: f64) -> [f32; 3] {
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let s = t * (BADNESS.len() - 1) as f64;
+    let i = (s.floor() as usize).min(BADNESS.len() - 2);
+    let f = (s - i as f64) as f32;
+    let (a, b) = (BADNESS[i], BADNESS[i + 1]);
+    std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
+}
+
+/// The colour of the highlighted worst faces: magenta, on neither end of the badness map.
+pub const HIGHLIGHT: [f32; 3] = [0.85, 0.0, 0.85];
+
 /// A distinct colour for label `l`: hues a golden-ratio turn apart, alternating lightness.
 pub fn label_color(l: u32) -> [f32; 3] {
     let h = (l as f64 * 0.618_033_988_749_895).fract();
@@ -95,6 +122,15 @@ mod tests {
             let d: f32 = a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum();
             assert!(d > 0.15, "labels {l} and {}: {a:?} {b:?}", l + 1);
         }
+    }
+
+    #[test]
+    fn badness_runs_from_blue_to_red_through_grey() {
+        let (good, mid, bad) = (badness_color(0.0), badness_color(0.5), badness_color(1.0));
+        assert!(good[2] > good[0] && bad[0] > bad[2]);
+        assert!((mid[0] - mid[2]).abs() < 1e-6);
+        assert_eq!(badness_color(f64::NAN), good);
+        assert_eq!(badness_color(7.0), bad);
     }
 
     #[test]

@@ -1,82 +1,63 @@
-//! The orthographic camera and the z-buffered triangle rasterizer.
+//! The z-buffered triangle rasterizer, its wireframe and outline.
 
-use crate::{RenderOptions, View, light};
-use coarsen_geom::{Aabb, DVec3};
+use crate::camera::Camera;
+use crate::light;
+use coarsen_geom::DVec3;
 use coarsen_mesh::Mesh;
 
-/// An orthographic camera: screen = scale · (projection on right/up) around the centre.
-pub(crate) struct Camera {
-    view: DVec3,
-    right: DVec3,
-    up: DVec3,
-    center: DVec3,
-    scale: f64,
-    width: f64,
-    height: f64,
-}
-
-impl Camera {
-    /// A camera looking along `view` that frames every referenced vertex of `meshes`.
-    pub(crate) fn framing(meshes: &[&Mesh], view: View, width: u32, height: u32) -> Camera {
-        let (dir, up) = match view {
-            View::Front => (DVec3::Z, DVec3::Y),
-            View::Side => (DVec3::X, DVec3::Y),
-            View::Top => (DVec3::Y, -DVec3::Z),
-            View::Iso => (DVec3::ONE.normalize(), DVec3::Y),
-        };
-        let right = up.cross(dir).normalize();
-        let up = dir.cross(right).normalize();
-        let mut screen = Aabb::EMPTY;
-        for m in meshes {
-            for f in &m.faces {
-                for &v in f {
-                    let p = m.positions[v as usize];
-                    if p.is_finite() {
-                        screen.grow(DVec3::new(p.dot(right), p.dot(up), p.dot(dir)));
-                    }
-                }
-            }
-        }
-        let e = screen.extent();
-        let scale = 0.92 * (width as f64 / e.x.max(1e-300)).min(height as f64 / e.y.max(1e-300));
-        let c = screen.center();
-        Camera {
-            view: dir,
-            right,
-            up,
-            center: right * c.x + up * c.y + dir * c.z,
-            scale: if scale.is_finite() { scale } else { 1.0 },
-            width: width as f64,
-            height: height as f64,
-        }
-    }
-
-    /// Screen position (x right, y down, in pixels) and depth (larger = nearer) of `p`.
-    fn project(&self, p: DVec3) -> DVec3 {
-        let q = p - self.center;
-        DVec3::new(
-            self.width / 2.0 + q.dot(self.right) * self.scale,
-            self.height / 2.0 - q.dot(self.up) * self.scale,
-            q.dot(self.view),
-        )
-    }
-}
-
-const BACKGROUND: [f32; 3] = [0.97, 0.97, 0.96];
+pub(crate) const BACKGROUND: [f32; 3] = [0.97, 0.97, 0.96];
 const BASE: [f32; 3] = [0.78, 0.78, 0.80];
 const WIRE: [f32; 3] = [0.08, 0.08, 0.10];
 
-/// Draws one mesh into a `width × height` RGB buffer.
+/// How one panel is drawn, in the pixels it is drawn at (supersampled).
+pub(crate) struct Pass {
+    pub width: usize,
+    pub height: usize,
+    /// Interpolated vertex normals.
+    pub smooth: bool,
+    /// Opacity of the wire, 0 for none.
+    pub wire: f32,
+    /// Half the width of a wire line, in pixels.
+    pub wire_half_width: f64,
+    /// Outline the silhouette and the folds where the depth jumps (with the wire).
+    pub outline: bool,
+    /// The light a face turned edge-on to the light still gets (of 1): low for shape,
+    /// high for a colour map, whose colours must stay readable on every side.
+    pub ambient: f32,
+}
+
+/// The median on-screen edge length of `mesh`'s faces, in pixels of a camera whose scale
+/// is `scale` (a face's edge taken as √(2·area)): how dense its wire would look.
+pub(crate) fn median_edge_pixels(mesh: &Mesh, cam: &Camera) -> f64 {
+    let mut sizes: Vec<f64> = (0..mesh.n_faces())
+        .map(|f| (2.0 * mesh.face_area(f)).sqrt() * cam.scale)
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .collect();
+    if sizes.is_empty() {
+        return f64::INFINITY;
+    }
+    let mid = sizes.len() / 2;
+    *sizes.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// The wire's opacity for faces whose edges are `edge_px` pixels long on the final
+/// picture: full from 8 pixels up, fading to a faint 0.15 at 2 pixels and below, so that
+/// a dense mesh shows its outline and a light wire instead of a dark blot.
+pub(crate) fn wire_opacity(edge_px: f64) -> f32 {
+    (0.15 + 0.85 * ((edge_px - 2.0) / 6.0).clamp(0.0, 1.0)) as f32
+}
+
+/// Draws one mesh; returns the colour of every pixel, rows top to bottom.
 pub(crate) fn draw(
     mesh: &Mesh,
     colors: Option<&[[[f32; 3]; 3]]>,
     cam: &Camera,
-    opts: &RenderOptions,
-) -> Vec<u8> {
-    let (w, h) = (opts.width as usize, opts.height as usize);
+    pass: &Pass,
+) -> Vec<[f32; 3]> {
+    let (w, h) = (pass.width, pass.height);
     let mut depth = vec![f64::NEG_INFINITY; w * h];
     let mut color = vec![BACKGROUND; w * h];
-    let normals = if opts.smooth {
+    let normals = if pass.smooth {
         mesh.vertex_normals()
     } else {
         Vec::new()
@@ -94,7 +75,7 @@ pub(crate) fn draw(
             continue;
         }
         let face_normal = mesh.face_normal(f);
-        let corner_normals = if opts.smooth {
+        let corner_normals = if pass.smooth {
             tri.map(|v| normals[v as usize])
         } else {
             [face_normal; 3]
@@ -132,7 +113,7 @@ pub(crate) fn draw(
                 let n = (corner_normals[0] * w0 + corner_normals[1] * w1 + corner_normals[2] * w2)
                     .normalize_or_zero();
                 // Two-sided lighting, so open meshes and their insides stay visible.
-                let shade = (0.28 + 0.72 * n.dot(light).abs()) as f32;
+                let shade = pass.ambient + (1.0 - pass.ambient) * n.dot(light).abs() as f32;
                 let mut rgb = [0.0f32; 3];
                 for (k, out) in rgb.iter_mut().enumerate() {
                     let base = corner_colors[0][k] * w0 as f32
@@ -140,15 +121,15 @@ pub(crate) fn draw(
                         + corner_colors[2][k] * w2 as f32;
                     *out = base * shade;
                 }
-                if opts.wireframe {
+                if pass.wire > 0.0 {
                     // Distance in pixels to the nearest edge: barycentric × height over that edge.
                     let d = [w0, w1, w2]
                         .iter()
                         .zip(len)
                         .map(|(&wi, l)| wi * area.abs() / l.max(1e-12))
                         .fold(f64::INFINITY, f64::min);
-                    if d < 0.8 {
-                        let t = (1.0 - d / 0.8) as f32;
+                    if d < pass.wire_half_width {
+                        let t = pass.wire * (1.0 - d / pass.wire_half_width) as f32;
                         for (k, out) in rgb.iter_mut().enumerate() {
                             *out = *out * (1.0 - t) + WIRE[k] * t;
                         }
@@ -158,10 +139,53 @@ pub(crate) fn draw(
             }
         }
     }
+    if pass.outline {
+        let radius = pass.wire_half_width.ceil().max(1.0) as usize;
+        outline(
+            &mut color,
+            &depth,
+            (w, h),
+            radius,
+            4.0 / cam.scale * pass.wire_half_width,
+        );
+    }
     color
-        .iter()
-        .flat_map(|c| c.map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8))
-        .collect()
+}
+
+/// Darkens the covered pixels within `radius` of an empty one (the silhouette) or of one
+/// more than `jump` farther (a fold of the surface in front of another part).
+fn outline(
+    color: &mut [[f32; 3]],
+    depth: &[f64],
+    (w, h): (usize, usize),
+    radius: usize,
+    jump: f64,
+) {
+    let covered = |i: usize| depth[i] > f64::NEG_INFINITY;
+    let mut edge = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if !covered(i) {
+                continue;
+            }
+            edge[i] = (1..=radius).any(|r| {
+                let neighbours = [
+                    (x >= r).then(|| i - r),
+                    (x + r < w).then(|| i + r),
+                    (y >= r).then(|| i - r * w),
+                    (y + r < h).then(|| i + r * w),
+                ];
+                neighbours
+                    .into_iter()
+                    .flatten()
+                    .any(|j| !covered(j) || depth[j] < depth[i] - jump)
+            });
+        }
+    }
+    for (c, _) in color.iter_mut().zip(&edge).filter(|(_, e)| **e) {
+        *c = std::array::from_fn(|k| c[k] * 0.2 + WIRE[k] * 0.8);
+    }
 }
 
 #[cfg(test)]
@@ -169,10 +193,16 @@ mod tests {
     use super::*;
     use crate::render;
 
+    use crate::{ColorScale, HIGHLIGHT, RenderOptions, View, worst_faces};
+    use coarsen_mesh::AttrValues;
+
+    /// One sample per pixel and the fixed front view, for pixel-exact checks.
     fn opts(size: u32) -> RenderOptions {
         RenderOptions {
             width: size,
             height: size,
+            view: View::Front,
+            supersample: 1,
             ..Default::default()
         }
     }
@@ -287,6 +317,186 @@ mod tests {
         assert!(matches!(
             render(&[&sphere], &o),
             Err(crate::RenderError::NoAttribute(_))
+        ));
+    }
+
+    fn to_u8(c: [f32; 3]) -> [u8; 3] {
+        c.map(|x| (x * 255.0).round() as u8)
+    }
+
+    #[test]
+    fn supersampling_blends_the_rim_and_keeps_the_image_size() {
+        let sphere = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        let sharp = render(&[&sphere], &opts(64)).unwrap();
+        let smooth = render(
+            &[&sphere],
+            &RenderOptions {
+                supersample: 3,
+                ..opts(64)
+            },
+        )
+        .unwrap();
+        assert_eq!((smooth.width, smooth.height), (64, 64));
+        let bg = to_u8(BACKGROUND);
+        // Rim pixels between the surface and the background: only with supersampling.
+        let between = |img: &crate::Image| {
+            (0..64 * 64)
+                .map(|i| img.pixel(i % 64, i / 64))
+                .filter(|p| *p != bg && p.iter().zip(bg).all(|(&a, b)| a > 215 && a < b))
+                .count()
+        };
+        assert!(
+            between(&smooth) > between(&sharp) + 20,
+            "{} vs {}",
+            between(&smooth),
+            between(&sharp)
+        );
+    }
+
+    #[test]
+    fn a_dense_wireframe_stays_light_and_outlined() {
+        let dense = coarsen_shapes::icosphere(1.0, 6).unwrap(); // 81,920 faces
+        let o = RenderOptions {
+            wireframe: true,
+            supersample: 2,
+            ..opts(120)
+        };
+        let img = render(&[&dense], &o).unwrap();
+        let mean_inside = {
+            let centre: Vec<u32> = (40..80)
+                .flat_map(|y| (40..80).map(move |x| (x, y)))
+                .map(|(x, y)| img.pixel(x, y).iter().map(|&c| u32::from(c)).sum::<u32>() / 3)
+                .collect();
+            centre.iter().sum::<u32>() / centre.len() as u32
+        };
+        let plain = render(
+            &[&dense],
+            &RenderOptions {
+                wireframe: false,
+                ..o.clone()
+            },
+        )
+        .unwrap();
+        let plain_inside = plain
+            .pixel(60, 60)
+            .iter()
+            .map(|&c| u32::from(c))
+            .sum::<u32>()
+            / 3;
+        // The faint wire darkens the surface a little, not into a blot.
+        assert!(
+            mean_inside + 60 > plain_inside && mean_inside > 90,
+            "{mean_inside} vs {plain_inside}"
+        );
+        // The silhouette is drawn dark across the disc's rim.
+        let row: Vec<u32> = (0..120)
+            .map(|x| img.pixel(x, 60).iter().map(|&c| u32::from(c)).sum::<u32>() / 3)
+            .collect();
+        let darkest_rim = row[..20].iter().chain(&row[100..]).min().unwrap();
+        assert!(*darkest_rim < 90, "{row:?}");
+        assert!(wire_opacity(1.0) < 0.2 && wire_opacity(20.0) == 1.0);
+    }
+
+    #[test]
+    fn four_views_make_a_two_by_two_sheet_of_different_pictures() {
+        let mut m = coarsen_shapes::icosphere(1.0, 2).unwrap();
+        for p in &mut m.positions {
+            *p *= DVec3::new(3.0, 1.0, 0.5);
+        }
+        let o = RenderOptions {
+            views: 4,
+            ..opts(40)
+        };
+        let img = render(&[&m, &m], &o).unwrap();
+        assert_eq!((img.width, img.height), (160, 80));
+        // The inside of a panel (the sheet's grey separators run along its last rows).
+        let cell = |cx: u32, cy: u32| -> Vec<[u8; 3]> {
+            (0..38 * 38)
+                .map(|i| img.pixel(cx + i % 38, cy + i / 38))
+                .collect()
+        };
+        // Each cell holds the mesh twice side by side; the broad side and the top differ.
+        assert!(cell(0, 0) == cell(40, 0));
+        assert!(cell(0, 0) != cell(0, 41));
+        assert_eq!(img.pixel(80, 10), [185, 185, 185], "the cells' separator");
+        let bad = RenderOptions {
+            views: 3,
+            ..opts(40)
+        };
+        assert!(matches!(
+            render(&[&m], &bad),
+            Err(crate::RenderError::Views(3))
+        ));
+    }
+
+    #[test]
+    fn a_colour_scale_shares_one_range_draws_a_bar_and_highlights_the_worst() {
+        let sphere = coarsen_shapes::icosphere(1.0, 2).unwrap();
+        let n = sphere.n_faces();
+        let mut a = sphere.clone();
+        let mut b = sphere.clone();
+        a.face_attrs.insert("d", AttrValues::Scalar(vec![0.0; n]));
+        b.face_attrs
+            .insert("d", AttrValues::Scalar((0..n).map(|f| f as f64).collect()));
+        let scale = ColorScale {
+            label: "distance".into(),
+            range: None,
+            factor: 1.0,
+            high_is_bad: true,
+            highlight_worst: 0.0,
+        };
+        let o = RenderOptions {
+            attribute: Some("d".into()),
+            scale: Some(scale.clone()),
+            ..opts(64)
+        };
+        let img = render(&[&a, &b], &o).unwrap();
+        assert_eq!(img.width, 128);
+        assert!(img.height > 64, "the bar goes under the panels");
+        // Mesh a is all at the low end of the shared range: blue.
+        let p = img.pixel(32, 32);
+        assert!(p[2] > p[0] + 40, "{p:?}");
+        // The worst 1 %: ceil(320 / 100) = 4 faces in magenta.
+        let worst = worst_faces(
+            &b,
+            coarsen_mesh::Domain::Face,
+            b.face_attrs.scalar("d").unwrap(),
+            &ColorScale {
+                highlight_worst: 0.01,
+                ..scale.clone()
+            },
+        );
+        assert_eq!(worst, vec![n - 1, n - 2, n - 3, n - 4]);
+        let low_bad = ColorScale {
+            high_is_bad: false,
+            highlight_worst: 0.01,
+            ..scale
+        };
+        let worst = worst_faces(
+            &b,
+            coarsen_mesh::Domain::Face,
+            b.face_attrs.scalar("d").unwrap(),
+            &low_bad,
+        );
+        assert_eq!(worst, vec![0, 1, 2, 3]);
+        let o = RenderOptions {
+            scale: Some(low_bad),
+            ..o
+        };
+        let img = render(&[&b], &o).unwrap();
+        let magenta = to_u8(HIGHLIGHT);
+        let near =
+            |p: [u8; 3]| p[1] < 30 && p[0] > 60 && (i32::from(p[0]) - i32::from(p[2])).abs() < 20;
+        assert!(
+            (0..64 * 64).any(|i| near(img.pixel(i % 64, i / 64))),
+            "no {magenta:?}"
+        );
+        // A label column cannot be scaled.
+        let mut c = sphere.clone();
+        c.face_attrs.insert("d", AttrValues::Label(vec![1; n]));
+        assert!(matches!(
+            render(&[&c], &o),
+            Err(crate::RenderError::NotScalar(_))
         ));
     }
 }

@@ -1,9 +1,16 @@
 //! The `metrics` stage: measures the current mesh against the run's original input and adds
-//! every figure of `coarsen-metrics` to the run report. It never changes the mesh, so it
-//! may stand anywhere in a pipeline (after each stage of interest, or at the end).
+//! every figure of `coarsen-metrics` to the run report. It never changes the mesh's
+//! geometry, so it may stand anywhere in a pipeline (after each stage of interest, or at
+//! the end); with `fields` it adds the figures element by element as attribute columns
+//! (`coarsen_metrics::fields`), which a PLY output carries for MeshLab or ParaView.
 
-use coarsen_metrics::{FidelityOptions, MetricsOptions, measure};
-use coarsen_stage::{Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, params};
+use coarsen_metrics::fields::{
+    FACE_DISTANCE, FACE_FLIPPED, FACE_MIN_ANGLE, FACE_QUALITY, VERTEX_DISTANCE,
+};
+use coarsen_metrics::{FidelityOptions, MetricsOptions, measure, measure_with_fields};
+use coarsen_stage::{
+    AttrKind, AttrRef, Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, params,
+};
 
 params! {
     /// Parameters of `metrics`.
@@ -16,6 +23,11 @@ params! {
         /// Measure fidelity against the original input (Hausdorff, mean, RMS, flips); false
         /// reports only the mesh's own quality and validity.
         pub fidelity: bool = true,
+        /// Add the fields to the mesh: vertex `quality` (distance to the input, in model
+        /// units), face `distance` (largest over the face), `min_angle` (degrees),
+        /// `quality` (Frey–Borouchaki Q) and `flipped` (1 when turned over); needs
+        /// `fidelity`.
+        pub fields: bool = false,
     }
 }
 
@@ -36,6 +48,12 @@ impl Params for MetricsParams {
             0,
             1_000_000_000,
         );
+        if self.fields && !self.fidelity {
+            v.push(ParamIssue::new(
+                "fields",
+                "the fields are distances to the input: they need fidelity = true",
+            ));
+        }
         v
     }
 }
@@ -53,10 +71,21 @@ impl Stage for MetricsStage {
     }
 
     fn contract(&self) -> Contract {
-        Contract::default()
+        if !self.0.fields {
+            return Contract::default();
+        }
+        let mut writes = vec![AttrRef::vertex(VERTEX_DISTANCE, AttrKind::Scalar)];
+        for name in [FACE_DISTANCE, FACE_MIN_ANGLE, FACE_QUALITY] {
+            writes.push(AttrRef::face(name, AttrKind::Scalar));
+        }
+        writes.push(AttrRef::face(FACE_FLIPPED, AttrKind::Label));
+        Contract {
+            writes,
+            ..Contract::default()
+        }
     }
 
-    fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+    fn run(&self, mut mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let opts = MetricsOptions {
             fidelity: FidelityOptions {
                 samples_per_face: self.0.samples_per_face,
@@ -66,7 +95,14 @@ impl Stage for MetricsStage {
         let original = self.0.fidelity.then_some(cx.original);
         // One spinner: the sampling is a single parallel sweep.
         cx.progress.begin("metrics: sampling distances", 0);
-        let report = measure(original, &mesh, &opts);
+        let report = if self.0.fields {
+            measure_with_fields(cx.original, &mesh, &opts).map(|(report, fields)| {
+                fields.output.attach(&mut mesh);
+                report
+            })
+        } else {
+            measure(original, &mesh, &opts)
+        };
         cx.progress.end();
         let report = report.map_err(|e| StageError::Input(e.to_string()))?;
         cx.report.figure("quality", &report.quality);
@@ -100,6 +136,57 @@ mod tests {
         let h = fidelity["hausdorff_pct"].as_f64().unwrap();
         assert!(h > 0.1 && h < 5.0, "{h}");
         assert_eq!(report.get("validity").unwrap()["n_faces"], 320);
+    }
+
+    #[test]
+    fn fields_are_added_as_columns_and_the_geometry_kept() {
+        let original = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        let coarse = coarsen_shapes::icosphere(1.0, 1).unwrap();
+        let mut report = StageReport::default();
+        let stage = MetricsStage::new(MetricsParams {
+            fields: true,
+            ..Default::default()
+        });
+        let written: Vec<String> = stage
+            .contract()
+            .writes
+            .iter()
+            .map(|a| a.name.clone())
+            .collect();
+        assert_eq!(
+            written,
+            ["quality", "distance", "min_angle", "quality", "flipped"]
+        );
+        let out = stage
+            .run(coarse.clone(), &mut Context::new(&original, &mut report))
+            .unwrap();
+        assert_eq!(
+            (&out.positions, &out.faces),
+            (&coarse.positions, &coarse.faces)
+        );
+        // The coarse sphere's vertices lie on the fine one: distance 0 there, and its
+        // faces cut inside, up to the reported output → input maximum.
+        let d = out.vertex_attrs.scalar("quality").unwrap();
+        assert!(d.iter().all(|&x| x < 1e-9), "{d:?}");
+        let faces = out.face_attrs.scalar("distance").unwrap();
+        let largest = faces.iter().copied().fold(0.0, f64::max);
+        let pct = report.get("fidelity").unwrap()["backward_max_pct"]
+            .as_f64()
+            .unwrap();
+        assert!((100.0 * largest / original.bbox().diagonal() - pct).abs() < 1e-9);
+        assert!(
+            out.face_attrs
+                .scalar("min_angle")
+                .unwrap()
+                .iter()
+                .all(|&a| a > 50.0)
+        );
+        let off = MetricsParams {
+            fields: true,
+            fidelity: false,
+            ..Default::default()
+        };
+        assert_eq!(off.validate()[0].field, "fields");
     }
 
     #[test]

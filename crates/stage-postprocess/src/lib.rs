@@ -123,6 +123,10 @@ struct Levels {
     passes: Vec<usize>,
     /// The finest level's clustering log.
     log: coarsen_stage_cvt::PassLog,
+    /// Every level's energy after each pass, coarsest first (for the report's plots).
+    energy_per_level: Vec<Vec<f64>>,
+    /// Every level's moved faces in each pass, coarsest first.
+    moves_per_level: Vec<Vec<u64>>,
 }
 
 impl Postprocess {
@@ -155,6 +159,7 @@ impl Postprocess {
         };
         let mut done = 0;
         let mut passes = Vec::new();
+        let (mut energy_per_level, mut moves_per_level) = (Vec::new(), Vec::new());
         let mut log = None;
         // Each level's adjacency, derived from the one before where the split is uniform
         // (the first from the coarse mesh's).
@@ -204,6 +209,8 @@ impl Postprocess {
             };
             let clustering = cluster_level(&fine, &topo, start, n, &cvt, done, cx)?;
             passes.push(clustering.log.moves.len());
+            energy_per_level.push(clustering.log.energy.clone());
+            moves_per_level.push(clustering.log.moves.clone());
             fine.face_attrs
                 .insert(CLUSTER, AttrValues::Label(clustering.labels));
             log = Some(clustering.log);
@@ -226,6 +233,8 @@ impl Postprocess {
             done,
             passes,
             log: log.unwrap_or_default(),
+            energy_per_level,
+            moves_per_level,
         })
     }
 
@@ -392,6 +401,8 @@ fn report(
     r.figure("initial_energy", log.initial_energy);
     r.figure("moves_per_pass", &log.moves);
     r.figure("energy_per_pass", &log.energy);
+    r.figure("energy_per_pass_per_level", &levels.energy_per_level);
+    r.figure("moves_per_pass_per_level", &levels.moves_per_level);
     r.figure("repairs", stats.repairs);
     r.figure("restarted", stats.restarted);
     r.figure("projected_vertices", projected.moved);

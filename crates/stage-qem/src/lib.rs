@@ -25,7 +25,8 @@
 //! the run input's surface nearest it; on the cow's thin legs, ears and tail this removes
 //! the faces that ended nearest to the part's other side), progress, attribute carrying,
 //! and the report's figures (`collapses`, `parallel_collapses`, `refused` by reason,
-//! `facing_tests`, `sve`, `max_cost`, the final `vertices` and `faces`, `stop`, the
+//! `facing_tests`, `sve`, `max_cost`, `cost_curve` (`[collapses, largest cost]` bins, for
+//! the HTML report's plot), the final `vertices` and `faces`, `stop`, the
 //! `locked_vertices` and the `boundary_loops` before and after) and warnings (a target not
 //! reached, locked and dropped vertices).
 //!
