@@ -1,4 +1,5 @@
-//! Mesh file formats for coarsen: OBJ, PLY, STL and OFF, read and written.
+//! Mesh file formats for coarsen: OBJ, PLY, STL, OFF and glTF 2.0 (`.gltf`, `.glb`), read
+//! and written.
 //!
 //! This is the only crate of the workspace that knows file formats. It turns bytes into a
 //! [`Mesh`] faithfully — every vertex of the file (also unreferenced ones), every face
@@ -24,10 +25,11 @@
 //!
 //! | format | reads | writes |
 //! | --- | --- | --- |
-//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` kept when per vertex | positions, `uv`, `normal` |
+//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` per vertex, or per corner (wedges) across seams and hard edges | positions, `uv`, `normal` (per vertex or per corner) |
 //! | PLY | ASCII and both binary encodings, every scalar type, `vertex`, `face`, `tristrips`; other elements skipped | every attribute kind (binary little endian by default) |
 //! | STL | ASCII and binary (via `stl_io`), welded by exact position | binary, positions only (as `f32`) |
 //! | OFF | `OFF`, `COFF`, `NOFF`, … (colours and normals ignored) | positions and faces |
+//! | glTF, GLB | triangle primitives of the scene's meshes (node transforms applied) or of one mesh by name; `POSITION`, `NORMAL`, `TEXCOORD_0`, `COLOR_0`, any index width, sparse accessors; welded by exact position, corner values as wedges; materials and images kept (`Mesh::materials`) | positions, `normal`, `uv`, `color` (+`alpha`) per vertex or wedge, one primitive per material, the carried materials and images |
 //!
 //! Polygons are split into the triangles of a fan from their first corner:
 //! `(c0, c1, c2), (c0, c2, c3), …`; a polygon's face properties go to each of its
@@ -43,6 +45,8 @@
 //! with seams) is said in [`Loaded::notes`].
 
 mod error;
+mod gltf_read;
+mod gltf_write;
 mod obj;
 mod off;
 mod ply;
@@ -68,11 +72,22 @@ pub enum Format {
     Stl,
     /// Object File Format (text).
     Off,
+    /// glTF 2.0, JSON (`.gltf`; written with its buffer embedded as a data URI).
+    Gltf,
+    /// glTF 2.0, binary container (`.glb`).
+    Glb,
 }
 
 impl Format {
     /// Every format, in a fixed order.
-    pub const ALL: [Format; 4] = [Format::Obj, Format::Ply, Format::Stl, Format::Off];
+    pub const ALL: [Format; 6] = [
+        Format::Obj,
+        Format::Ply,
+        Format::Stl,
+        Format::Off,
+        Format::Gltf,
+        Format::Glb,
+    ];
 
     /// The format named by a path's extension (case-insensitive), if any.
     pub fn from_path(path: &Path) -> Option<Format> {
@@ -86,6 +101,8 @@ impl Format {
             Format::Ply => "ply",
             Format::Stl => "stl",
             Format::Off => "off",
+            Format::Gltf => "gltf",
+            Format::Glb => "glb",
         }
     }
 }
@@ -97,19 +114,22 @@ impl fmt::Display for Format {
             Format::Ply => "PLY",
             Format::Stl => "STL",
             Format::Off => "OFF",
+            Format::Gltf => "glTF",
+            Format::Glb => "GLB",
         })
     }
 }
 
 /// A format name or extension that names no known format.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("unknown mesh format `{0}` (expected obj, ply, stl or off)")]
+#[error("unknown mesh format `{0}` (expected obj, ply, stl, off, gltf or glb)")]
 pub struct UnknownFormat(pub String);
 
 impl FromStr for Format {
     type Err = UnknownFormat;
 
-    /// Parses `obj`, `ply`, `stl` or `off`, in any case, with or without a leading dot.
+    /// Parses `obj`, `ply`, `stl`, `off`, `gltf` or `glb`, in any case, with or without a
+    /// leading dot.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let name = s.strip_prefix('.').unwrap_or(s);
         Format::ALL
@@ -131,6 +151,9 @@ pub struct ReadOptions {
     /// [`read_path`] refuses files longer than this many bytes before reading them.
     /// Default `None`: no limit.
     pub max_file_bytes: Option<u64>,
+    /// glTF: read only the instances of the mesh of this name. Default `None`: every
+    /// mesh of the scene.
+    pub gltf_mesh: Option<String>,
 }
 
 /// How many bytes of a file [`read_path`] checks before reading the rest.
@@ -213,12 +236,13 @@ pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Loaded, IoError> {
             .saturating_sub(bytes.len()),
     );
     file.read_to_end(&mut bytes).map_err(os)?;
-    read_bytes(&bytes, format, &name, opts)
+    read_beside(&bytes, format, &name, opts, path.parent())
 }
 
 /// Checks the first bytes of a file of `len` bytes in `format` (at most [`SNIFF_BYTES`]
 /// of them are looked at) for what can be refused without reading the rest: a text format
-/// (OBJ, OFF) holding a NUL byte, a PLY file without its magic or whose header's counts
+/// (OBJ, OFF) holding a NUL byte, a `.gltf` file not starting with a JSON object, a `.glb`
+/// file without its magic, a PLY file without its magic or whose header's counts
 /// exceed the limits, an STL file that is neither ASCII nor a binary file of the length its
 /// triangle count requires, or whose count exceeds the limit.
 pub fn check_start(
@@ -242,6 +266,24 @@ pub fn check_start(
         },
         Format::Ply => ply::check_start(start, name, opts),
         Format::Stl => stl::check_start(start, len, name, opts).map(|_| ()),
+        Format::Glb if !start.starts_with(b"glTF") => Err(IoError::file(
+            name,
+            ErrorKind::NotFormat {
+                format,
+                detail: "no `glTF` magic at its start".into(),
+            },
+        )),
+        Format::Gltf => match start.iter().find(|b| !b.is_ascii_whitespace()) {
+            Some(b'{') | None => Ok(()),
+            Some(_) => Err(IoError::file(
+                name,
+                ErrorKind::NotFormat {
+                    format,
+                    detail: "it does not start with a JSON object".into(),
+                },
+            )),
+        },
+        Format::Glb => Ok(()),
     }
 }
 
@@ -253,6 +295,18 @@ pub fn read_bytes(
     name: &str,
     opts: &ReadOptions,
 ) -> Result<Loaded, IoError> {
+    read_beside(bytes, format, name, opts, None)
+}
+
+/// [`read_bytes`], with the directory where a `.gltf` file's external buffers and images
+/// are (none: they cannot be read, and an external buffer is an error).
+fn read_beside(
+    bytes: &[u8],
+    format: Format,
+    name: &str,
+    opts: &ReadOptions,
+    dir: Option<&Path>,
+) -> Result<Loaded, IoError> {
     if bytes.is_empty() {
         return Err(IoError::file(name, ErrorKind::Empty));
     }
@@ -262,6 +316,16 @@ pub fn read_bytes(
         Format::Ply => ply::read(bytes, name, opts)?,
         Format::Stl => stl::read(bytes, name, opts)?,
         Format::Off => off::read(bytes, name, opts)?,
+        Format::Gltf | Format::Glb => {
+            let dir = dir.map(|d| {
+                if d.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    d
+                }
+            });
+            gltf_read::read(bytes, name, opts, gltf_read::Beside(dir))?
+        }
     };
     debug_assert!(mesh.validate_indices().is_ok());
     Ok(Loaded {
@@ -347,6 +411,8 @@ fn write_unchecked(
         Format::Ply => ply::write(mesh, w, opts.ply_encoding, opts.attributes),
         Format::Stl => stl::write(mesh, w),
         Format::Off => off::write(mesh, w).map_err(ErrorKind::from),
+        Format::Gltf => gltf_write::write(mesh, w, false, opts.attributes),
+        Format::Glb => gltf_write::write(mesh, w, true, opts.attributes),
     };
     result.map_err(|kind| IoError::file(name, kind))
 }
@@ -399,7 +465,9 @@ mod tests {
         assert_eq!(Format::from_path(Path::new("x.txt")), None);
         assert_eq!(Format::from_path(Path::new("noext")), None);
         assert_eq!(".ply".parse::<Format>(), Ok(Format::Ply));
-        assert!("gltf".parse::<Format>().is_err());
+        assert_eq!("gltf".parse::<Format>(), Ok(Format::Gltf));
+        assert_eq!(Format::from_path(Path::new("x.GLB")), Some(Format::Glb));
+        assert!("fbx".parse::<Format>().is_err());
     }
 
     #[test]
@@ -632,12 +700,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("/nonexistent/x.obj: "), "{e}");
-        let e = read_path(Path::new("x.gltf"), &ReadOptions::default())
+        let e = read_path(Path::new("x.fbx"), &ReadOptions::default())
             .unwrap_err()
             .to_string();
         assert_eq!(
             e,
-            "x.gltf: cannot tell the mesh format from the file name (expected .obj, .ply, .stl or .off)"
+            "x.fbx: cannot tell the mesh format from the file name (expected .obj, .ply, .stl, .off, .gltf or .glb)"
         );
     }
 }

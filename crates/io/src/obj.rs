@@ -13,19 +13,22 @@
 //! ending in `\` continues on the next. Absolute indices may point forward (they are
 //! checked against the final counts); relative ones count back from the line they are on.
 //!
-//! Texture coordinates and normals become the vertex attributes `uv` and `normal` only when
-//! they are per vertex: every face corner of vertex `v` refers to the same value. Otherwise
-//! (seams, creases, corners without one) they are not kept and a note says why. A vertex
-//! used by no face gets `(0, 0)` / `(0, 0, 0)`.
+//! Texture coordinates and normals become the attributes `uv` and `normal`: vertex
+//! columns when they are per vertex (every face corner of vertex `v` refers to the same
+//! value, bit for bit; a vertex used by no face gets `(0, 0)` / `(0, 0, 0)`), per-corner
+//! wedges (`coarsen_mesh::wedge`) where seams or hard edges give a vertex several. When
+//! some corners have none while others have one, or a value is not finite, they are not
+//! kept and a note says why.
 //!
 //! Write: `v` with shortest round-trip decimals (positions read back bit for bit), `vt`
-//! from a `uv` column, `vn` from a `normal` column, and `f` with matching indices. Other
-//! attributes have no place in OBJ and are not written.
+//! from a `uv` column, `vn` from a `normal` column (one per vertex, or one per wedge when
+//! the column is per corner), and `f` with matching indices. Other attributes have no
+//! place in OBJ and are not written.
 
 use crate::ReadOptions;
 use crate::error::{ErrorKind, IoError, RefKind};
 use crate::text::{self, Lines, non_finite_name, parse_f64, parse_i64, show};
-use coarsen_mesh::{AttrValues, DVec2, DVec3, Mesh};
+use coarsen_mesh::{AttrValues, Attributes, DVec2, DVec3, Mesh};
 use std::io::{self, Write};
 
 /// Marks "no texture coordinate / normal" at a corner.
@@ -367,27 +370,19 @@ impl Reader<'_> {
                 "{n} {key} statement{s} ignored (first at line {first})"
             ));
         }
-        let mut mesh = Mesh::new(self.positions, self.faces);
-        let n = mesh.n_vertices();
-        let uv = per_vertex(&mesh.faces, &self.corner_vt, &self.uvs, n, self.bad_vt, UV);
-        match uv {
-            Ok(Some(v)) => mesh.vertex_attrs.insert("uv", AttrValues::Vec2(v)),
+        let mesh = Mesh::new(self.positions, self.faces);
+        let mut cols = Attributes::default();
+        match per_corner(&self.corner_vt, &self.uvs, self.bad_vt, UV) {
+            Ok(Some(v)) => cols.insert("uv", AttrValues::Vec2(v)),
             Ok(None) => {}
             Err(note) => notes.push(note),
         }
-        let normal = per_vertex(
-            &mesh.faces,
-            &self.corner_vn,
-            &self.normals,
-            n,
-            self.bad_vn,
-            NORMAL,
-        );
-        match normal {
-            Ok(Some(v)) => mesh.vertex_attrs.insert("normal", AttrValues::Vec3(v)),
+        match per_corner(&self.corner_vn, &self.normals, self.bad_vn, NORMAL) {
+            Ok(Some(v)) => cols.insert("normal", AttrValues::Vec3(v)),
             Ok(None) => {}
             Err(note) => notes.push(note),
         }
+        let mesh = mesh.with_corner_attributes(cols);
         Ok((mesh, notes))
     }
 }
@@ -397,30 +392,26 @@ struct Words {
     attr: &'static str,
     one: &'static str,
     many: &'static str,
-    why: &'static str,
 }
 
 const UV: Words = Words {
     attr: "uv",
     one: "texture coordinate",
     many: "texture coordinates",
-    why: "seams",
 };
 
 const NORMAL: Words = Words {
     attr: "normal",
     one: "normal",
     many: "normals",
-    why: "creases",
 };
 
-/// One value per vertex when every corner of each vertex names the same value;
-/// `Ok(None)` when no face refers to any; `Err(note)` saying why it cannot be kept.
-fn per_vertex<T: Copy + Default + PartialEq>(
-    faces: &[[u32; 3]],
+/// The value at every face corner; `Ok(None)` when no face refers to any; `Err(note)`
+/// saying why they cannot be kept (none referred to, some corners without, a non-finite
+/// value).
+fn per_corner<T: Copy>(
     corners: &CornerRefs,
     values: &[T],
-    n_vertices: usize,
     bad: Option<(usize, &'static str)>,
     w: Words,
 ) -> Result<Option<Vec<T>>, String> {
@@ -447,44 +438,50 @@ fn per_vertex<T: Copy + Default + PartialEq>(
             w.attr, w.one
         ));
     }
-    let mut chosen = vec![NONE; n_vertices];
-    let mut conflict = vec![false; n_vertices];
-    for (f, c) in faces.iter().zip(corners.refs.chunks_exact(3)) {
-        for (&v, &r) in f.iter().zip(c) {
-            let slot = &mut chosen[v as usize];
-            if *slot == NONE {
-                *slot = r;
-            } else if *slot != r && values[*slot as usize] != values[r as usize] {
-                conflict[v as usize] = true;
-            }
-        }
-    }
-    let n_conflicts = conflict.iter().filter(|&&c| c).count();
-    if n_conflicts > 0 {
-        return Err(format!(
-            "{} not kept: {n_conflicts} vertices have several {} ({})",
-            w.attr, w.many, w.why
-        ));
-    }
     Ok(Some(
-        chosen
-            .iter()
-            .map(|&r| {
-                if r == NONE {
-                    T::default()
-                } else {
-                    values[r as usize]
-                }
-            })
-            .collect(),
+        corners.refs.iter().map(|&r| values[r as usize]).collect(),
     ))
 }
 
-/// Writes `mesh` as OBJ (positions, `uv` and `normal` columns, faces).
+/// Where an attribute written to OBJ comes from: a vertex column (indexed like `v`) or a
+/// wedge column (one entry per wedge, indexed by each corner's wedge).
+enum Source<'m, T> {
+    Vertex(&'m [T]),
+    Wedge(&'m [T]),
+}
+
+impl<T> Source<'_, T> {
+    fn values(&self) -> &[T] {
+        match self {
+            Source::Vertex(v) | Source::Wedge(v) => v,
+        }
+    }
+
+    /// The 1-based index corner `k` of face `f` (vertex `v`) writes.
+    fn index(&self, mesh: &Mesh, f: usize, k: usize, v: u32) -> u64 {
+        match self {
+            Source::Vertex(_) => u64::from(v) + 1,
+            Source::Wedge(_) => u64::from(mesh.wedges.corner(f, k)) + 1,
+        }
+    }
+}
+
+/// The `uv` or `normal` data of `mesh` to write: its wedge column, else its vertex column.
+fn source<'m, T>(
+    mesh: &'m Mesh,
+    pick: impl Fn(&'m Attributes) -> Option<&'m [T]>,
+) -> Option<Source<'m, T>> {
+    pick(mesh.wedges.attrs())
+        .map(Source::Wedge)
+        .or_else(|| pick(&mesh.vertex_attrs).map(Source::Vertex))
+}
+
+/// Writes `mesh` as OBJ (positions, `uv` and `normal` columns per vertex or per corner,
+/// faces).
 pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Result<()> {
-    let uv = attributes.then(|| mesh.vertex_attrs.vec2("uv")).flatten();
+    let uv = attributes.then(|| source(mesh, |a| a.vec2("uv"))).flatten();
     let normal = attributes
-        .then(|| mesh.vertex_attrs.vec3("normal"))
+        .then(|| source(mesh, |a| a.vec3("normal")))
         .flatten();
     writeln!(
         w,
@@ -495,21 +492,23 @@ pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Re
     for p in &mesh.positions {
         vector(w, "v", &[p.x, p.y, p.z])?;
     }
-    for t in uv.unwrap_or_default() {
+    for t in uv.as_ref().map_or(&[][..], Source::values) {
         vector(w, "vt", &[t.x, t.y])?;
     }
-    for n in normal.unwrap_or_default() {
+    for n in normal.as_ref().map_or(&[][..], Source::values) {
         vector(w, "vn", &[n.x, n.y, n.z])?;
     }
-    for f in &mesh.faces {
+    for (f, face) in mesh.faces.iter().enumerate() {
         w.write_all(b"f")?;
-        for &v in f {
+        for (k, &v) in face.iter().enumerate() {
             let i = u64::from(v) + 1;
-            match (uv.is_some(), normal.is_some()) {
-                (false, false) => write!(w, " {i}")?,
-                (true, false) => write!(w, " {i}/{i}")?,
-                (false, true) => write!(w, " {i}//{i}")?,
-                (true, true) => write!(w, " {i}/{i}/{i}")?,
+            let t = uv.as_ref().map(|s| s.index(mesh, f, k, v));
+            let n = normal.as_ref().map(|s| s.index(mesh, f, k, v));
+            match (t, n) {
+                (None, None) => write!(w, " {i}")?,
+                (Some(t), None) => write!(w, " {i}/{t}")?,
+                (None, Some(n)) => write!(w, " {i}//{n}")?,
+                (Some(t), Some(n)) => write!(w, " {i}/{t}/{n}")?,
             }
         }
         w.write_all(b"\n")?;
@@ -614,17 +613,30 @@ mod tests {
     }
 
     #[test]
-    fn uv_with_seams_is_not_kept_and_the_note_counts_vertices() {
+    fn uv_with_seams_is_kept_per_corner_and_written_back() {
         // Vertex 1 takes uv 1 in one face and uv 5 (a different value) in the other;
         // vertex 3 takes uv 3 and uv 6, which hold the same value: not a seam.
         let src = format!(
             "{SQUARE}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0\nvt 1 1\nf 1/1 2/2 3/3\nf 1/5 3/6 4/4\n"
         );
         let (m, notes) = load(&src).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
         assert!(m.vertex_attrs.get("uv").is_none());
-        assert_eq!(
-            notes,
-            ["uv not kept: 1 vertices have several texture coordinates (seams)"]
+        assert_eq!(m.wedges.split_vertices(), 1);
+        let corner_uv = [0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.5, 0.0, 1.0, 1.0, 0.0, 1.0];
+        let expect: Vec<DVec2> = corner_uv
+            .chunks(2)
+            .map(|c| DVec2::new(c[0], c[1]))
+            .collect();
+        assert_eq!(m.corner_column("uv"), Some(AttrValues::Vec2(expect)));
+        let mut bytes = Vec::new();
+        write(&m, &mut bytes, true).unwrap();
+        let (back, _) = read(&bytes, "t.obj", &ReadOptions::default()).unwrap();
+        assert_eq!(back, m);
+        assert!(
+            String::from_utf8(bytes)
+                .unwrap()
+                .contains("f 1/4 3/3 4/5\n")
         );
     }
 
