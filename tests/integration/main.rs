@@ -4,6 +4,7 @@ mod cli;
 mod data;
 mod facade;
 mod fidelity;
+mod gltf;
 mod hostile;
 mod html;
 mod lod;

@@ -33,6 +33,7 @@ pub fn read_options(max_faces: u64) -> ReadOptions {
         max_faces: Some(n),
         max_vertices: Some(n.saturating_mul(3)),
         max_file_bytes: Some(max_faces.saturating_mul(BYTES_PER_FACE).max(MIN_FILE_LIMIT)),
+        ..ReadOptions::default()
     }
 }
 

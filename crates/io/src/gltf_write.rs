@@ -560,4 +560,29 @@ mod tests {
                 .starts_with("t: ")
         );
     }
+
+    #[test]
+    fn damaged_files_give_errors_or_valid_meshes_never_panics() {
+        // Bytes of written files changed at random places (a fixed xorshift sequence).
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for f in [Format::Glb, Format::Gltf] {
+            let good = bytes(&seamed(), f);
+            for _ in 0..400 {
+                let mut b = good.clone();
+                for _ in 0..1 + next() % 4 {
+                    let at = (next() % b.len() as u64) as usize;
+                    b[at] = next() as u8;
+                }
+                if let Ok(l) = read_bytes(&b, f, "t", &ReadOptions::default()) {
+                    assert!(l.mesh.validate_indices().is_ok());
+                }
+            }
+        }
+    }
 }
