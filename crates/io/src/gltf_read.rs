@@ -231,7 +231,7 @@ fn percent_decode(uri: &str) -> String {
     while i < b.len() {
         let hex = |c: u8| (c as char).to_digit(16);
         if b[i] == b'%'
-            && i + 2 < b.len() + 0
+            && i + 2 < b.len()
             && let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2]))
         {
             out.push((h * 16 + l) as u8);
@@ -395,7 +395,7 @@ fn primitive(
         }
         None => (0..n as u64).collect(),
     };
-    if indices.len() % 3 != 0 {
+    if !indices.len().is_multiple_of(3) {
         return Err(at(ErrorKind::Syntax(format!(
             "primitive {}: {} indices do not make whole triangles",
             prim.index(),

@@ -36,7 +36,7 @@ struct Doc {
 impl Doc {
     /// Appends `bytes` as a buffer view (4-byte aligned); returns its index.
     fn view(&mut self, bytes: &[u8], stride: Option<usize>, target: Option<u32>) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
@@ -154,7 +154,7 @@ pub(crate) fn write(
     for (k, v) in materials {
         r.insert(k, v);
     }
-    while doc.bin.len() % 4 != 0 {
+    while !doc.bin.len().is_multiple_of(4) {
         doc.bin.push(0);
     }
     r.insert(
@@ -528,7 +528,8 @@ mod tests {
     #[test]
     fn what_cannot_be_read_is_refused_by_name() {
         let m = seamed();
-        let cases: Vec<(Box<dyn FnOnce(&mut Value)>, &str)> = vec![
+        type Edit = Box<dyn FnOnce(&mut Value)>;
+        let cases: Vec<(Edit, &str)> = vec![
             (
                 Box::new(|d| d["meshes"][0]["primitives"][0]["mode"] = json!(1)),
                 "only triangle lists are read",
