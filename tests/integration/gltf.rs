@@ -162,6 +162,15 @@ fn a_charted_cube_round_trips_through_glb_and_validates() {
     let gltf = dir.path().join("cube.gltf");
     convert(&input, &gltf);
     validate(&[glb, gltf]);
+    // PLY holds no per-corner values: said, not dropped silently.
+    let ply = dir.path().join("cube.ply");
+    let out = run_cli(EXE, &["convert", &input.to_string_lossy(), &ply.to_string_lossy()]);
+    assert!(out.status.success());
+    assert!(
+        stderr(&out).contains("warning: per-corner `uv` and `normal` (8 vertices on seams"),
+        "{}",
+        stderr(&out)
+    );
 }
 
 #[test]

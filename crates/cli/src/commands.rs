@@ -102,8 +102,14 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     let done = remesher
         .run_cleaned(&pipeline, &name, input)
         .map_err(failure)?;
-    let (mesh, report) = (done.mesh, done.report);
-    coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
+    let (mesh, mut report) = (done.mesh, done.report);
+    let opts = write_options(args.ascii);
+    coarsen_io::write_path(&mesh, &args.output, &opts)?;
+    if let Some(format) = coarsen_io::Format::from_path(&args.output) {
+        report
+            .notes
+            .extend(coarsen_io::left_out(&mesh, format, &opts));
+    }
     if let (Some(path), Some(record)) = (&args.progressive, &done.progressive) {
         coarsen_lod::write(path, record).context("writing the progressive record")?;
     }
@@ -426,7 +432,13 @@ pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResu
         load::load_raw(input)?
     };
     let mesh = loaded.restore(loaded.mesh.clone());
-    coarsen_io::write_path(&mesh, output, &write_options(ascii))?;
+    let opts = write_options(ascii);
+    coarsen_io::write_path(&mesh, output, &opts)?;
+    if let Some(format) = coarsen_io::Format::from_path(output) {
+        for w in coarsen_io::left_out(&mesh, format, &opts) {
+            eprintln!("warning: {w}");
+        }
+    }
     Ok(())
 }
 

@@ -335,6 +335,45 @@ fn read_beside(
     })
 }
 
+/// What writing `mesh` as `format` with `opts` leaves out of what coarsen-io reads:
+/// per-corner columns (wedges) a format cannot hold per corner, and materials outside
+/// glTF; one sentence each, empty when nothing is lost. (Vertex and face columns OBJ, STL
+/// and OFF have no place for are left out as documented for each format.)
+pub fn left_out(mesh: &Mesh, format: Format, opts: &WriteOptions) -> Vec<String> {
+    let mut out = Vec::new();
+    if !opts.attributes {
+        return out;
+    }
+    let per_corner: Vec<&str> = mesh
+        .wedges
+        .attrs()
+        .names()
+        .filter(|n| match format {
+            Format::Obj => !matches!(*n, "uv" | "normal"),
+            Format::Gltf | Format::Glb => !matches!(*n, "uv" | "normal" | "color" | "alpha"),
+            Format::Ply | Format::Stl | Format::Off => true,
+        })
+        .collect();
+    if !per_corner.is_empty() {
+        out.push(format!(
+            "per-corner {} ({} vertices on seams or hard edges) not written: {format} holds no \
+             per-corner values (OBJ holds uv and normal, glTF also colours)",
+            per_corner
+                .iter()
+                .map(|n| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(" and "),
+            mesh.wedges.split_vertices()
+        ));
+    }
+    if !mesh.materials.is_empty() && !matches!(format, Format::Gltf | Format::Glb) {
+        out.push(format!(
+            "materials and textures not written: {format} output carries no materials (glTF does)"
+        ));
+    }
+    out
+}
+
 /// Writes `mesh` to `path` in the format of its extension.
 ///
 /// The bytes go to a temporary file in the same directory, which replaces `path` only once
@@ -707,5 +746,30 @@ mod tests {
             e,
             "x.fbx: cannot tell the mesh format from the file name (expected .obj, .ply, .stl, .off, .gltf or .glb)"
         );
+    }
+
+    #[test]
+    fn what_a_format_cannot_hold_is_said() {
+        use coarsen_mesh::Attributes;
+        let m = tetrahedron();
+        let mut cols = Attributes::default();
+        let uv: Vec<DVec2> = (0..12).map(|c| DVec2::new(c as f64, 0.0)).collect();
+        cols.insert("uv", AttrValues::Vec2(uv));
+        let m = m.with_corner_attributes(cols);
+        let all = WriteOptions::default();
+        assert!(left_out(&m, Format::Obj, &all).is_empty());
+        assert!(left_out(&m, Format::Glb, &all).is_empty());
+        assert_eq!(
+            left_out(&m, Format::Ply, &all),
+            [
+                "per-corner `uv` (4 vertices on seams or hard edges) not written: PLY holds no \
+              per-corner values (OBJ holds uv and normal, glTF also colours)"
+            ]
+        );
+        let bare = WriteOptions {
+            attributes: false,
+            ..all
+        };
+        assert!(left_out(&m, Format::Ply, &bare).is_empty());
     }
 }
