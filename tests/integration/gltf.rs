@@ -3,7 +3,7 @@
 //! Khronos glTF validator when it is installed (`npm install --prefix target/node
 //! gltf-validator`, or `COARSEN_GLTF_VALIDATOR=/path/to/node_modules`).
 
-use coarsen_mesh::{AttrValues, Attributes, DVec2, DVec3, Mesh};
+use coarsen_mesh::{AttrValues, Attributes, DVec2, DVec3, Image, Materials, Mesh};
 use coarsen_tests::{read_mesh, run_cli, shared_data, stderr, stdout};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -164,7 +164,10 @@ fn a_charted_cube_round_trips_through_glb_and_validates() {
     validate(&[glb, gltf]);
     // PLY holds no per-corner values: said, not dropped silently.
     let ply = dir.path().join("cube.ply");
-    let out = run_cli(EXE, &["convert", &input.to_string_lossy(), &ply.to_string_lossy()]);
+    let out = run_cli(
+        EXE,
+        &["convert", &input.to_string_lossy(), &ply.to_string_lossy()],
+    );
     assert!(out.status.success());
     assert!(
         stderr(&out).contains("warning: per-corner `uv` and `normal` (8 vertices on seams"),
@@ -195,24 +198,49 @@ fn spot_round_trips_through_glb_and_a_run_says_what_it_did_not_carry() {
     let input = dir.path().join("spot.obj");
     coarsen_io::write_path(&m, &input, &Default::default()).unwrap();
     let glb = round_trip(&input, dir.path());
+    // Textured: a material whose base colour is an embedded PNG (a picture of spot).
+    let opts = coarsen_render::RenderOptions {
+        width: 64,
+        height: 64,
+        ..Default::default()
+    };
+    let png = coarsen_render::render(&[&m], &opts)
+        .unwrap()
+        .to_png()
+        .unwrap();
+    m.materials = Materials {
+        json: serde_json::json!({
+            "materials": [{"name": "spot", "pbrMetallicRoughness":
+                {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}],
+            "textures": [{"source": 0}],
+            "images": [{"name": "spot"}],
+        })
+        .to_string(),
+        images: vec![Image {
+            bytes: Some(png.clone()),
+            mime_type: Some("image/png".into()),
+            ..Default::default()
+        }],
+    };
+    let textured = dir.path().join("spot-textured.glb");
+    coarsen_io::write_path(&m, &textured, &Default::default()).unwrap();
+    let back = read_mesh(&textured);
+    assert_eq!(back.materials.images[0].bytes.as_deref(), Some(&png[..]));
     let out_glb = dir.path().join("spot-qem.glb");
-    let run = run_cli(
-        EXE,
-        &[
-            "run",
-            "qem",
-            &spot.to_string_lossy(),
-            "-o",
-            &out_glb.to_string_lossy(),
-            "--ratio",
-            "0.7",
-        ],
-    );
+    let (t, o) = (textured.to_string_lossy(), out_glb.to_string_lossy());
+    let run = run_cli(EXE, &["run", "qem", &t, "-o", &o, "--ratio", "0.7"]);
     assert!(run.status.success(), "{}", stderr(&run));
+    let said = stdout(&run);
     assert!(
-        stdout(&run).contains("note: per-corner `uv` ("),
-        "{}",
-        stdout(&run)
+        said.contains("note: per-corner `uv` and `normal` ("),
+        "{said}"
     );
-    validate(&[glb, out_glb]);
+    assert!(
+        said.contains("note: textures of the materials not written"),
+        "{said}"
+    );
+    // The material itself (its name, its image) is still there.
+    let out = read_mesh(&out_glb);
+    assert_eq!(out.materials.images[0].bytes.as_deref(), Some(&png[..]));
+    validate(&[glb, textured, out_glb]);
 }

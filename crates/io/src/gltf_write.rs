@@ -134,7 +134,8 @@ pub(crate) fn write(
             json!(colors(&mut doc, &c, alpha.as_deref())),
         );
     }
-    let (materials, n_materials) = material_arrays(&mesh.materials, &mut doc, binary)?;
+    let has_uv = attributes.contains_key("TEXCOORD_0");
+    let (materials, n_materials) = material_arrays(&mesh.materials, &mut doc, binary, has_uv)?;
     let primitives = primitives(
         mesh,
         &corners,
@@ -302,6 +303,7 @@ fn material_arrays(
     m: &Materials,
     doc: &mut Doc,
     binary: bool,
+    has_uv: bool,
 ) -> Result<(Map<String, Value>, usize), ErrorKind> {
     if m.is_empty() {
         return Ok((Map::new(), 0));
@@ -342,11 +344,49 @@ fn material_arrays(
             }
         }
     }
+    if let Some(list) = arrays.get_mut("materials") {
+        drop_textures_without_uvs(list, has_uv);
+    }
     let n = arrays
         .get("materials")
         .and_then(Value::as_array)
         .map_or(0, Vec::len);
     Ok((arrays, n))
+}
+
+/// Removes the texture references (`…Texture: {"index": …}`) a primitive could not map:
+/// all of them without `TEXCOORD_0`, those of another set (`texCoord` ≠ 0) always, since
+/// only set 0 is written. A material then keeps its factors; the file stays valid.
+fn drop_textures_without_uvs(v: &mut Value, has_uv: bool) {
+    match v {
+        Value::Array(a) => a
+            .iter_mut()
+            .for_each(|x| drop_textures_without_uvs(x, has_uv)),
+        Value::Object(o) => {
+            o.retain(|k, x| {
+                let texture = k.ends_with("Texture") && x.get("index").is_some();
+                let set = x.get("texCoord").and_then(Value::as_u64).unwrap_or(0);
+                !(texture && (!has_uv || set != 0))
+            });
+            o.values_mut()
+                .for_each(|x| drop_textures_without_uvs(x, has_uv));
+        }
+        _ => {}
+    }
+}
+
+/// Whether the carried materials reference a texture (they need UVs to be drawn).
+pub(crate) fn uses_textures(m: &Materials) -> bool {
+    fn any(v: &Value) -> bool {
+        match v {
+            Value::Array(a) => a.iter().any(any),
+            Value::Object(o) => o
+                .iter()
+                .any(|(k, x)| (k.ends_with("Texture") && x.get("index").is_some()) || any(x)),
+            _ => false,
+        }
+    }
+    serde_json::from_str::<Value>(&m.json).is_ok_and(|v| v.get("materials").is_some_and(any))
 }
 
 /// The MIME type of PNG and JPEG bytes.
@@ -585,5 +625,34 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn without_uvs_a_material_loses_its_textures_and_keeps_the_rest() {
+        let mut m = Mesh::new(seamed().positions, seamed().faces);
+        m.materials = Materials {
+            json: json!({
+                "materials": [{"pbrMetallicRoughness":
+                    {"baseColorTexture": {"index": 0}, "baseColorFactor": [1, 0.5, 0.5, 1]}}],
+                "textures": [{"source": 0}],
+                "images": [{"uri": "hide.png"}],
+            })
+            .to_string(),
+            images: vec![Image {
+                uri: Some("hide.png".into()),
+                ..Default::default()
+            }],
+        };
+        assert!(super::uses_textures(&m.materials));
+        let doc: Value = serde_json::from_slice(&bytes(&m, Format::Gltf)).unwrap();
+        let pbr = &doc["materials"][0]["pbrMetallicRoughness"];
+        assert!(pbr.get("baseColorTexture").is_none());
+        assert_eq!(pbr["baseColorFactor"][1], 0.5);
+        assert_eq!(doc["images"][0]["uri"], "hide.png");
+        let said = crate::left_out(&m, Format::Glb, &WriteOptions::default());
+        assert!(
+            said[0].starts_with("textures of the materials not written"),
+            "{said:?}"
+        );
     }
 }

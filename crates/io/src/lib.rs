@@ -366,6 +366,17 @@ pub fn left_out(mesh: &Mesh, format: Format, opts: &WriteOptions) -> Vec<String>
             mesh.wedges.split_vertices()
         ));
     }
+    let has_uv = mesh.wedges.attrs().vec2("uv").is_some() || mesh.vertex_attrs.vec2("uv").is_some();
+    if matches!(format, Format::Gltf | Format::Glb)
+        && !has_uv
+        && gltf_write::uses_textures(&mesh.materials)
+    {
+        out.push(
+            "textures of the materials not written: the mesh has no UVs to map them (the \
+             materials keep their other settings)"
+                .into(),
+        );
+    }
     if !mesh.materials.is_empty() && !matches!(format, Format::Gltf | Format::Glb) {
         out.push(format!(
             "materials and textures not written: {format} output carries no materials (glTF does)"
