@@ -161,7 +161,16 @@ fn a_charted_cube_round_trips_through_glb_and_validates() {
     let glb = round_trip(&input, dir.path());
     let gltf = dir.path().join("cube.gltf");
     convert(&input, &gltf);
-    validate(&[glb, gltf]);
+    validate(&[glb, gltf.clone()]);
+    // One mesh by name: this file's only mesh has none.
+    let g = gltf.to_string_lossy();
+    let out = run_cli(EXE, &["info", &g, "--gltf-mesh", "cow"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("no mesh called `cow` in the scene (meshes: #0 (unnamed))"),
+        "{}",
+        stderr(&out)
+    );
     // PLY holds no per-corner values: said, not dropped silently.
     let ply = dir.path().join("cube.ply");
     let out = run_cli(
