@@ -171,6 +171,35 @@ fn a_charted_cube_round_trips_through_glb_and_validates() {
         "{}",
         stderr(&out)
     );
+    // A material library with a texture: the GLB embeds the image, the glTF refers to it.
+    let textured = dir.path().join("textured.obj");
+    let obj = std::fs::read_to_string(&input).unwrap();
+    std::fs::write(&textured, format!("mtllib cube.mtl\nusemtl hide\n{obj}")).unwrap();
+    let mtl = "newmtl other\nKd 1 0 0\nnewmtl hide\nKd 0.5 0.25 1\nmap_Kd -s 1 1 1 hide tex.png\n";
+    std::fs::write(dir.path().join("cube.mtl"), mtl).unwrap();
+    let opts = coarsen_render::RenderOptions {
+        width: 32,
+        height: 32,
+        ..Default::default()
+    };
+    let png = coarsen_render::render(&[&cube], &opts)
+        .unwrap()
+        .to_png()
+        .unwrap();
+    std::fs::write(dir.path().join("hide tex.png"), &png).unwrap();
+    let (tglb, tgltf) = (dir.path().join("t.glb"), dir.path().join("t.gltf"));
+    convert(&textured, &tglb);
+    convert(&textured, &tgltf);
+    let back = read_mesh(&tglb);
+    assert_eq!(back.materials.images[0].bytes.as_deref(), Some(&png[..]));
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&tgltf).unwrap()).unwrap();
+    assert_eq!(doc["images"][0]["uri"], "hide%20tex.png");
+    assert_eq!(doc["materials"][0]["name"], "hide");
+    assert_eq!(
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"],
+        serde_json::json!([0.5, 0.25, 1.0, 1.0])
+    );
+    validate(&[tglb, tgltf]);
     // PLY holds no per-corner values: said, not dropped silently.
     let ply = dir.path().join("cube.ply");
     let out = run_cli(

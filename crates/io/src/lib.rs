@@ -25,7 +25,7 @@
 //!
 //! | format | reads | writes |
 //! | --- | --- | --- |
-//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` per vertex, or per corner (wedges) across seams and hard edges | positions, `uv`, `normal` (per vertex or per corner) |
+//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` per vertex, or per corner (wedges) across seams and hard edges; `mtllib`/`usemtl` materials and their diffuse textures, read by path | positions, `uv`, `normal` (per vertex or per corner) |
 //! | PLY | ASCII and both binary encodings, every scalar type, `vertex`, `face`, `tristrips`; other elements skipped | every attribute kind (binary little endian by default) |
 //! | STL | ASCII and binary (via `stl_io`), welded by exact position | binary, positions only (as `f32`) |
 //! | OFF | `OFF`, `COFF`, `NOFF`, … (colours and normals ignored) | positions and faces |
@@ -47,6 +47,7 @@
 mod error;
 mod gltf_read;
 mod gltf_write;
+mod mtl;
 mod obj;
 mod off;
 mod ply;
@@ -312,19 +313,12 @@ fn read_beside(
     }
     check_start(bytes, bytes.len() as u64, format, name, opts)?;
     let (mesh, notes) = match format {
-        Format::Obj => obj::read(bytes, name, opts)?,
+        Format::Obj => obj::read_in(bytes, name, opts, gltf_dir(dir))?,
         Format::Ply => ply::read(bytes, name, opts)?,
         Format::Stl => stl::read(bytes, name, opts)?,
         Format::Off => off::read(bytes, name, opts)?,
         Format::Gltf | Format::Glb => {
-            let dir = dir.map(|d| {
-                if d.as_os_str().is_empty() {
-                    Path::new(".")
-                } else {
-                    d
-                }
-            });
-            gltf_read::read(bytes, name, opts, gltf_read::Beside(dir))?
+            gltf_read::read(bytes, name, opts, gltf_read::Beside(gltf_dir(dir)))?
         }
     };
     debug_assert!(mesh.validate_indices().is_ok());
@@ -383,6 +377,17 @@ pub fn left_out(mesh: &Mesh, format: Format, opts: &WriteOptions) -> Vec<String>
         ));
     }
     out
+}
+
+/// A file's folder, `.` for a bare file name.
+fn gltf_dir(dir: Option<&Path>) -> Option<&Path> {
+    dir.map(|d| {
+        if d.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            d
+        }
+    })
 }
 
 /// Writes `mesh` to `path` in the format of its extension.

@@ -8,8 +8,11 @@
 //! Read: `v x y z` (a trailing `w` or vertex colours are ignored, with a note), `vt u [v
 //! [w]]`, `vn x y z`, faces with corners `a`, `a/b`, `a//c`, `a/b/c` and negative
 //! (relative) indices. A polygon of `n ≥ 3` corners becomes the `n − 2` triangles of a
-//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. `l`, `p`, `g`, `o`, `s`,
-//! `usemtl`, `mtllib` and free-form statements are ignored and counted in a note. A line
+//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. `l`, `p`, `g`, `o`, `s`
+//! and free-form statements are ignored and counted in a note. `mtllib` libraries beside a
+//! file read by path give the materials its faces name with `usemtl` (see `crate::mtl`:
+//! diffuse colour, opacity, diffuse texture, carried for glTF output) and the face column
+//! `material`; read from bytes alone, they are ignored with a note. A line
 //! ending in `\` continues on the next. Absolute indices may point forward (they are
 //! checked against the final counts); relative ones count back from the line they are on.
 //!
@@ -79,15 +82,37 @@ struct Reader<'o> {
     bad_vt: Option<(usize, &'static str)>,
     bad_vn: Option<(usize, &'static str)>,
     extra_vertex_values: usize,
+    /// Where the material libraries are (the OBJ file's folder), when read by path.
+    dir: Option<&'o std::path::Path>,
+    /// `mtllib` files, in order.
+    mtllibs: Vec<String>,
+    /// `usemtl` names in order of first use; material `i` is `materials[i]`.
+    materials: Vec<String>,
+    /// The material of the faces being read (`u32::MAX`: none yet).
+    current: u32,
+    /// The material of each triangle.
+    face_material: Vec<u32>,
     ignored: Vec<(String, usize, usize)>,
     poly: [Vec<u32>; 3],
 }
 
 /// Reads an OBJ file's bytes; `name` is used in errors.
+#[cfg(test)]
 pub(crate) fn read(
     bytes: &[u8],
     name: &str,
     opts: &ReadOptions,
+) -> Result<(Mesh, Vec<String>), IoError> {
+    read_in(bytes, name, opts, None)
+}
+
+/// Reads an OBJ file's bytes; `name` is used in errors; `dir` is the file's folder, where
+/// its material libraries are (none: `mtllib` is ignored with a note).
+pub(crate) fn read_in(
+    bytes: &[u8],
+    name: &str,
+    opts: &ReadOptions,
+    dir: Option<&std::path::Path>,
 ) -> Result<(Mesh, Vec<String>), IoError> {
     let mut r = Reader {
         name: name.to_string(),
@@ -102,6 +127,11 @@ pub(crate) fn read(
         bad_vt: None,
         bad_vn: None,
         extra_vertex_values: 0,
+        dir,
+        mtllibs: Vec::new(),
+        materials: Vec::new(),
+        current: u32::MAX,
+        face_material: Vec::new(),
         ignored: Vec::new(),
         poly: Default::default(),
     };
@@ -151,6 +181,25 @@ impl Reader<'_> {
                 Ok(())
             }
             b"f" => self.face(line, toks),
+            b"mtllib" => {
+                let names = toks.map(|t| String::from_utf8_lossy(t).into_owned());
+                self.mtllibs.extend(names);
+                Ok(())
+            }
+            b"usemtl" => {
+                let name: Vec<String> = toks
+                    .map(|t| String::from_utf8_lossy(t).into_owned())
+                    .collect();
+                let name = name.join(" ");
+                self.current = match self.materials.iter().position(|m| *m == name) {
+                    Some(i) => i as u32,
+                    None => {
+                        self.materials.push(name);
+                        (self.materials.len() - 1) as u32
+                    }
+                };
+                Ok(())
+            }
             other => {
                 self.ignore(line, other);
                 Ok(())
@@ -325,13 +374,14 @@ impl Reader<'_> {
             self.corner_vt.push(fan(&poly[1]), before);
             self.corner_vn.push(fan(&poly[2]), before);
             self.faces.push(fan(&poly[0]));
+            self.face_material.push(self.current);
         }
         self.poly = poly;
         Ok(())
     }
 
     fn ignore(&mut self, line: usize, keyword: &[u8]) {
-        const KNOWN: [&str; 8] = ["l", "p", "g", "o", "s", "usemtl", "mtllib", "vp"];
+        const KNOWN: [&str; 6] = ["l", "p", "g", "o", "s", "vp"];
         let key = match std::str::from_utf8(keyword) {
             Ok(k) if KNOWN.contains(&k) => format!("`{k}`"),
             _ => "unrecognised".to_string(),
@@ -382,8 +432,54 @@ impl Reader<'_> {
             Ok(None) => {}
             Err(note) => notes.push(note),
         }
-        let mesh = mesh.with_corner_attributes(cols);
+        let mut mesh = mesh.with_corner_attributes(cols);
+        let used = MaterialUse {
+            dir: self.dir,
+            mtllibs: self.mtllibs,
+            materials: self.materials,
+            face_material: self.face_material,
+        };
+        used.apply(&mut mesh, &mut notes);
         Ok((mesh, notes))
+    }
+}
+
+/// What an OBJ file says of materials: its libraries, the names its faces use.
+struct MaterialUse<'o> {
+    dir: Option<&'o std::path::Path>,
+    mtllibs: Vec<String>,
+    materials: Vec<String>,
+    face_material: Vec<u32>,
+}
+
+impl MaterialUse<'_> {
+    /// The used materials from the `mtllib` libraries (see [`crate::mtl`]) and the face
+    /// column saying which each face uses, when the file names any.
+    fn apply(self, mesh: &mut Mesh, notes: &mut Vec<String>) {
+        if self.mtllibs.is_empty() || self.materials.is_empty() {
+            if !self.mtllibs.is_empty() {
+                notes.push("`mtllib` ignored: no face uses a material (`usemtl`)".into());
+            }
+            return;
+        }
+        let Some(dir) = self.dir else {
+            notes.push(
+                "`mtllib` ignored: material libraries are read only when the OBJ file is read \
+                 by path"
+                    .into(),
+            );
+            return;
+        };
+        let Some(materials) = crate::mtl::load(&self.mtllibs, dir, &self.materials, notes) else {
+            return;
+        };
+        mesh.materials = materials;
+        if self.face_material.iter().any(|&m| m != 0) {
+            mesh.face_attrs.insert(
+                coarsen_mesh::material::MATERIAL,
+                AttrValues::Label(self.face_material),
+            );
+        }
     }
 }
 
