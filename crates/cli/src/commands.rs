@@ -421,7 +421,15 @@ fn attribute_list(mesh: &coarsen_mesh::Mesh) -> Vec<String> {
         .face_attrs
         .iter()
         .map(|(n, a)| format!("face {} `{n}`", a.kind()));
-    v.chain(f).collect()
+    let seams = mesh.wedges.split_vertices();
+    let c = mesh.wedges.attrs().iter().map(move |(n, a)| {
+        format!(
+            "per-corner {} `{n}` ({seams} vertices on seams or hard edges)",
+            a.kind()
+        )
+    });
+    let m = (!mesh.materials.is_empty()).then(|| "materials".to_string());
+    v.chain(f).chain(c).chain(m).collect()
 }
 
 pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResult {
