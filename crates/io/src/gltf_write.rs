@@ -655,4 +655,27 @@ mod tests {
             "{said:?}"
         );
     }
+
+    #[test]
+    fn ply_colours_with_alpha_become_an_rgba_color_0_and_come_back() {
+        let ply = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nproperty float u\nproperty float v\nproperty float nx\nproperty float ny\n\
+property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+property uchar alpha\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+0 0 0 0 0 0 0 1 255 0 0 255\n1 0 0 1 0 0 0 1 0 255 0 128\n0 1 0 0 1 0 0 1 0 0 255 0\n3 0 1 2\n";
+        let (m, _) = read(ply, Format::Ply).unwrap();
+        let doc: Value = serde_json::from_slice(&bytes(&m, Format::Gltf)).unwrap();
+        let color = doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"]
+            .as_u64()
+            .unwrap();
+        assert_eq!(doc["accessors"][color as usize]["type"], "VEC4");
+        let (back, _) = read(&bytes(&m, Format::Glb), Format::Glb).unwrap();
+        for name in ["uv", "normal", "color", "alpha"] {
+            assert_eq!(
+                back.vertex_attrs.get(name),
+                m.vertex_attrs.get(name),
+                "{name}"
+            );
+        }
+    }
 }
