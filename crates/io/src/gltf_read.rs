@@ -18,8 +18,11 @@
 //!
 //! Refused with an error naming what and where: other primitive modes (points, lines,
 //! strips, fans), morph targets, skins, compressed geometry (Draco, meshopt), GPU
-//! instancing, any other required extension, malformed accessors. Ignored with a note:
-//! other attribute sets (`TANGENT`, `TEXCOORD_1`, `JOINTS_0`, …), animations, cameras.
+//! instancing, any other required extension, malformed accessors, buffers behind an
+//! absolute path or a URI scheme (only data URIs and paths relative to the file are read,
+//! so that a file cannot pull in what lies elsewhere). Ignored with a note: other
+//! attribute sets (`TANGENT`, `TEXCOORD_1`, `JOINTS_0`, …), other scenes, meshes no node
+//! of the scene shows, animations, cameras.
 
 use crate::ReadOptions;
 use crate::error::{ErrorKind, IoError};
@@ -83,6 +86,9 @@ struct Gathered {
     missing: [usize; 4],
     ignored: Vec<String>,
     glb_vertices: usize,
+    /// The meshes read (by index), and the name asked for, if any.
+    instanced: Vec<usize>,
+    named: Option<String>,
 }
 
 const UV: usize = 0;
@@ -116,8 +122,12 @@ pub(crate) fn read(
         };
         return Err(fail(ErrorKind::Syntax(what)));
     }
-    let mut g = Gathered::default();
+    let mut g = Gathered {
+        named: opts.gltf_mesh.clone(),
+        ..Gathered::default()
+    };
     for inst in &instances {
+        g.instanced.push(inst.mesh.index());
         for prim in inst.mesh.primitives() {
             primitive(&mut g, &prim, inst, &buffers, name, opts)?;
         }
@@ -214,7 +224,17 @@ fn uri_bytes(uri: &str, beside: &Beside<'_>) -> Result<Vec<u8>, String> {
             short(uri)
         ));
     };
-    let path = dir.join(percent_decode(uri));
+    let relative = percent_decode(uri);
+    let scheme = relative
+        .split_once(':')
+        .is_some_and(|(s, _)| !s.is_empty() && !s.contains('/'));
+    if scheme || Path::new(&relative).is_absolute() || relative.starts_with('/') {
+        return Err(format!(
+            "refers to `{}`: only data URIs and paths relative to the glTF file are read",
+            short(uri)
+        ));
+    }
+    let path = dir.join(relative);
     std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
@@ -770,6 +790,21 @@ fn document_notes(doc: &gltf::Document, g: &Gathered) -> Vec<String> {
                 g.missing[slot]
             ));
         }
+    }
+    let scenes = doc.scenes().len();
+    if scenes > 1 {
+        notes.push(format!(
+            "{} other scenes ignored (only the default scene is read)",
+            scenes - 1
+        ));
+    }
+    let mut in_scene = vec![false; doc.meshes().len()];
+    g.instanced.iter().for_each(|&m| in_scene[m] = true);
+    let outside = in_scene.iter().filter(|&&x| !x).count();
+    if outside > 0 && g.named.is_none() && doc.scenes().len() > 0 {
+        notes.push(format!(
+            "{outside} meshes that no node of the scene shows ignored"
+        ));
     }
     let animations = doc.animations().len();
     if animations > 0 {

@@ -678,4 +678,35 @@ property uchar alpha\nelement face 1\nproperty list uchar int vertex_indices\nen
             );
         }
     }
+
+    #[test]
+    fn absolute_and_scheme_uris_are_not_followed_and_unread_meshes_are_said() {
+        let m = seamed();
+        for uri in [
+            "/etc/passwd",
+            "file:///etc/passwd",
+            "https://example.invalid/b.bin",
+        ] {
+            let b = edited(&m, |d| d["buffers"][0]["uri"] = json!(uri));
+            let dir = std::env::temp_dir();
+            let e = crate::read_beside(&b, Format::Gltf, "t", &ReadOptions::default(), Some(&dir))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("only data URIs and paths relative"), "{e}");
+        }
+        let b = edited(&m, |d| {
+            let mesh = d["meshes"][0].clone();
+            d["meshes"] = json!([mesh.clone(), mesh]);
+            d["scenes"] = json!([{"nodes": [0]}, {"nodes": []}]);
+        });
+        let (_, notes) = read(&b, Format::Gltf).unwrap();
+        assert!(
+            notes.contains(&"1 other scenes ignored (only the default scene is read)".to_string()),
+            "{notes:?}"
+        );
+        assert!(
+            notes.contains(&"1 meshes that no node of the scene shows ignored".to_string()),
+            "{notes:?}"
+        );
+    }
 }
