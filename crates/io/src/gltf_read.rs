@@ -104,9 +104,10 @@ pub(crate) fn read(
     beside: Beside<'_>,
 ) -> Result<(Mesh, Vec<String>), IoError> {
     let fail = |kind| IoError::file(name, kind);
+    let raw = raw_json(bytes).map_err(|e| fail(ErrorKind::Syntax(e)))?;
+    check_references(&raw).map_err(|e| fail(ErrorKind::Syntax(e)))?;
     let gltf = gltf::Gltf::from_slice(bytes)
         .map_err(|e| fail(ErrorKind::Syntax(format!("not a valid glTF 2.0 file: {e}"))))?;
-    let raw = raw_json(bytes).map_err(|e| fail(ErrorKind::Syntax(e)))?;
     let mut notes = Vec::new();
     check_extensions(&raw).map_err(|e| fail(ErrorKind::Unsupported(e)))?;
     let buffers = load_buffers(&gltf, name, &beside)?;
@@ -147,6 +148,36 @@ fn raw_json(bytes: &[u8]) -> Result<Value, String> {
         bytes.into()
     };
     serde_json::from_slice(&json).map_err(|e| format!("not valid JSON: {e}"))
+}
+
+/// Checks what the `gltf` crate's own validation indexes without checking (1.4: the
+/// accessors a primitive's attributes and targets name), so that no file can make it panic.
+fn check_references(raw: &Value) -> Result<(), String> {
+    let n = raw
+        .get("accessors")
+        .and_then(Value::as_array)
+        .map_or(0, Vec::len);
+    let meshes = raw.get("meshes").and_then(Value::as_array);
+    for (m, mesh) in meshes.into_iter().flatten().enumerate() {
+        let prims = mesh.get("primitives").and_then(Value::as_array);
+        for (p, prim) in prims.into_iter().flatten().enumerate() {
+            let targets = prim.get("targets").and_then(Value::as_array);
+            let maps = std::iter::once(prim.get("attributes"))
+                .chain(targets.into_iter().flatten().map(Some))
+                .flatten()
+                .filter_map(Value::as_object);
+            let named = maps.flat_map(|o| o.iter()).map(|(k, v)| (k.as_str(), v));
+            let indices = prim.get("indices").map(|v| ("indices", v));
+            for (what, v) in named.chain(indices) {
+                if v.as_u64().is_none_or(|i| i >= n as u64) {
+                    return Err(format!(
+                        "mesh {m} primitive {p}: {what} names accessor {v}, but there are {n}"
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Refuses the extensions whose meshes cannot be read, and required ones not known.
@@ -393,6 +424,23 @@ fn primitive(
         )))
     })?;
     let n = positions.count;
+    let shapes: [(&str, Option<&Read>, &[usize]); 4] = [
+        ("POSITION", Some(&positions), &[3]),
+        ("NORMAL", normals.as_ref(), &[3]),
+        ("TEXCOORD_0", uvs.as_ref(), &[2]),
+        ("COLOR_0", colors.as_ref(), &[3, 4]),
+    ];
+    for (what, a, dims) in shapes {
+        if let Some(a) = a
+            && !dims.contains(&a.dims)
+        {
+            return Err(at(ErrorKind::Syntax(format!(
+                "primitive {}: {what} has {} components per element, not {dims:?}",
+                prim.index(),
+                a.dims
+            ))));
+        }
+    }
     for (what, a) in [
         ("NORMAL", &normals),
         ("TEXCOORD_0", &uvs),
@@ -411,6 +459,13 @@ fn primitive(
     let indices = match prim.indices() {
         Some(acc) => {
             let a = read_accessor(&acc, buffers, name)?;
+            if a.dims != 1 {
+                return Err(at(ErrorKind::Syntax(format!(
+                    "primitive {}: its indices have {} components per element, not 1",
+                    prim.index(),
+                    a.dims
+                ))));
+            }
             a.values.iter().map(|&x| x as u64).collect::<Vec<u64>>()
         }
         None => (0..n as u64).collect(),

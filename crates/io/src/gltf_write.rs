@@ -590,6 +590,15 @@ mod tests {
                 Box::new(|d| d["accessors"][0]["count"] = json!(1000)),
                 "accessor 0",
             ),
+            // gltf-json 1.4 would index its accessors with this unchecked (a panic).
+            (
+                Box::new(|d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(99)),
+                "POSITION names accessor 99, but there are",
+            ),
+            (
+                Box::new(|d| d["accessors"][1]["type"] = json!("SCALAR")),
+                "components per element",
+            ),
         ];
         for (edit, expect) in cases {
             let e = read(&edited(&m, edit), Format::Gltf).unwrap_err();
