@@ -46,6 +46,16 @@ fn readers() {
             &format!("written{i}.stl"),
             &written(m, Format::Stl, PlyEncoding::Ascii),
         );
+        put(
+            "read_gltf",
+            &format!("written{i}.gltf"),
+            &written(m, Format::Gltf, PlyEncoding::Ascii),
+        );
+        put(
+            "read_glb",
+            &format!("written{i}.glb"),
+            &written(m, Format::Glb, PlyEncoding::Ascii),
+        );
         for (e, enc) in [
             ("ascii", PlyEncoding::Ascii),
             ("le", PlyEncoding::BinaryLittleEndian),

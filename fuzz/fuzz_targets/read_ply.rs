@@ -9,6 +9,7 @@ fuzz_target!(|data: &[u8]| {
         max_faces: Some(1 << 20),
         max_vertices: Some(1 << 20),
         max_file_bytes: None,
+        gltf_mesh: None,
     };
     if let Ok(loaded) = read_bytes(data, Format::Ply, "fuzz.ply", &opts) {
         // What a reader returns is a valid mesh.

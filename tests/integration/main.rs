@@ -5,6 +5,7 @@ mod data;
 mod facade;
 mod fidelity;
 mod fields;
+mod gltf;
 mod hostile;
 mod html;
 mod lod;

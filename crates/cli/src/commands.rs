@@ -104,8 +104,14 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     let done = remesher
         .run_cleaned(&pipeline, &name, input)
         .map_err(failure)?;
-    let (mesh, report) = (done.mesh, done.report);
-    coarsen_io::write_path(&mesh, &args.output, &write_options(args.ascii))?;
+    let (mesh, mut report) = (done.mesh, done.report);
+    let opts = write_options(args.ascii);
+    coarsen_io::write_path(&mesh, &args.output, &opts)?;
+    if let Some(format) = coarsen_io::Format::from_path(&args.output) {
+        report
+            .notes
+            .extend(coarsen_io::left_out(&mesh, format, &opts));
+    }
     if let (Some(path), Some(record)) = (&args.progressive, &done.progressive) {
         coarsen_lod::write(path, record).context("writing the progressive record")?;
     }
@@ -464,7 +470,15 @@ fn attribute_list(mesh: &coarsen_mesh::Mesh) -> Vec<String> {
         .face_attrs
         .iter()
         .map(|(n, a)| format!("face {} `{n}`", a.kind()));
-    v.chain(f).collect()
+    let seams = mesh.wedges.split_vertices();
+    let c = mesh.wedges.attrs().iter().map(move |(n, a)| {
+        format!(
+            "per-corner {} `{n}` ({seams} vertices on seams or hard edges)",
+            a.kind()
+        )
+    });
+    let m = (!mesh.materials.is_empty()).then(|| "materials".to_string());
+    v.chain(f).chain(c).chain(m).collect()
 }
 
 pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResult {
@@ -475,7 +489,13 @@ pub fn convert(input: &Path, output: &Path, ascii: bool, clean: bool) -> CmdResu
         load::load_raw(input)?
     };
     let mesh = loaded.restore(loaded.mesh.clone());
-    coarsen_io::write_path(&mesh, output, &write_options(ascii))?;
+    let opts = write_options(ascii);
+    coarsen_io::write_path(&mesh, output, &opts)?;
+    if let Some(format) = coarsen_io::Format::from_path(output) {
+        for w in coarsen_io::left_out(&mesh, format, &opts) {
+            eprintln!("warning: {w}");
+        }
+    }
     Ok(())
 }
 

@@ -63,6 +63,10 @@ struct Cli {
     /// more than 256·N bytes), before their content is read.
     #[arg(long, global = true, value_name = "N", default_value_t = load::DEFAULT_MAX_FACES)]
     max_faces: u64,
+    /// In glTF files (`.gltf`, `.glb`), read only the instances of the mesh called NAME
+    /// (default: every mesh of the scene).
+    #[arg(long, global = true, value_name = "NAME")]
+    gltf_mesh: Option<String>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -410,6 +414,9 @@ where
     };
     let quiet = cli.quiet;
     load::set_max_faces(cli.max_faces);
+    if let Some(name) = cli.gltf_mesh {
+        load::set_gltf_mesh(name);
+    }
     progress::init_logs(cli.verbose);
     let result = match cli.command {
         Command::Run(args) => commands::run(args, quiet),

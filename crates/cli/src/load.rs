@@ -33,13 +33,27 @@ pub fn read_options(max_faces: u64) -> ReadOptions {
         max_faces: Some(n),
         max_vertices: Some(n.saturating_mul(3)),
         max_file_bytes: Some(max_faces.saturating_mul(BYTES_PER_FACE).max(MIN_FILE_LIMIT)),
+        ..ReadOptions::default()
     }
 }
 
-/// Reads `path` under the `--max-faces` limits; an error from a limit says how to raise it.
+/// The `--gltf-mesh` in force (set once from the command line).
+static GLTF_MESH: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+/// Makes every later load of a glTF file read only the mesh called `name`.
+pub fn set_gltf_mesh(name: String) {
+    let _ = GLTF_MESH.set(name);
+}
+
+/// Reads `path` under the `--max-faces` limits (and `--gltf-mesh`); an error from a limit
+/// says how to raise it.
 pub fn open(path: &Path) -> Result<coarsen::Input> {
     let max_faces = MAX_FACES.load(Ordering::Relaxed);
-    coarsen::open(path, &read_options(max_faces)).map_err(|e| match e {
+    let opts = ReadOptions {
+        gltf_mesh: GLTF_MESH.get().cloned(),
+        ..read_options(max_faces)
+    };
+    coarsen::open(path, &opts).map_err(|e| match e {
         coarsen::Error::Io(e)
             if matches!(
                 e.kind,

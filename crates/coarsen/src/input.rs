@@ -58,7 +58,7 @@ impl From<Mesh> for Input {
     }
 }
 
-/// Reads the mesh file at `path` (OBJ, PLY, STL or OFF, by its extension) with no limits
+/// Reads the mesh file at `path` (OBJ, PLY, STL, OFF, glTF or GLB, by its extension) with no limits
 /// on its size, and with an STL file's coincident corners welded: the mesh to hand to
 /// [`remesh`](crate::remesh) or a [`Remesher`](crate::Remesher).
 ///

@@ -121,11 +121,15 @@ pub fn attributes_only(mesh: Mesh) -> Mesh {
         faces,
         vertex_attrs,
         face_attrs,
+        wedges,
+        materials,
     } = mesh;
     drop((positions, faces));
     Mesh {
         vertex_attrs,
         face_attrs,
+        wedges,
+        materials,
         ..Mesh::default()
     }
 }

@@ -153,7 +153,9 @@ pub enum ErrorKind {
     #[error("the file is empty")]
     Empty,
     /// The file name's extension names no format this crate knows.
-    #[error("cannot tell the mesh format from the file name (expected .obj, .ply, .stl or .off)")]
+    #[error(
+        "cannot tell the mesh format from the file name (expected .obj, .ply, .stl, .off, .gltf or .glb)"
+    )]
     UnknownFormat,
     /// The bytes do not start the way the format requires.
     #[error("not {} {format} file ({detail})", article(*format))]
@@ -273,7 +275,7 @@ impl ErrorKind {
 /// The indefinite article before a format's name as it is spoken ("an OBJ", "a PLY").
 fn article(format: Format) -> &'static str {
     match format {
-        Format::Ply => "a",
+        Format::Ply | Format::Gltf | Format::Glb => "a",
         Format::Obj | Format::Stl | Format::Off => "an",
     }
 }

@@ -1,4 +1,5 @@
-//! Mesh file formats for coarsen: OBJ, PLY, STL and OFF, read and written.
+//! Mesh file formats for coarsen: OBJ, PLY, STL, OFF and glTF 2.0 (`.gltf`, `.glb`), read
+//! and written.
 //!
 //! This is the only crate of the workspace that knows file formats. It turns bytes into a
 //! [`Mesh`] faithfully — every vertex of the file (also unreferenced ones), every face
@@ -24,10 +25,11 @@
 //!
 //! | format | reads | writes |
 //! | --- | --- | --- |
-//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` kept when per vertex | positions, `uv`, `normal` |
+//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` per vertex, or per corner (wedges) across seams and hard edges; `mtllib`/`usemtl` materials and their diffuse textures, read by path | positions, `uv`, `normal` (per vertex or per corner) |
 //! | PLY | ASCII and both binary encodings, every scalar type, `vertex`, `face`, `tristrips`; other elements skipped | every attribute kind (binary little endian by default) |
 //! | STL | ASCII and binary (via `stl_io`), welded by exact position | binary, positions only (as `f32`) |
 //! | OFF | `OFF`, `COFF`, `NOFF`, … (colours and normals ignored) | positions and faces |
+//! | glTF, GLB | triangle primitives of the scene's meshes (node transforms applied) or of one mesh by name; `POSITION`, `NORMAL`, `TEXCOORD_0`, `COLOR_0`, any index width, sparse accessors; welded by exact position, corner values as wedges; materials and images kept (`Mesh::materials`) | positions, `normal`, `uv`, `color` (+`alpha`) per vertex or wedge, one primitive per material, the carried materials and images |
 //!
 //! Polygons are split into the triangles of a fan from their first corner:
 //! `(c0, c1, c2), (c0, c2, c3), …`; a polygon's face properties go to each of its
@@ -43,6 +45,9 @@
 //! with seams) is said in [`Loaded::notes`].
 
 mod error;
+mod gltf_read;
+mod gltf_write;
+mod mtl;
 mod obj;
 mod off;
 mod ply;
@@ -68,11 +73,22 @@ pub enum Format {
     Stl,
     /// Object File Format (text).
     Off,
+    /// glTF 2.0, JSON (`.gltf`; written with its buffer embedded as a data URI).
+    Gltf,
+    /// glTF 2.0, binary container (`.glb`).
+    Glb,
 }
 
 impl Format {
     /// Every format, in a fixed order.
-    pub const ALL: [Format; 4] = [Format::Obj, Format::Ply, Format::Stl, Format::Off];
+    pub const ALL: [Format; 6] = [
+        Format::Obj,
+        Format::Ply,
+        Format::Stl,
+        Format::Off,
+        Format::Gltf,
+        Format::Glb,
+    ];
 
     /// The format named by a path's extension (case-insensitive), if any.
     pub fn from_path(path: &Path) -> Option<Format> {
@@ -86,6 +102,8 @@ impl Format {
             Format::Ply => "ply",
             Format::Stl => "stl",
             Format::Off => "off",
+            Format::Gltf => "gltf",
+            Format::Glb => "glb",
         }
     }
 }
@@ -97,19 +115,22 @@ impl fmt::Display for Format {
             Format::Ply => "PLY",
             Format::Stl => "STL",
             Format::Off => "OFF",
+            Format::Gltf => "glTF",
+            Format::Glb => "GLB",
         })
     }
 }
 
 /// A format name or extension that names no known format.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("unknown mesh format `{0}` (expected obj, ply, stl or off)")]
+#[error("unknown mesh format `{0}` (expected obj, ply, stl, off, gltf or glb)")]
 pub struct UnknownFormat(pub String);
 
 impl FromStr for Format {
     type Err = UnknownFormat;
 
-    /// Parses `obj`, `ply`, `stl` or `off`, in any case, with or without a leading dot.
+    /// Parses `obj`, `ply`, `stl`, `off`, `gltf` or `glb`, in any case, with or without a
+    /// leading dot.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let name = s.strip_prefix('.').unwrap_or(s);
         Format::ALL
@@ -131,6 +152,9 @@ pub struct ReadOptions {
     /// [`read_path`] refuses files longer than this many bytes before reading them.
     /// Default `None`: no limit.
     pub max_file_bytes: Option<u64>,
+    /// glTF: read only the instances of the mesh of this name. Default `None`: every
+    /// mesh of the scene.
+    pub gltf_mesh: Option<String>,
 }
 
 /// How many bytes of a file [`read_path`] checks before reading the rest.
@@ -213,12 +237,13 @@ pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Loaded, IoError> {
             .saturating_sub(bytes.len()),
     );
     file.read_to_end(&mut bytes).map_err(os)?;
-    read_bytes(&bytes, format, &name, opts)
+    read_beside(&bytes, format, &name, opts, path.parent())
 }
 
 /// Checks the first bytes of a file of `len` bytes in `format` (at most [`SNIFF_BYTES`]
 /// of them are looked at) for what can be refused without reading the rest: a text format
-/// (OBJ, OFF) holding a NUL byte, a PLY file without its magic or whose header's counts
+/// (OBJ, OFF) holding a NUL byte, a `.gltf` file not starting with a JSON object, a `.glb`
+/// file without its magic, a PLY file without its magic or whose header's counts
 /// exceed the limits, an STL file that is neither ASCII nor a binary file of the length its
 /// triangle count requires, or whose count exceeds the limit.
 pub fn check_start(
@@ -242,6 +267,24 @@ pub fn check_start(
         },
         Format::Ply => ply::check_start(start, name, opts),
         Format::Stl => stl::check_start(start, len, name, opts).map(|_| ()),
+        Format::Glb if !start.starts_with(b"glTF") => Err(IoError::file(
+            name,
+            ErrorKind::NotFormat {
+                format,
+                detail: "no `glTF` magic at its start".into(),
+            },
+        )),
+        Format::Gltf => match start.iter().find(|b| !b.is_ascii_whitespace()) {
+            Some(b'{') | None => Ok(()),
+            Some(_) => Err(IoError::file(
+                name,
+                ErrorKind::NotFormat {
+                    format,
+                    detail: "it does not start with a JSON object".into(),
+                },
+            )),
+        },
+        Format::Glb => Ok(()),
     }
 }
 
@@ -253,21 +296,97 @@ pub fn read_bytes(
     name: &str,
     opts: &ReadOptions,
 ) -> Result<Loaded, IoError> {
+    read_beside(bytes, format, name, opts, None)
+}
+
+/// [`read_bytes`], with the directory where a `.gltf` file's external buffers and images
+/// are (none: they cannot be read, and an external buffer is an error).
+fn read_beside(
+    bytes: &[u8],
+    format: Format,
+    name: &str,
+    opts: &ReadOptions,
+    dir: Option<&Path>,
+) -> Result<Loaded, IoError> {
     if bytes.is_empty() {
         return Err(IoError::file(name, ErrorKind::Empty));
     }
     check_start(bytes, bytes.len() as u64, format, name, opts)?;
     let (mesh, notes) = match format {
-        Format::Obj => obj::read(bytes, name, opts)?,
+        Format::Obj => obj::read_in(bytes, name, opts, gltf_dir(dir))?,
         Format::Ply => ply::read(bytes, name, opts)?,
         Format::Stl => stl::read(bytes, name, opts)?,
         Format::Off => off::read(bytes, name, opts)?,
+        Format::Gltf | Format::Glb => {
+            gltf_read::read(bytes, name, opts, gltf_read::Beside(gltf_dir(dir)))?
+        }
     };
     debug_assert!(mesh.validate_indices().is_ok());
     Ok(Loaded {
         mesh,
         format,
         notes,
+    })
+}
+
+/// What writing `mesh` as `format` with `opts` leaves out of what coarsen-io reads:
+/// per-corner columns (wedges) a format cannot hold per corner, and materials outside
+/// glTF; one sentence each, empty when nothing is lost. (Vertex and face columns OBJ, STL
+/// and OFF have no place for are left out as documented for each format.)
+pub fn left_out(mesh: &Mesh, format: Format, opts: &WriteOptions) -> Vec<String> {
+    let mut out = Vec::new();
+    if !opts.attributes {
+        return out;
+    }
+    let per_corner: Vec<&str> = mesh
+        .wedges
+        .attrs()
+        .names()
+        .filter(|n| match format {
+            Format::Obj => !matches!(*n, "uv" | "normal"),
+            Format::Gltf | Format::Glb => !matches!(*n, "uv" | "normal" | "color" | "alpha"),
+            Format::Ply | Format::Stl | Format::Off => true,
+        })
+        .collect();
+    if !per_corner.is_empty() {
+        out.push(format!(
+            "per-corner {} ({} vertices on seams or hard edges) not written: {format} holds no \
+             per-corner values (OBJ holds uv and normal, glTF also colours)",
+            per_corner
+                .iter()
+                .map(|n| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(" and "),
+            mesh.wedges.split_vertices()
+        ));
+    }
+    let has_uv = mesh.wedges.attrs().vec2("uv").is_some() || mesh.vertex_attrs.vec2("uv").is_some();
+    if matches!(format, Format::Gltf | Format::Glb)
+        && !has_uv
+        && gltf_write::uses_textures(&mesh.materials)
+    {
+        out.push(
+            "textures of the materials not written: the mesh has no UVs to map them (the \
+             materials keep their other settings)"
+                .into(),
+        );
+    }
+    if !mesh.materials.is_empty() && !matches!(format, Format::Gltf | Format::Glb) {
+        out.push(format!(
+            "materials and textures not written: {format} output carries no materials (glTF does)"
+        ));
+    }
+    out
+}
+
+/// A file's folder, `.` for a bare file name.
+fn gltf_dir(dir: Option<&Path>) -> Option<&Path> {
+    dir.map(|d| {
+        if d.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            d
+        }
     })
 }
 
@@ -347,6 +466,8 @@ fn write_unchecked(
         Format::Ply => ply::write(mesh, w, opts.ply_encoding, opts.attributes),
         Format::Stl => stl::write(mesh, w),
         Format::Off => off::write(mesh, w).map_err(ErrorKind::from),
+        Format::Gltf => gltf_write::write(mesh, w, false, opts.attributes),
+        Format::Glb => gltf_write::write(mesh, w, true, opts.attributes),
     };
     result.map_err(|kind| IoError::file(name, kind))
 }
@@ -399,7 +520,9 @@ mod tests {
         assert_eq!(Format::from_path(Path::new("x.txt")), None);
         assert_eq!(Format::from_path(Path::new("noext")), None);
         assert_eq!(".ply".parse::<Format>(), Ok(Format::Ply));
-        assert!("gltf".parse::<Format>().is_err());
+        assert_eq!("gltf".parse::<Format>(), Ok(Format::Gltf));
+        assert_eq!(Format::from_path(Path::new("x.GLB")), Some(Format::Glb));
+        assert!("fbx".parse::<Format>().is_err());
     }
 
     #[test]
@@ -632,12 +755,37 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("/nonexistent/x.obj: "), "{e}");
-        let e = read_path(Path::new("x.gltf"), &ReadOptions::default())
+        let e = read_path(Path::new("x.fbx"), &ReadOptions::default())
             .unwrap_err()
             .to_string();
         assert_eq!(
             e,
-            "x.gltf: cannot tell the mesh format from the file name (expected .obj, .ply, .stl or .off)"
+            "x.fbx: cannot tell the mesh format from the file name (expected .obj, .ply, .stl, .off, .gltf or .glb)"
         );
+    }
+
+    #[test]
+    fn what_a_format_cannot_hold_is_said() {
+        use coarsen_mesh::Attributes;
+        let m = tetrahedron();
+        let mut cols = Attributes::default();
+        let uv: Vec<DVec2> = (0..12).map(|c| DVec2::new(c as f64, 0.0)).collect();
+        cols.insert("uv", AttrValues::Vec2(uv));
+        let m = m.with_corner_attributes(cols);
+        let all = WriteOptions::default();
+        assert!(left_out(&m, Format::Obj, &all).is_empty());
+        assert!(left_out(&m, Format::Glb, &all).is_empty());
+        assert_eq!(
+            left_out(&m, Format::Ply, &all),
+            [
+                "per-corner `uv` (4 vertices on seams or hard edges) not written: PLY holds no \
+              per-corner values (OBJ holds uv and normal, glTF also colours)"
+            ]
+        );
+        let bare = WriteOptions {
+            attributes: false,
+            ..all
+        };
+        assert!(left_out(&m, Format::Ply, &bare).is_empty());
     }
 }

@@ -8,24 +8,30 @@
 //! Read: `v x y z` (a trailing `w` or vertex colours are ignored, with a note), `vt u [v
 //! [w]]`, `vn x y z`, faces with corners `a`, `a/b`, `a//c`, `a/b/c` and negative
 //! (relative) indices. A polygon of `n ≥ 3` corners becomes the `n − 2` triangles of a
-//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. `l`, `p`, `g`, `o`, `s`,
-//! `usemtl`, `mtllib` and free-form statements are ignored and counted in a note. A line
+//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. `l`, `p`, `g`, `o`, `s`
+//! and free-form statements are ignored and counted in a note. `mtllib` libraries beside a
+//! file read by path give the materials its faces name with `usemtl` (see `crate::mtl`:
+//! diffuse colour, opacity, diffuse texture, carried for glTF output) and the face column
+//! `material`; read from bytes alone, they are ignored with a note. A line
 //! ending in `\` continues on the next. Absolute indices may point forward (they are
 //! checked against the final counts); relative ones count back from the line they are on.
 //!
-//! Texture coordinates and normals become the vertex attributes `uv` and `normal` only when
-//! they are per vertex: every face corner of vertex `v` refers to the same value. Otherwise
-//! (seams, creases, corners without one) they are not kept and a note says why. A vertex
-//! used by no face gets `(0, 0)` / `(0, 0, 0)`.
+//! Texture coordinates and normals become the attributes `uv` and `normal`: vertex
+//! columns when they are per vertex (every face corner of vertex `v` refers to the same
+//! value, bit for bit; a vertex used by no face gets `(0, 0)` / `(0, 0, 0)`), per-corner
+//! wedges (`coarsen_mesh::wedge`) where seams or hard edges give a vertex several. When
+//! some corners have none while others have one, or a value is not finite, they are not
+//! kept and a note says why.
 //!
 //! Write: `v` with shortest round-trip decimals (positions read back bit for bit), `vt`
-//! from a `uv` column, `vn` from a `normal` column, and `f` with matching indices. Other
-//! attributes have no place in OBJ and are not written.
+//! from a `uv` column, `vn` from a `normal` column (one per vertex, or one per wedge when
+//! the column is per corner), and `f` with matching indices. Other attributes have no
+//! place in OBJ and are not written.
 
 use crate::ReadOptions;
 use crate::error::{ErrorKind, IoError, RefKind};
 use crate::text::{self, Lines, non_finite_name, parse_f64, parse_i64, show};
-use coarsen_mesh::{AttrValues, DVec2, DVec3, Mesh};
+use coarsen_mesh::{AttrValues, Attributes, DVec2, DVec3, Mesh};
 use std::io::{self, Write};
 
 /// Marks "no texture coordinate / normal" at a corner.
@@ -76,15 +82,37 @@ struct Reader<'o> {
     bad_vt: Option<(usize, &'static str)>,
     bad_vn: Option<(usize, &'static str)>,
     extra_vertex_values: usize,
+    /// Where the material libraries are (the OBJ file's folder), when read by path.
+    dir: Option<&'o std::path::Path>,
+    /// `mtllib` files, in order.
+    mtllibs: Vec<String>,
+    /// `usemtl` names in order of first use; material `i` is `materials[i]`.
+    materials: Vec<String>,
+    /// The material of the faces being read (`u32::MAX`: none yet).
+    current: u32,
+    /// The material of each triangle.
+    face_material: Vec<u32>,
     ignored: Vec<(String, usize, usize)>,
     poly: [Vec<u32>; 3],
 }
 
 /// Reads an OBJ file's bytes; `name` is used in errors.
+#[cfg(test)]
 pub(crate) fn read(
     bytes: &[u8],
     name: &str,
     opts: &ReadOptions,
+) -> Result<(Mesh, Vec<String>), IoError> {
+    read_in(bytes, name, opts, None)
+}
+
+/// Reads an OBJ file's bytes; `name` is used in errors; `dir` is the file's folder, where
+/// its material libraries are (none: `mtllib` is ignored with a note).
+pub(crate) fn read_in(
+    bytes: &[u8],
+    name: &str,
+    opts: &ReadOptions,
+    dir: Option<&std::path::Path>,
 ) -> Result<(Mesh, Vec<String>), IoError> {
     let mut r = Reader {
         name: name.to_string(),
@@ -99,6 +127,11 @@ pub(crate) fn read(
         bad_vt: None,
         bad_vn: None,
         extra_vertex_values: 0,
+        dir,
+        mtllibs: Vec::new(),
+        materials: Vec::new(),
+        current: u32::MAX,
+        face_material: Vec::new(),
         ignored: Vec::new(),
         poly: Default::default(),
     };
@@ -148,6 +181,25 @@ impl Reader<'_> {
                 Ok(())
             }
             b"f" => self.face(line, toks),
+            b"mtllib" => {
+                let names = toks.map(|t| String::from_utf8_lossy(t).into_owned());
+                self.mtllibs.extend(names);
+                Ok(())
+            }
+            b"usemtl" => {
+                let name: Vec<String> = toks
+                    .map(|t| String::from_utf8_lossy(t).into_owned())
+                    .collect();
+                let name = name.join(" ");
+                self.current = match self.materials.iter().position(|m| *m == name) {
+                    Some(i) => i as u32,
+                    None => {
+                        self.materials.push(name);
+                        (self.materials.len() - 1) as u32
+                    }
+                };
+                Ok(())
+            }
             other => {
                 self.ignore(line, other);
                 Ok(())
@@ -322,13 +374,14 @@ impl Reader<'_> {
             self.corner_vt.push(fan(&poly[1]), before);
             self.corner_vn.push(fan(&poly[2]), before);
             self.faces.push(fan(&poly[0]));
+            self.face_material.push(self.current);
         }
         self.poly = poly;
         Ok(())
     }
 
     fn ignore(&mut self, line: usize, keyword: &[u8]) {
-        const KNOWN: [&str; 8] = ["l", "p", "g", "o", "s", "usemtl", "mtllib", "vp"];
+        const KNOWN: [&str; 6] = ["l", "p", "g", "o", "s", "vp"];
         let key = match std::str::from_utf8(keyword) {
             Ok(k) if KNOWN.contains(&k) => format!("`{k}`"),
             _ => "unrecognised".to_string(),
@@ -367,28 +420,66 @@ impl Reader<'_> {
                 "{n} {key} statement{s} ignored (first at line {first})"
             ));
         }
-        let mut mesh = Mesh::new(self.positions, self.faces);
-        let n = mesh.n_vertices();
-        let uv = per_vertex(&mesh.faces, &self.corner_vt, &self.uvs, n, self.bad_vt, UV);
-        match uv {
-            Ok(Some(v)) => mesh.vertex_attrs.insert("uv", AttrValues::Vec2(v)),
+        let mesh = Mesh::new(self.positions, self.faces);
+        let mut cols = Attributes::default();
+        match per_corner(&self.corner_vt, &self.uvs, self.bad_vt, UV) {
+            Ok(Some(v)) => cols.insert("uv", AttrValues::Vec2(v)),
             Ok(None) => {}
             Err(note) => notes.push(note),
         }
-        let normal = per_vertex(
-            &mesh.faces,
-            &self.corner_vn,
-            &self.normals,
-            n,
-            self.bad_vn,
-            NORMAL,
-        );
-        match normal {
-            Ok(Some(v)) => mesh.vertex_attrs.insert("normal", AttrValues::Vec3(v)),
+        match per_corner(&self.corner_vn, &self.normals, self.bad_vn, NORMAL) {
+            Ok(Some(v)) => cols.insert("normal", AttrValues::Vec3(v)),
             Ok(None) => {}
             Err(note) => notes.push(note),
         }
+        let mut mesh = mesh.with_corner_attributes(cols);
+        let used = MaterialUse {
+            dir: self.dir,
+            mtllibs: self.mtllibs,
+            materials: self.materials,
+            face_material: self.face_material,
+        };
+        used.apply(&mut mesh, &mut notes);
         Ok((mesh, notes))
+    }
+}
+
+/// What an OBJ file says of materials: its libraries, the names its faces use.
+struct MaterialUse<'o> {
+    dir: Option<&'o std::path::Path>,
+    mtllibs: Vec<String>,
+    materials: Vec<String>,
+    face_material: Vec<u32>,
+}
+
+impl MaterialUse<'_> {
+    /// The used materials from the `mtllib` libraries (see [`crate::mtl`]) and the face
+    /// column saying which each face uses, when the file names any.
+    fn apply(self, mesh: &mut Mesh, notes: &mut Vec<String>) {
+        if self.mtllibs.is_empty() || self.materials.is_empty() {
+            if !self.mtllibs.is_empty() {
+                notes.push("`mtllib` ignored: no face uses a material (`usemtl`)".into());
+            }
+            return;
+        }
+        let Some(dir) = self.dir else {
+            notes.push(
+                "`mtllib` ignored: material libraries are read only when the OBJ file is read \
+                 by path"
+                    .into(),
+            );
+            return;
+        };
+        let Some(materials) = crate::mtl::load(&self.mtllibs, dir, &self.materials, notes) else {
+            return;
+        };
+        mesh.materials = materials;
+        if self.face_material.iter().any(|&m| m != 0) {
+            mesh.face_attrs.insert(
+                coarsen_mesh::material::MATERIAL,
+                AttrValues::Label(self.face_material),
+            );
+        }
     }
 }
 
@@ -397,30 +488,26 @@ struct Words {
     attr: &'static str,
     one: &'static str,
     many: &'static str,
-    why: &'static str,
 }
 
 const UV: Words = Words {
     attr: "uv",
     one: "texture coordinate",
     many: "texture coordinates",
-    why: "seams",
 };
 
 const NORMAL: Words = Words {
     attr: "normal",
     one: "normal",
     many: "normals",
-    why: "creases",
 };
 
-/// One value per vertex when every corner of each vertex names the same value;
-/// `Ok(None)` when no face refers to any; `Err(note)` saying why it cannot be kept.
-fn per_vertex<T: Copy + Default + PartialEq>(
-    faces: &[[u32; 3]],
+/// The value at every face corner; `Ok(None)` when no face refers to any; `Err(note)`
+/// saying why they cannot be kept (none referred to, some corners without, a non-finite
+/// value).
+fn per_corner<T: Copy>(
     corners: &CornerRefs,
     values: &[T],
-    n_vertices: usize,
     bad: Option<(usize, &'static str)>,
     w: Words,
 ) -> Result<Option<Vec<T>>, String> {
@@ -447,44 +534,50 @@ fn per_vertex<T: Copy + Default + PartialEq>(
             w.attr, w.one
         ));
     }
-    let mut chosen = vec![NONE; n_vertices];
-    let mut conflict = vec![false; n_vertices];
-    for (f, c) in faces.iter().zip(corners.refs.chunks_exact(3)) {
-        for (&v, &r) in f.iter().zip(c) {
-            let slot = &mut chosen[v as usize];
-            if *slot == NONE {
-                *slot = r;
-            } else if *slot != r && values[*slot as usize] != values[r as usize] {
-                conflict[v as usize] = true;
-            }
-        }
-    }
-    let n_conflicts = conflict.iter().filter(|&&c| c).count();
-    if n_conflicts > 0 {
-        return Err(format!(
-            "{} not kept: {n_conflicts} vertices have several {} ({})",
-            w.attr, w.many, w.why
-        ));
-    }
     Ok(Some(
-        chosen
-            .iter()
-            .map(|&r| {
-                if r == NONE {
-                    T::default()
-                } else {
-                    values[r as usize]
-                }
-            })
-            .collect(),
+        corners.refs.iter().map(|&r| values[r as usize]).collect(),
     ))
 }
 
-/// Writes `mesh` as OBJ (positions, `uv` and `normal` columns, faces).
+/// Where an attribute written to OBJ comes from: a vertex column (indexed like `v`) or a
+/// wedge column (one entry per wedge, indexed by each corner's wedge).
+enum Source<'m, T> {
+    Vertex(&'m [T]),
+    Wedge(&'m [T]),
+}
+
+impl<T> Source<'_, T> {
+    fn values(&self) -> &[T] {
+        match self {
+            Source::Vertex(v) | Source::Wedge(v) => v,
+        }
+    }
+
+    /// The 1-based index corner `k` of face `f` (vertex `v`) writes.
+    fn index(&self, mesh: &Mesh, f: usize, k: usize, v: u32) -> u64 {
+        match self {
+            Source::Vertex(_) => u64::from(v) + 1,
+            Source::Wedge(_) => u64::from(mesh.wedges.corner(f, k)) + 1,
+        }
+    }
+}
+
+/// The `uv` or `normal` data of `mesh` to write: its wedge column, else its vertex column.
+fn source<'m, T>(
+    mesh: &'m Mesh,
+    pick: impl Fn(&'m Attributes) -> Option<&'m [T]>,
+) -> Option<Source<'m, T>> {
+    pick(mesh.wedges.attrs())
+        .map(Source::Wedge)
+        .or_else(|| pick(&mesh.vertex_attrs).map(Source::Vertex))
+}
+
+/// Writes `mesh` as OBJ (positions, `uv` and `normal` columns per vertex or per corner,
+/// faces).
 pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Result<()> {
-    let uv = attributes.then(|| mesh.vertex_attrs.vec2("uv")).flatten();
+    let uv = attributes.then(|| source(mesh, |a| a.vec2("uv"))).flatten();
     let normal = attributes
-        .then(|| mesh.vertex_attrs.vec3("normal"))
+        .then(|| source(mesh, |a| a.vec3("normal")))
         .flatten();
     writeln!(
         w,
@@ -495,21 +588,23 @@ pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Re
     for p in &mesh.positions {
         vector(w, "v", &[p.x, p.y, p.z])?;
     }
-    for t in uv.unwrap_or_default() {
+    for t in uv.as_ref().map_or(&[][..], Source::values) {
         vector(w, "vt", &[t.x, t.y])?;
     }
-    for n in normal.unwrap_or_default() {
+    for n in normal.as_ref().map_or(&[][..], Source::values) {
         vector(w, "vn", &[n.x, n.y, n.z])?;
     }
-    for f in &mesh.faces {
+    for (f, face) in mesh.faces.iter().enumerate() {
         w.write_all(b"f")?;
-        for &v in f {
+        for (k, &v) in face.iter().enumerate() {
             let i = u64::from(v) + 1;
-            match (uv.is_some(), normal.is_some()) {
-                (false, false) => write!(w, " {i}")?,
-                (true, false) => write!(w, " {i}/{i}")?,
-                (false, true) => write!(w, " {i}//{i}")?,
-                (true, true) => write!(w, " {i}/{i}/{i}")?,
+            let t = uv.as_ref().map(|s| s.index(mesh, f, k, v));
+            let n = normal.as_ref().map(|s| s.index(mesh, f, k, v));
+            match (t, n) {
+                (None, None) => write!(w, " {i}")?,
+                (Some(t), None) => write!(w, " {i}/{t}")?,
+                (None, Some(n)) => write!(w, " {i}//{n}")?,
+                (Some(t), Some(n)) => write!(w, " {i}/{t}/{n}")?,
             }
         }
         w.write_all(b"\n")?;
@@ -614,17 +709,30 @@ mod tests {
     }
 
     #[test]
-    fn uv_with_seams_is_not_kept_and_the_note_counts_vertices() {
+    fn uv_with_seams_is_kept_per_corner_and_written_back() {
         // Vertex 1 takes uv 1 in one face and uv 5 (a different value) in the other;
         // vertex 3 takes uv 3 and uv 6, which hold the same value: not a seam.
         let src = format!(
             "{SQUARE}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0\nvt 1 1\nf 1/1 2/2 3/3\nf 1/5 3/6 4/4\n"
         );
         let (m, notes) = load(&src).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
         assert!(m.vertex_attrs.get("uv").is_none());
-        assert_eq!(
-            notes,
-            ["uv not kept: 1 vertices have several texture coordinates (seams)"]
+        assert_eq!(m.wedges.split_vertices(), 1);
+        let corner_uv = [0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.5, 0.0, 1.0, 1.0, 0.0, 1.0];
+        let expect: Vec<DVec2> = corner_uv
+            .chunks(2)
+            .map(|c| DVec2::new(c[0], c[1]))
+            .collect();
+        assert_eq!(m.corner_column("uv"), Some(AttrValues::Vec2(expect)));
+        let mut bytes = Vec::new();
+        write(&m, &mut bytes, true).unwrap();
+        let (back, _) = read(&bytes, "t.obj", &ReadOptions::default()).unwrap();
+        assert_eq!(back, m);
+        assert!(
+            String::from_utf8(bytes)
+                .unwrap()
+                .contains("f 1/4 3/3 4/5\n")
         );
     }
 

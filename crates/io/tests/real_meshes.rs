@@ -50,19 +50,21 @@ fn shared_meshes_load_with_their_documented_counts() {
     }
 }
 
+/// Spot's wedges (one per `vt` line: no two vertices share one) and its vertices on seams.
+const SPOT_WEDGES: usize = 3_225;
+const SPOT_SEAM_VERTICES: usize = 277;
+
 #[test]
-fn spot_explains_why_its_uvs_are_not_per_vertex() {
+fn spot_keeps_its_uvs_across_its_seams_as_wedges() {
     let Some(spot) = load("spot.obj") else { return };
-    match spot.mesh.vertex_attrs.vec2("uv") {
-        Some(uv) => assert_eq!(uv.len(), 2_930),
-        None => assert!(
-            spot.notes
-                .iter()
-                .any(|n| n.starts_with("uv not kept: ") && n.contains("(seams)")),
-            "{:?}",
-            spot.notes
-        ),
-    }
+    assert!(spot.mesh.vertex_attrs.vec2("uv").is_none());
+    assert!(spot.notes.is_empty(), "{:?}", spot.notes);
+    // 3,225 `vt` lines for 2,930 vertices: the seams' vertices take two or more.
+    let w = &spot.mesh.wedges;
+    assert_eq!(
+        (w.len(), w.split_vertices()),
+        (SPOT_WEDGES, SPOT_SEAM_VERTICES)
+    );
 }
 
 #[test]
@@ -72,6 +74,8 @@ fn beetle_keeps_its_normals_or_says_why_not() {
     };
     match beetle.mesh.vertex_attrs.vec3("normal") {
         Some(n) => assert_eq!(n.len(), 1_148),
+        // Hard edges: normals per corner.
+        None if beetle.mesh.wedges.attrs().vec3("normal").is_some() => {}
         None => assert!(
             beetle
                 .notes
@@ -111,7 +115,10 @@ fn shared_meshes_survive_a_binary_ply_round_trip_bit_for_bit() {
         write_to(&a.mesh, Format::Ply, &mut ply, &WriteOptions::default()).expect("write");
         let b = read_bytes(&ply, Format::Ply, "round-trip.ply", &ReadOptions::default())
             .expect("read back");
-        assert_eq!(b.mesh, a.mesh, "{}", path.display());
+        // PLY holds no per-corner values (`left_out` says so): all the rest comes back.
+        let mut expect = a.mesh;
+        expect.wedges = Default::default();
+        assert_eq!(b.mesh, expect, "{}", path.display());
         assert!(b.notes.is_empty(), "{}: {:?}", path.display(), b.notes);
     }
 }

@@ -15,7 +15,7 @@
 //! in the [`CarryReport`], so the run report can say so. No stage writes attribute
 //! plumbing of its own.
 
-use crate::{AttrValues, Attributes, Domain, Index, Mesh};
+use crate::{AttrValues, Attributes, Domain, Index, Mesh, Wedges};
 use coarsen_geom::{DVec2, DVec3};
 
 /// Where each new vertex came from: a list of weighted old vertices per new vertex.
@@ -195,6 +195,9 @@ impl FaceOrigins {
 pub struct CarryReport {
     /// `(domain, name)` of every dropped column.
     pub dropped: Vec<(Domain, String)>,
+    /// Names of the per-corner (wedge) columns dropped: some new corner could not be
+    /// traced to a corner of its parent face.
+    pub dropped_wedges: Vec<String>,
 }
 
 impl CarryReport {
@@ -205,6 +208,9 @@ impl CarryReport {
             .map(|(d, n)| {
                 format!("{d} attribute `{n}` dropped: new elements have no origin to carry it from")
             })
+            .chain(self.dropped_wedges.iter().map(|n| {
+                format!("per-corner attribute `{n}` dropped: new corners have no corner of a parent face to carry it from")
+            }))
             .collect()
     }
 }
@@ -330,15 +336,54 @@ impl Mesh {
             .map(|n| (Domain::Vertex, n))
             .chain(df.into_iter().map(|n| (Domain::Face, n)))
             .collect();
+        let (wedges, dropped_wedges) =
+            match self.traced_corners(&faces, vertex_origins, face_origins) {
+                Some(old_corners) => (self.wedges.regrouped(&old_corners, &faces), Vec::new()),
+                None => (
+                    Wedges::default(),
+                    self.wedges.attrs().names().map(str::to_string).collect(),
+                ),
+            };
         (
             Mesh {
                 positions,
                 faces,
                 vertex_attrs,
                 face_attrs,
+                wedges,
+                materials: self.materials.clone(),
             },
-            CarryReport { dropped },
+            CarryReport {
+                dropped,
+                dropped_wedges,
+            },
         )
+    }
+
+    /// For each corner of `faces`, the corner of its parent face whose vertex the new
+    /// vertex copies; `None` when `self` has no wedges or some corner cannot be traced
+    /// (a face without parent, a vertex that is not a copy of one of its parent's).
+    fn traced_corners(
+        &self,
+        faces: &[[Index; 3]],
+        vertex_origins: &VertexOrigins,
+        face_origins: &FaceOrigins,
+    ) -> Option<Vec<Index>> {
+        if self.wedges.is_empty() {
+            return None;
+        }
+        let copies = vertex_origins.single_sources()?;
+        let mut old_corners = Vec::with_capacity(3 * faces.len());
+        for (i, face) in faces.iter().enumerate() {
+            let p = face_origins.parent(i)?;
+            let parent = self.faces.get(p as usize)?;
+            for &v in face {
+                let source = copies[v as usize];
+                let k = parent.iter().position(|&u| u == source)?;
+                old_corners.push(3 * p + k as Index);
+            }
+        }
+        Some(old_corners)
     }
 }
 

@@ -639,12 +639,15 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         .iter()
         .map(|&v| mesh.positions[v as usize])
         .collect();
-    let (out, carry) = mesh.rebuilt(
+    // Corners keep their order in every kept face, also where welding renamed a vertex.
+    let wedges = mesh.wedges.follow_faces(&kept_faces, &new_faces);
+    let (mut out, carry) = mesh.rebuilt(
         positions,
         new_faces,
         &VertexOrigins::from_map(&old_of_new),
         &FaceOrigins::from_parents(kept_faces),
     );
+    out.wedges = wedges;
     report.dropped_attributes = carry
         .dropped
         .iter()
@@ -725,7 +728,7 @@ fn mark_duplicates(faces: &[[Index; 3]], keep: &mut [bool], drop: bool) -> (usiz
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::AttrValues;
+    use crate::{AttrValues, DVec2};
 
     #[test]
     fn a_bow_tie_vertex_is_split_into_one_vertex_per_fan() {
@@ -915,6 +918,30 @@ mod tests {
         let ids = m.vertex_attrs.scalar("id").unwrap();
         assert_eq!(ids[0], 0.0);
         assert!(ids.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn welding_keeps_every_corner_value_as_wedges() {
+        // Each cube face a UV chart of its own: the corners of one position disagree.
+        let soup = cube_soup();
+        let corner_uv: Vec<DVec2> = (0..3 * soup.n_faces())
+            .map(|c| {
+                let p = soup.positions[soup.faces[c / 3][c % 3] as usize];
+                DVec2::new((c / 6) as f64, p.x + 2.0 * p.y + 4.0 * p.z)
+            })
+            .collect();
+        let mut cols = crate::Attributes::default();
+        cols.insert("uv", AttrValues::Vec2(corner_uv.clone()));
+        // Kept as wedges although each soup vertex has one value (as a glTF reader would).
+        let mut m = soup;
+        m.wedges = crate::Wedges::from_corners(&m.faces, cols);
+        let (m, _) = clean(m, &HygieneOptions::soup()).unwrap();
+        assert_eq!(m.n_vertices(), 8);
+        assert!(m.validate_indices().is_ok());
+        assert_eq!(m.corner_column("uv"), Some(AttrValues::Vec2(corner_uv)));
+        // Every cube corner is on three charts.
+        assert_eq!(m.wedges.split_vertices(), 8);
+        assert_eq!(m.wedges.len(), 24);
     }
 
     #[test]

@@ -2,6 +2,9 @@
 //!
 //! * [`Mesh`]: positions (`DVec3`), faces (`[u32; 3]`, consistently oriented), and
 //!   per-vertex and per-face [`Attributes`].
+//! * [`wedge`]: per-corner attributes ([`Wedges`]): a vertex's distinct UVs and normals
+//!   across seams and hard edges, and which corners use which.
+//! * [`material`]: materials and textures a file named, carried for writing back.
 //! * [`carry`]: how a stage that changes connectivity says where each new vertex and face
 //!   came from ([`VertexOrigins`], [`FaceOrigins`]) so that one routine carries every
 //!   attribute.
@@ -30,12 +33,14 @@
 pub mod attribute;
 pub mod carry;
 pub mod hygiene;
+pub mod material;
 pub mod order;
 pub mod repair;
 pub mod ring;
 pub mod sanity;
 pub mod scale;
 pub mod topology;
+pub mod wedge;
 
 #[cfg(test)]
 mod fixtures;
@@ -44,9 +49,11 @@ pub use attribute::{AttrKind, AttrValues, Attributes, Domain};
 pub use carry::{CarryReport, FaceOrigins, VertexOrigins};
 pub use coarsen_geom::{Aabb, DVec2, DVec3};
 pub use hygiene::{HygieneError, HygieneOptions, HygieneReport, clean};
+pub use material::{Image, Materials};
 pub use sanity::{SanityError, SanityOptions, sanity_check, sanity_check_with};
 pub use topology::Topology;
 pub use topology::{TopologyError, TopologySummary};
+pub use wedge::Wedges;
 
 use coarsen_geom::triangle;
 
@@ -64,6 +71,11 @@ pub struct Mesh {
     pub vertex_attrs: Attributes,
     /// Per-face attribute columns, each `faces.len()` long.
     pub face_attrs: Attributes,
+    /// Per-corner attributes (UV seams, hard edges) as wedges; empty when there are none.
+    pub wedges: Wedges,
+    /// Materials and textures the file named, carried unchanged for writing back; the
+    /// face label column `material` says which one each face uses.
+    pub materials: Materials,
 }
 
 /// An index out of range, a wrong column length or a repeated index in one face.
@@ -90,6 +102,12 @@ pub enum IndexError {
         len: usize,
         /// The element count.
         expected: usize,
+    },
+    /// Wedges that do not match the faces.
+    #[error("wedges: {detail}")]
+    Wedge {
+        /// What is wrong.
+        detail: String,
     },
     /// More elements than `u32` indices can address.
     #[error("{count} {what} do not fit 32-bit indices")]
@@ -229,6 +247,7 @@ impl Mesh {
         }
         self.vertex_attrs.check_len(Domain::Vertex, n)?;
         self.face_attrs.check_len(Domain::Face, self.faces.len())?;
+        self.wedges.check(&self.faces)?;
         Ok(())
     }
 }

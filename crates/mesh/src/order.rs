@@ -136,7 +136,11 @@ pub fn along_curve(mesh: Mesh) -> Mesh {
         .par_iter()
         .map(|&f| mesh.faces[f as usize].map(|v| order.vertex_rank[v as usize]))
         .collect();
-    if mesh.vertex_attrs.is_empty() && mesh.face_attrs.is_empty() {
+    if mesh.vertex_attrs.is_empty()
+        && mesh.face_attrs.is_empty()
+        && mesh.wedges.is_empty()
+        && mesh.materials.is_empty()
+    {
         return Mesh::new(positions, faces);
     }
     let CurveOrder {

@@ -185,6 +185,16 @@ pub(crate) fn find_non_finite(mesh: &Mesh) -> Option<NonFinite> {
         let element = values.first_non_finite()?;
         Some(NonFinite::Attribute(domain, name.to_string(), element))
     })
+    .or_else(|| {
+        // A per-corner value is named by its wedge's vertex.
+        let (name, wedge) = mesh.wedges.first_non_finite()?;
+        let vertex = mesh.wedges.vertices()[wedge] as usize;
+        Some(NonFinite::Attribute(
+            Domain::Vertex,
+            name.to_string(),
+            vertex,
+        ))
+    })
 }
 
 /// The area threshold of the degenerate-face test: `rel · (bbox diagonal)²`.

@@ -56,6 +56,10 @@ pub struct RunReport {
     pub output_faces: usize,
     /// Per-stage records, in order.
     pub stages: Vec<StageRecord>,
+    /// What the run could not carry from its input to its output (per-corner UVs and
+    /// normals the stages cannot carry yet, materials the faces lost), one sentence each.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// Wall time of all stages, in seconds.
     pub seconds: f64,
 }
@@ -77,6 +81,9 @@ impl RunReport {
             self.output_faces,
             self.seconds
         );
+        for n in &self.notes {
+            s.push_str(&format!("  note: {n}\n"));
+        }
         for r in &self.stages {
             s.push_str(&format!(
                 "  {:>2}. {:<20} {:>9} → {:<9} faces  {:>8.3} s\n",

@@ -20,8 +20,9 @@
 //! level gives the input back vertex for vertex.
 
 use crate::{Pipeline, PipelineStage, RunReport, StageRecord};
+use coarsen_mesh::material::MATERIAL;
 use coarsen_mesh::repair::{self, Readied, RepairError};
-use coarsen_mesh::{Mesh, sanity};
+use coarsen_mesh::{Materials, Mesh, Wedges, sanity};
 use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport, Target};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -225,6 +226,8 @@ impl Pipeline {
     /// `input_notes` are left for the caller.
     pub fn run(&self, input: Mesh, opts: RunOptions<'_>) -> Result<(Mesh, RunReport), RunError> {
         let start = Instant::now();
+        let had_material_column = input.face_attrs.label(MATERIAL).is_some();
+        let (input, materials, notes) = self.without_wedges(input);
         let input = opts.prepare(input);
         let original = input.clone();
         let mut mesh = input;
@@ -283,11 +286,74 @@ impl Pipeline {
                 observe(record, &mesh);
             }
         }
+        report.notes = notes;
+        report.notes.extend(keep_materials(
+            &mut mesh,
+            materials,
+            had_material_column,
+            &self.name,
+        ));
         report.seconds = start.elapsed().as_secs_f64();
         report.output_vertices = mesh.n_vertices();
         report.output_faces = mesh.n_faces();
         Ok((mesh, report))
     }
+}
+
+impl Pipeline {
+    /// `input` as the stages take it: per-corner columns that are per vertex after all
+    /// become vertex columns (carried like every vertex column); the others are taken off,
+    /// as no stage carries wedges yet, and said so. The materials are taken off too, for
+    /// [`keep_materials`] to put back on the output.
+    fn without_wedges(&self, mut input: Mesh) -> (Mesh, Materials, Vec<String>) {
+        let mut notes = Vec::new();
+        let per_vertex = input
+            .wedges
+            .take_per_vertex(&input.faces, input.n_vertices());
+        for (name, values) in per_vertex.iter() {
+            input.vertex_attrs.insert(name, values.clone());
+        }
+        if !input.wedges.is_empty() {
+            let names: Vec<String> = input
+                .wedges
+                .attrs()
+                .names()
+                .map(|n| format!("`{n}`"))
+                .collect();
+            notes.push(format!(
+                "per-corner {} ({} vertices on seams or hard edges) not carried: pipeline `{}` \
+                 cannot carry per-corner attributes yet, so the output has none",
+                names.join(" and "),
+                input.wedges.split_vertices(),
+                self.name
+            ));
+            input.wedges = Wedges::default();
+        }
+        let materials = std::mem::take(&mut input.materials);
+        (input, materials, notes)
+    }
+}
+
+/// Puts the input's `materials` on the output `mesh`; when the faces lost the column that
+/// said which material each uses (`had_column`), every face takes the first, and the note
+/// says so.
+fn keep_materials(
+    mesh: &mut Mesh,
+    materials: Materials,
+    had_column: bool,
+    pipeline: &str,
+) -> Option<String> {
+    if materials.is_empty() {
+        return None;
+    }
+    mesh.materials = materials;
+    if !had_column || mesh.face_attrs.label(MATERIAL).is_some() {
+        return None;
+    }
+    Some(format!(
+        "pipeline `{pipeline}` did not carry which material each face uses: every face of the \
+         output uses the first material"
+    ))
 }
 
 /// What every stage of one run sees besides its input mesh.

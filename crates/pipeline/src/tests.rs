@@ -686,3 +686,30 @@ fn a_cancelled_run_stops_inside_the_stage_or_before_the_next() {
     // Without the flag the same pipeline runs.
     assert!(marks.run(square(), RunOptions::default()).is_ok());
 }
+
+#[test]
+fn per_corner_columns_become_vertex_columns_or_a_note_that_they_were_not_carried() {
+    use coarsen_mesh::{Attributes, DVec2};
+    let mut cols = Attributes::default();
+    // Vertex 0 takes two UVs (a seam); every corner the same normal.
+    let uv = [0.0, 1.0, 2.0, 3.0, 2.0, 4.0].map(|u| DVec2::new(u, 0.0));
+    cols.insert("uv", AttrValues::Vec2(uv.to_vec()));
+    cols.insert("normal", AttrValues::Vec3(vec![DVec3::Z; 6]));
+    let mesh = square().with_corner_attributes(cols);
+    assert_eq!(mesh.wedges.split_vertices(), 1);
+    let p = parse(GOOD, &Overrides::default()).unwrap();
+    let (out, report) = p.run(mesh, RunOptions::default()).unwrap();
+    assert!(out.wedges.is_empty());
+    assert!(out.vertex_attrs.vec3("normal").is_some());
+    assert_eq!(
+        report.notes,
+        [
+            "per-corner `uv` (1 vertices on seams or hard edges) not carried: pipeline `demo` \
+          cannot carry per-corner attributes yet, so the output has none"
+        ]
+    );
+    assert!(report.summary().contains("note: per-corner `uv`"));
+    // Without wedges, nothing is said and the JSON has no `notes`.
+    let (_, report) = p.run(square(), RunOptions::default()).unwrap();
+    assert!(report.notes.is_empty() && !report.to_json().contains("\"notes\""));
+}

@@ -1,0 +1,284 @@
+//! glTF and GLB through the command: OBJ → GLB → OBJ keeps UVs and normals across seams
+//! and hard edges bit for bit (at `f32`, what glTF stores), and the written files pass the
+//! Khronos glTF validator when it is installed (`npm install --prefix target/node
+//! gltf-validator`, or `COARSEN_GLTF_VALIDATOR=/path/to/node_modules`).
+
+use coarsen_mesh::{AttrValues, Attributes, DVec2, DVec3, Image, Materials, Mesh};
+use coarsen_tests::{read_mesh, run_cli, shared_data, stderr, stdout};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const EXE: &str = env!("CARGO_BIN_EXE_coarsen-under-test");
+
+/// A cube whose six sides are UV charts of their own, with flat normals: every vertex is
+/// on three seams and three hard edges.
+fn charted_cube() -> Mesh {
+    let p = |i: u32| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
+    let positions = (0..8).map(p).collect();
+    let sides: [[u32; 4]; 6] = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut faces = Vec::new();
+    let (mut uv, mut normal) = (Vec::new(), Vec::new());
+    let square = [[0.0, 0.0], [0.25, 0.0], [0.25, 0.25], [0.0, 0.25]];
+    for (s, q) in sides.iter().enumerate() {
+        let mesh_q: Vec<DVec3> = q.iter().map(|&i| p(i)).collect();
+        let n = (mesh_q[1] - mesh_q[0])
+            .cross(mesh_q[2] - mesh_q[0])
+            .normalize();
+        for tri in [[0, 1, 2], [0, 2, 3]] {
+            faces.push(tri.map(|k| q[k]));
+            for k in tri {
+                uv.push(DVec2::new(
+                    0.25 * s as f64 + square[k][0] * 0.5,
+                    square[k][1] + 0.5,
+                ));
+                normal.push(n);
+            }
+        }
+    }
+    let mut cols = Attributes::default();
+    cols.insert("uv", AttrValues::Vec2(uv));
+    cols.insert("normal", AttrValues::Vec3(normal));
+    Mesh::new(positions, faces).with_corner_attributes(cols)
+}
+
+/// Every corner's position, UV and normal as `f32` bits (what glTF stores).
+fn corners_f32(m: &Mesh) -> Vec<[u32; 8]> {
+    let uv = m.corner_column("uv");
+    let normal = m.corner_column("normal");
+    let (Some(AttrValues::Vec2(uv)), Some(AttrValues::Vec3(n))) = (uv, normal) else {
+        panic!("the mesh has no uv or no normal");
+    };
+    let b = |x: f64| (x as f32).to_bits();
+    m.faces
+        .iter()
+        .flatten()
+        .zip(uv.iter().zip(&n))
+        .map(|(&v, (t, n))| {
+            let p = m.positions[v as usize];
+            [
+                b(p.x),
+                b(p.y),
+                b(p.z),
+                b(t.x),
+                b(t.y),
+                b(n.x),
+                b(n.y),
+                b(n.z),
+            ]
+        })
+        .collect()
+}
+
+/// `coarsen convert FROM TO`, asserting success.
+fn convert(from: &Path, to: &Path) {
+    let out = run_cli(
+        EXE,
+        &["convert", &from.to_string_lossy(), &to.to_string_lossy()],
+    );
+    assert!(
+        out.status.success(),
+        "convert {}: {}",
+        from.display(),
+        stderr(&out)
+    );
+}
+
+/// OBJ → GLB → OBJ → GLB → OBJ: the first OBJ written back has the input's corners at
+/// `f32`, every seam kept; the second trip changes no byte.
+fn round_trip(input: &Path, dir: &Path) -> PathBuf {
+    let glb = dir.join("a.glb");
+    let (obj1, glb2, obj2) = (dir.join("b.obj"), dir.join("c.glb"), dir.join("d.obj"));
+    convert(input, &glb);
+    convert(&glb, &obj1);
+    let (a, b) = (read_mesh(input), read_mesh(&obj1));
+    assert_eq!(b.n_faces(), a.n_faces());
+    assert_eq!(corners_f32(&b), corners_f32(&a), "{}", input.display());
+    assert_eq!(b.wedges.split_vertices(), a.wedges.split_vertices());
+    convert(&obj1, &glb2);
+    convert(&glb2, &obj2);
+    let bytes = |p: &Path| std::fs::read(p).expect("written");
+    assert!(
+        bytes(&obj1) == bytes(&obj2),
+        "the second trip changed {}",
+        obj2.display()
+    );
+    assert!(bytes(&glb) == bytes(&glb2) || read_mesh(&glb2) == read_mesh(&glb));
+    glb
+}
+
+/// The folder that holds `gltf-validator` and a working `node`, or why not.
+fn validator() -> Result<PathBuf, String> {
+    let dir = match std::env::var_os("COARSEN_GLTF_VALIDATOR") {
+        Some(d) => PathBuf::from(d),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/node/node_modules"),
+    };
+    if !dir.join("gltf-validator").is_dir() {
+        return Err(format!("no gltf-validator in {}", dir.display()));
+    }
+    match Command::new("node").arg("--version").output() {
+        Ok(o) if o.status.success() => Ok(dir),
+        _ => Err("no `node` command".into()),
+    }
+}
+
+/// Runs the Khronos validator on `files`, asserting no errors; says so and returns when
+/// the validator is not installed.
+fn validate(files: &[PathBuf]) {
+    let dir = match validator() {
+        Ok(d) => d,
+        Err(why) => {
+            eprintln!(
+                "glTF validation skipped: {why} (`npm install --prefix target/node gltf-validator`)"
+            );
+            return;
+        }
+    };
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/gltf-validate.js");
+    let out = Command::new("node")
+        .arg(script)
+        .args(files)
+        .env("NODE_PATH", dir)
+        .output()
+        .expect("node runs");
+    eprint!("{}", stdout(&out));
+    assert!(out.status.success(), "{}{}", stdout(&out), stderr(&out));
+}
+
+#[test]
+fn a_charted_cube_round_trips_through_glb_and_validates() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cube.obj");
+    let cube = charted_cube();
+    assert_eq!(cube.wedges.split_vertices(), 8);
+    coarsen_io::write_path(&cube, &input, &Default::default()).unwrap();
+    let glb = round_trip(&input, dir.path());
+    let gltf = dir.path().join("cube.gltf");
+    convert(&input, &gltf);
+    validate(&[glb, gltf.clone()]);
+    // One mesh by name: this file's only mesh has none.
+    let g = gltf.to_string_lossy();
+    let out = run_cli(EXE, &["info", &g, "--gltf-mesh", "cow"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("no mesh called `cow` in the scene (meshes: #0 (unnamed))"),
+        "{}",
+        stderr(&out)
+    );
+    // A material library with a texture: the GLB embeds the image, the glTF refers to it.
+    let textured = dir.path().join("textured.obj");
+    let obj = std::fs::read_to_string(&input).unwrap();
+    std::fs::write(&textured, format!("mtllib cube.mtl\nusemtl hide\n{obj}")).unwrap();
+    let mtl = "newmtl other\nKd 1 0 0\nnewmtl hide\nKd 0.5 0.25 1\nmap_Kd -s 1 1 1 hide tex.png\n";
+    std::fs::write(dir.path().join("cube.mtl"), mtl).unwrap();
+    let opts = coarsen_render::RenderOptions {
+        width: 32,
+        height: 32,
+        ..Default::default()
+    };
+    let png = coarsen_render::render(&[&cube], &opts)
+        .unwrap()
+        .to_png()
+        .unwrap();
+    std::fs::write(dir.path().join("hide tex.png"), &png).unwrap();
+    let (tglb, tgltf) = (dir.path().join("t.glb"), dir.path().join("t.gltf"));
+    convert(&textured, &tglb);
+    convert(&textured, &tgltf);
+    let back = read_mesh(&tglb);
+    assert_eq!(back.materials.images[0].bytes.as_deref(), Some(&png[..]));
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&tgltf).unwrap()).unwrap();
+    assert_eq!(doc["images"][0]["uri"], "hide%20tex.png");
+    assert_eq!(doc["materials"][0]["name"], "hide");
+    assert_eq!(
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"],
+        serde_json::json!([0.5, 0.25, 1.0, 1.0])
+    );
+    validate(&[tglb, tgltf]);
+    // PLY holds no per-corner values: said, not dropped silently.
+    let ply = dir.path().join("cube.ply");
+    let out = run_cli(
+        EXE,
+        &["convert", &input.to_string_lossy(), &ply.to_string_lossy()],
+    );
+    assert!(out.status.success());
+    assert!(
+        stderr(&out).contains("warning: per-corner `uv` and `normal` (8 vertices on seams"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn spot_round_trips_through_glb_and_a_run_says_what_it_did_not_carry() {
+    let Some(data) = shared_data() else {
+        eprintln!("skipped: ../shared/data is absent (set COARSEN_DATA)");
+        return;
+    };
+    let spot = data.join("spot.obj");
+    let dir = tempfile::tempdir().unwrap();
+    // spot has UVs, not normals: give it flat normals (hard edges everywhere) first.
+    let mut m = read_mesh(&spot);
+    let uv = m.corner_column("uv").expect("spot is textured");
+    assert!(m.wedges.split_vertices() > 0, "spot's UV seams");
+    let normal = (0..m.n_faces())
+        .flat_map(|f| [m.face_normal(f); 3])
+        .collect();
+    let mut cols = Attributes::default();
+    cols.insert("uv", uv);
+    cols.insert("normal", AttrValues::Vec3(normal));
+    m = Mesh::new(m.positions, m.faces).with_corner_attributes(cols);
+    let input = dir.path().join("spot.obj");
+    coarsen_io::write_path(&m, &input, &Default::default()).unwrap();
+    let glb = round_trip(&input, dir.path());
+    // Textured: a material whose base colour is an embedded PNG (a picture of spot).
+    let opts = coarsen_render::RenderOptions {
+        width: 64,
+        height: 64,
+        ..Default::default()
+    };
+    let png = coarsen_render::render(&[&m], &opts)
+        .unwrap()
+        .to_png()
+        .unwrap();
+    m.materials = Materials {
+        json: serde_json::json!({
+            "materials": [{"name": "spot", "pbrMetallicRoughness":
+                {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}],
+            "textures": [{"source": 0}],
+            "images": [{"name": "spot"}],
+        })
+        .to_string(),
+        images: vec![Image {
+            bytes: Some(png.clone()),
+            mime_type: Some("image/png".into()),
+            ..Default::default()
+        }],
+    };
+    let textured = dir.path().join("spot-textured.glb");
+    coarsen_io::write_path(&m, &textured, &Default::default()).unwrap();
+    let back = read_mesh(&textured);
+    assert_eq!(back.materials.images[0].bytes.as_deref(), Some(&png[..]));
+    let out_glb = dir.path().join("spot-qem.glb");
+    let (t, o) = (textured.to_string_lossy(), out_glb.to_string_lossy());
+    let run = run_cli(EXE, &["run", "qem", &t, "-o", &o, "--ratio", "0.7"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let said = stdout(&run);
+    assert!(
+        said.contains("note: per-corner `uv` and `normal` ("),
+        "{said}"
+    );
+    assert!(
+        said.contains("note: textures of the materials not written"),
+        "{said}"
+    );
+    // The material itself (its name, its image) is still there.
+    let out = read_mesh(&out_glb);
+    assert_eq!(out.materials.images[0].bytes.as_deref(), Some(&png[..]));
+    validate(&[glb, textured, out_glb]);
+}
