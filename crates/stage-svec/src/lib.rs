@@ -237,7 +237,7 @@ params! {
         /// the plain squared volume, the abstract's "square volume error variation with
         /// constraint (SVEC), shape factor and normal constraint factor of triangle".
         pub factors: String = "face".to_string(),
-        /// Normal factor with the absolute value (readings, 2): "N₀ = Σ((1 − |n₀·nᵢ|)/2)/m"
+        /// Normal factor with the absolute value (readings, 2): N₀ = Σ((1 − abs(n₀·nᵢ))/2)/m
         /// as extracted; `false` takes (1 − n₀·nᵢ)/2, which alone reaches the stated
         /// "0 ≤ N₀ ≤ 1" and does not read a fold (normals near 180°, Fig. 5) as flat.
         pub normal_abs: bool = true,
