@@ -519,8 +519,9 @@ pub fn splice(text: &str, section: &str, before: &str) -> String {
                 .map_or(text.len(), |j| i + HEADING.len() + j + 1);
             (&text[..i], &text[end..])
         }
-        None => match text.find(&format!("{before}\n")) {
-            Some(i) => (&text[..i], &text[i..]),
+        // `before` opens a line (the rest of the heading may follow).
+        None => match text.find(&format!("\n{before}")) {
+            Some(i) => (&text[..i + 1], &text[i + 1..]),
             None => (text, ""),
         },
     };
@@ -533,16 +534,22 @@ mod tests {
 
     #[test]
     fn a_section_is_replaced_in_place_or_put_before_the_heading() {
-        let doc = "# R\n\n## A\n\na\n\n## B\n\nb\n";
+        // The heading named by its first words, as "## Other tools" names its own.
+        let doc = "# R\n\n## A\n\na\n\n## B — more\n\nb\n";
         let with = splice(doc, "## Paper 2's readings\n\nnew\n\n", "## B");
         assert_eq!(
             with,
-            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnew\n\n## B\n\nb\n"
+            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnew\n\n## B — more\n\nb\n"
         );
         let again = splice(&with, "## Paper 2's readings\n\nnewer\n\n", "## B");
         assert_eq!(
             again,
-            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnewer\n\n## B\n\nb\n"
+            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnewer\n\n## B — more\n\nb\n"
+        );
+        // No such heading: at the end.
+        assert_eq!(
+            splice("# R\n", "## Paper 2's readings\n", "## C"),
+            "# R\n## Paper 2's readings\n"
         );
     }
 
