@@ -8,7 +8,8 @@
 //! * the Stanford bunny (when `../shared/data` has it) with 70 % and 95 % of faces removed;
 //! * a 1.3M-face icosphere down to 60 000 faces;
 //! * issue #6's speed bar: the bunny subdivided 1-to-4 three times (4.4M faces) down to
-//!   60 000 faces by `simplify.qem` and `simplify.svec` against meshoptimizer
+//!   60 000 faces by `simplify.qem` and `simplify.svec` (with the settings of the shipped
+//!   `svec` pipeline, `pipelines/svec.toml`) against meshoptimizer
 //!   (`cargo bench -p coarsen-benches --bench qem -- scale` runs only this case), with
 //!   the ratios by wall time beside those by CPU time (the engine's set-up runs on
 //!   rayon's threads: wall time is what a user waits, CPU time what the machine spends).
@@ -161,7 +162,7 @@ fn scale_case(big: &Mesh) {
             timed(|| meshopt_simplify(&indices, &positions, goal));
         let qem_stage = SimplifyQem::new(QemParams::default());
         let (qem, qem_wall, qem_faces) = timed_stage(qem_stage, big, target);
-        let svec_stage = SimplifySvec::new(SvecParams::default());
+        let svec_stage = SimplifySvec::new(shipped_svec());
         let (svec, svec_wall, svec_faces) = timed_stage(svec_stage, big, target);
         let (after, after_wall, _) = timed(|| meshopt_simplify(&indices, &positions, goal));
         let (theirs, theirs_wall) = (0.5 * (before + after), 0.5 * (before_wall + after_wall));
@@ -193,6 +194,19 @@ fn scale_case(big: &Mesh) {
         faces.1,
         faces.2,
     );
+}
+
+/// The parameters of `simplify.svec` in the shipped `svec` pipeline (the stage's defaults
+/// where it sets none).
+fn shipped_svec() -> SvecParams {
+    let text = include_str!("../../builtin/pipelines/svec.toml");
+    let pipeline: toml::Table = toml::from_str(text).expect("the shipped pipeline parses");
+    let mut stage = pipeline["stage"].as_array().expect("stages")[0]
+        .as_table()
+        .expect("a stage table")
+        .clone();
+    assert_eq!(stage.remove("kind"), Some("simplify.svec".into()));
+    stage.try_into().expect("the shipped parameters")
 }
 
 /// The bunny subdivided 1-to-4 three times (as the tables' scale section builds it).

@@ -161,6 +161,7 @@ mod progressive;
 mod qem;
 mod queue;
 pub mod stage;
+mod volume;
 
 #[cfg(test)]
 mod fixtures;
@@ -169,6 +170,7 @@ pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, No
 pub use live::{LiveMesh, MAX_FACES, PartOptions, Parted, Summary, attributes_only};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel, edge_plane};
+pub use volume::weighted_sve;
 
 use coarsen_geom::DVec3;
 
@@ -327,6 +329,10 @@ pub struct Options {
     /// their faces are live and they hold at least this many; `usize::MAX` never. Default
     /// [`COMPACT_MIN_FACES`].
     pub compact_min_faces: usize,
+    /// Also sum each collapse's squared volume weighted as paper 2's Eq. (4) quadrics
+    /// ([`Outcome::sve_weighted`]; a few hundred dot products per collapse). Default
+    /// `false`.
+    pub weighted_sve: bool,
 }
 
 /// Keeps the entries `kept` (ascending indices) of `values`, in their order, in place (no
@@ -358,6 +364,7 @@ impl Options {
             min_quality: 0.0,
             keep_log: true,
             compact_min_faces: COMPACT_MIN_FACES,
+            weighted_sve: false,
         }
     }
 }
@@ -434,6 +441,8 @@ impl Outcome {
             collapses: 0,
             refused: Refusals::default(),
             sve: 0.0,
+            sve_max: 0.0,
+            sve_weighted: 0.0,
             max_cost: 0.0,
             costs: CostCurve::default(),
             log: Vec::new(),
@@ -447,6 +456,8 @@ impl Outcome {
         self.collapses += next.collapses;
         self.refused.add(&next.refused);
         self.sve += next.sve;
+        self.sve_max = self.sve_max.max(next.sve_max);
+        self.sve_weighted += next.sve_weighted;
         self.max_cost = self.max_cost.max(next.max_cost);
         self.costs.append(&next.costs);
         self.log.extend(next.log);
@@ -527,6 +538,11 @@ pub struct Outcome {
     pub refused: Refusals,
     /// Sum of the collapses' squared-volume errors (metrics.md `sve`).
     pub sve: f64,
+    /// The largest squared-volume error of one collapse (0 when none).
+    pub sve_max: f64,
+    /// Sum of the collapses' squared volumes weighted as paper 2's Eq. (4) quadrics, Wᵢ·Nᵢ
+    /// per face ([`weighted_sve`]); 0 unless [`Options::weighted_sve`].
+    pub sve_weighted: f64,
     /// The largest cost of a collapse performed (0 when none).
     pub max_cost: f64,
     /// The collapses' costs in the order performed, binned ([`CostCurve`]).

@@ -1105,6 +1105,9 @@ impl LiveMesh {
                 continue;
             }
             let sve = self.sve(verts, plan.position);
+            if opts.weighted_sve {
+                out.sve_weighted += crate::weighted_sve(self, verts, plan.position);
+            }
             // A boundary vertex survives when there is one, so that kinds stay true.
             let kept = pinned
                 .or_else(|| {
@@ -1131,6 +1134,7 @@ impl LiveMesh {
             }
             out.collapses += 1;
             out.sve += sve;
+            out.sve_max = out.sve_max.max(sve);
             out.max_cost = out.max_cost.max(plan.cost);
             out.costs.push(plan.cost);
             self.requeue(model, unit, reach, kept, verts, q, s, &mut out.refused);

@@ -23,6 +23,9 @@
 //!   `diagonal²` (not), so that costs — and the `max_error` limit — do not depend on the
 //!   model's size: they are those of the same mesh scaled to a unit diagonal.
 //! * **Update.** The merged vertex keeps the sum of the merged quadrics.
+//! * **Unit.** Edges by default; with [`QemOptions::unit`] = [`Unit::Triangle`] a
+//!   candidate is a triangle whose three quadrics are summed and placed the same way (the
+//!   triangle-collapse QEM of Zhou, Pan & Shi 1998, paper 2's baseline [8]).
 
 use crate::{CostModel, Index, LiveMesh, Merge, Plan, Reach, Unit, VertexKind};
 use coarsen_geom::{DVec3, Quadric, triangle};
@@ -42,6 +45,8 @@ pub struct QemOptions {
     pub area_weighted: bool,
     /// Weight of boundary constraint planes relative to face planes. Default `1000`.
     pub boundary_weight: f64,
+    /// What a candidate merges: edges (Garland–Heckbert) or triangles. Default edges.
+    pub unit: Unit,
 }
 
 impl Default for QemOptions {
@@ -49,6 +54,7 @@ impl Default for QemOptions {
         QemOptions {
             area_weighted: true,
             boundary_weight: 1000.0,
+            unit: Unit::Edge,
         }
     }
 }
@@ -59,6 +65,7 @@ pub struct QuadricModel {
     quadrics: Vec<Quadric>,
     /// Costs are divided by this (diagonal⁴ or diagonal²).
     cost_unit: f64,
+    unit: Unit,
 }
 
 /// Calls `add` with each term `face` gives a vertex's quadric, in order: its plane (to
@@ -153,7 +160,14 @@ impl QuadricModel {
         QuadricModel {
             quadrics,
             cost_unit,
+            unit: opts.unit,
         }
+    }
+
+    /// Collapse edges or triangles from now on (a triangle run finishes on an exact count
+    /// with a few edge collapses).
+    pub fn set_unit(&mut self, unit: Unit) {
+        self.unit = unit;
     }
 
     /// The current quadric of vertex `v`.
@@ -174,7 +188,7 @@ impl QuadricModel {
 
 impl CostModel for QuadricModel {
     fn unit(&self) -> Unit {
-        Unit::Edge
+        self.unit
     }
 
     fn reach(&self) -> Reach {
@@ -246,6 +260,7 @@ impl CostModel for QuadricModel {
                 .map(|v| self.quadrics[part.input_index(v) as usize])
                 .collect(),
             cost_unit: self.cost_unit,
+            unit: self.unit,
         })
     }
 }

@@ -13,6 +13,11 @@
 //! tested. Only faces past the engine's gate are tested ([`Gated`]: their corners' merged
 //! input wraps around a thin part, or they turn by more than 45°); the report gives how
 //! many (`facing_tests`).
+//!
+//! **Squared volume error** (paper 2's, metrics.md `sve`): each collapse's Σ Vᵢ² over the
+//! faces around the merged vertices, Vᵢ the volume swept by face i; the report gives the
+//! sum (`sve`), the largest (`sve_max`) and, when the stage asks for it, the sum weighted
+//! as paper 2's Eq. (4) quadrics (`sve_weighted`: Wᵢ·Nᵢ·Vᵢ²), all in world units.
 
 use crate::{
     FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Outcome, Parted, Summary, Unit,
@@ -36,6 +41,11 @@ pub trait Simplifier {
     fn facing_guard(&self) -> bool;
     /// The cost limit (0: none), for the warning when the target is not reached.
     fn max_error(&self) -> f64;
+    /// Whether the run measured `sve_weighted` ([`crate::Options::weighted_sve`]), for
+    /// the report. Default `false`.
+    fn weighted_sve(&self) -> bool {
+        false
+    }
     /// The target in words, for the warning when it is not reached.
     fn target_words(&self, target: &Target) -> String {
         target.to_string()
@@ -181,6 +191,10 @@ fn report(
         r.figure("facing_tests", done.guarded.tested);
     }
     r.figure("sve", o.sve);
+    r.figure("sve_max", o.sve_max);
+    if stage.weighted_sve() {
+        r.figure("sve_weighted", o.sve_weighted);
+    }
     r.figure("max_cost", o.max_cost);
     r.figure("cost_curve", &o.costs.bins);
     r.figure("vertices", after.vertices);

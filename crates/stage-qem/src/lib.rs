@@ -16,6 +16,8 @@
 //! | `area_weighted` | `true` | weight each face plane by its area |
 //! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
 //! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
+//! | `unit` | `"edge"` | `edge`, or `triangle`: triangle collapses (the three vertex quadrics summed), then a few edge collapses to meet the target — paper 2's baseline [8] with `area_weighted = false` (its [3] is the edge unit with `area_weighted = false`) |
+//! | `sve_weighted` | `false` | also report `sve_weighted`, the swept squared volumes weighted as paper 2's Eq. (4) (to compare with `simplify.svec`) |
 //!
 //! The run is the collapse stages' shared skeleton (`coarsen_collapse::stage`): the target
 //! from the run (`--vertices`, `--faces`, `--ratio` or the pipeline's; a vertex count met
@@ -25,8 +27,8 @@
 //! the run input's surface nearest it; on the cow's thin legs, ears and tail this removes
 //! the faces that ended nearest to the part's other side), progress, attribute carrying,
 //! and the report's figures (`collapses`, `parallel_collapses`, `refused` by reason,
-//! `facing_tests`, `sve`, `max_cost`, `cost_curve` (`[collapses, largest cost]` bins, for
-//! the HTML report's plot), the final `vertices` and `faces`, `stop`, the
+//! `facing_tests`, `sve`, `sve_max`, `max_cost`, `cost_curve` (`[collapses, largest cost]`
+//! bins, for the HTML report's plot), the final `vertices` and `faces`, `stop`, the
 //! `locked_vertices` and the `boundary_loops` before and after) and warnings (a target not
 //! reached, locked and dropped vertices).
 //!
@@ -69,7 +71,7 @@
 
 use coarsen_collapse::stage::{Collapsed, Simplifier};
 use coarsen_collapse::{
-    FaceGuard, Goal, LiveMesh, Options, PartOptions, QemOptions, QuadricModel, Unit,
+    FaceGuard, Goal, LiveMesh, Options, PartOptions, QemOptions, QuadricModel, StopReason, Unit,
 };
 use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
@@ -100,6 +102,24 @@ params! {
         /// by side (`coarsen_collapse::LiveMesh::collapse_in_parts`) before the last ones
         /// in one greedy order; `false` makes them all in that order.
         pub parallel: bool = true,
+        /// What one collapse merges: `edge` (Garland–Heckbert) or `triangle` — the three
+        /// vertices' quadrics summed, then a few edge collapses to meet the target exactly
+        /// (paper 2's baseline [8], Zhou, Pan & Shi 1998: "a triangle constriction method
+        /// based on QEM"; its cost transmission to related triangles is not described and
+        /// not done).
+        pub unit: String = "edge".to_string(),
+        /// Also report `sve_weighted`: each collapse's squared volume weighted as paper 2's
+        /// Eq. (4) quadrics (Wᵢ·Nᵢ per face), to compare with `simplify.svec` runs.
+        pub sve_weighted: bool = false,
+    }
+}
+
+/// [`QemParams::unit`] as the engine's unit, `None` when it names neither.
+fn unit_named(name: &str) -> Option<Unit> {
+    match name {
+        "edge" => Some(Unit::Edge),
+        "triangle" => Some(Unit::Triangle),
+        _ => None,
     }
 }
 
@@ -109,6 +129,12 @@ impl Params for QemParams {
         check_finite_min(&mut issues, "max_error", self.max_error, 0.0);
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
+        if unit_named(&self.unit).is_none() {
+            issues.push(ParamIssue {
+                field: "unit",
+                message: format!("`{}` is neither `edge` nor `triangle`", self.unit),
+            });
+        }
         issues
     }
 }
@@ -137,13 +163,19 @@ impl Stage for SimplifyQem {
     }
 }
 
-/// The QEM side of the collapse-stage skeleton: edge collapses under the quadric model,
-/// in parts first on big meshes, then in one greedy order.
+/// The QEM side of the collapse-stage skeleton: edge (or triangle) collapses under the
+/// quadric model, in parts first on big meshes, then in one greedy order.
 struct Qem<'a>(&'a QemParams);
+
+impl Qem<'_> {
+    fn unit(&self) -> Unit {
+        unit_named(&self.0.unit).unwrap_or(Unit::Edge)
+    }
+}
 
 impl Simplifier for Qem<'_> {
     fn unit(&self) -> Unit {
-        Unit::Edge
+        Qem::unit(self)
     }
 
     fn goal(&self, count: TargetCount) -> Goal {
@@ -161,6 +193,10 @@ impl Simplifier for Qem<'_> {
         self.0.max_error
     }
 
+    fn weighted_sve(&self) -> bool {
+        self.0.sve_weighted
+    }
+
     fn collapse<G: FaceGuard + Send>(
         &mut self,
         live: &mut LiveMesh,
@@ -169,23 +205,50 @@ impl Simplifier for Qem<'_> {
         progress: &mut dyn FnMut(usize),
     ) -> Collapsed {
         let p = self.0;
+        let unit = Qem::unit(self);
         let mut model = QuadricModel::new(
             live,
             &QemOptions {
                 area_weighted: p.area_weighted,
                 boundary_weight: p.boundary_weight,
+                unit,
             },
         );
-        let opts = Options {
+        let mut opts = Options {
             goal,
             max_error: (p.max_error > 0.0).then_some(p.max_error),
             min_quality: p.min_quality,
             keep_log: false,
+            weighted_sve: p.sve_weighted,
             ..Options::new(goal)
         };
         let parts = PartOptions::when(p.parallel);
-        live.collapse_parted(&mut model, new_guard, &opts, &parts, progress)
-            .into()
+        if unit == Unit::Edge {
+            return live
+                .collapse_parted(&mut model, new_guard, &opts, &parts, progress)
+                .into();
+        }
+        // A triangle collapse removes 2 vertices and at most 4 faces: stop before one
+        // could overshoot, and finish with edge collapses.
+        opts.goal = match goal {
+            Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
+            Goal::Faces(n) => Goal::Faces(n.saturating_add(3)),
+        };
+        let run = live.collapse_parted(&mut model, new_guard, &opts, &parts, progress);
+        let (mut outcome, mut guard) = (run.outcome, run.guard);
+        if !matches!(outcome.stop, StopReason::MaxError { .. }) {
+            model.set_unit(Unit::Edge);
+            opts.goal = goal;
+            let done = outcome.collapses;
+            let finish =
+                live.collapse_guarded(&mut model, &mut guard, &opts, &mut |n| progress(done + n));
+            outcome = outcome.then(finish);
+        }
+        Collapsed {
+            outcome,
+            in_parts: run.in_parts,
+            guarded: run.part_counts.plus(&guard.counts()),
+        }
     }
 }
 
@@ -253,9 +316,14 @@ mod tests {
             area_weighted: true,
             facing_guard: true,
             parallel: true,
+            unit: "vertex".into(),
+            sve_weighted: false,
         };
         let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
-        assert_eq!(fields, ["max_error", "boundary_weight", "min_quality"]);
+        assert_eq!(
+            fields,
+            ["max_error", "boundary_weight", "min_quality", "unit"]
+        );
         assert!(QemParams::default().validate().is_empty());
     }
 
@@ -291,6 +359,45 @@ mod tests {
         }
         assert!(report.get("sve").unwrap().as_f64().unwrap() > 0.0);
         assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    }
+
+    #[test]
+    fn triangle_collapses_meet_the_target_with_a_few_edges() {
+        let sphere = coarsen_shapes::bumpy_sphere(1.0, 3, 0.1, 5.0).unwrap();
+        let params = |unit: &str| QemParams {
+            unit: unit.into(),
+            area_weighted: false,
+            sve_weighted: true,
+            ..QemParams::default()
+        };
+        let (edges, by_edge) = run(&sphere, Some(Target::Vertices(123)), params("edge"));
+        let (tris, by_triangle) = run(&sphere, Some(Target::Vertices(123)), params("triangle"));
+        let (edges, tris) = (edges.unwrap(), tris.unwrap());
+        assert_eq!((edges.n_vertices(), tris.n_vertices()), (123, 123));
+        assert_ne!(edges.positions, tris.positions);
+        let figure = |r: &StageReport, name: &str| r.get(name).and_then(|x| x.as_f64()).unwrap();
+        // A triangle collapse removes two vertices: about half as many collapses.
+        let (e, t) = (
+            figure(&by_edge, "collapses"),
+            figure(&by_triangle, "collapses"),
+        );
+        assert!(
+            t < 0.6 * e,
+            "{t} triangle-run collapses, {e} edge collapses"
+        );
+        for r in [&by_edge, &by_triangle] {
+            let (sve, max, w) = (
+                figure(r, "sve"),
+                figure(r, "sve_max"),
+                figure(r, "sve_weighted"),
+            );
+            assert!(
+                0.0 < max && max < sve && 0.0 < w && w < sve,
+                "{sve} {max} {w}"
+            );
+        }
+        let (_, plain) = run(&sphere, Some(Target::Vertices(123)), QemParams::default());
+        assert!(plain.get("sve_max").is_some() && plain.get("sve_weighted").is_none());
     }
 
     #[test]

@@ -14,7 +14,8 @@
 //!   mesh scaled to a unit bounding-box diagonal.
 //! * **Placement**: v̄ minimises Δ (guarded 3×3 solve: relative determinant above 1e-10,
 //!   and within 4× the triangle's circumradius-like spread of its centroid); otherwise the
-//!   A_v-weighted mean of its vertices (Eq. 8, A_v = area of the faces around v).
+//!   A_v-weighted mean of its vertices (§3.4, A_v = area of the faces around v; Step 3
+//!   cites it as Eq. 8, the extracted text prints no number on it).
 //! * **Feature filter** (§3.3): K_t = Σ|angle deficit| / Σ A_v over the triangle's vertices
 //!   (angle-deficit Gauss curvature; the deficit is 2π − Σα inside and π − Σα on a
 //!   boundary). Above `feature_threshold` (by default mean + `feature_sigma`·σ of K_t over
@@ -46,6 +47,41 @@
 //!   quality and fidelity figures that differ either way by a little (issue #6).
 //! * **Zero costs**: on flat regions Nᵢ = 0, every cost is 0 and triangles go in the order
 //!   they were queued (the engine's FIFO ties, paper 2's re-queuing rule).
+//!
+//! **Equation numbers** are the printed ones: (3) Qᵢ = (1/9)Sᵢ²ppᵀ, (4) the same with
+//! Wᵢ·Nᵢ, (5) Δ = v̄ᵀ(Σ Qᵢ)v̄, (6) K_t. The algorithm's steps cite one above them (Step 1:
+//! "Eq.(5)" for Qᵢ, printed (4); Step 4: "Eq.(6)" for the error, printed (5)).
+//!
+//! **Readings** (issue #53). Where the text admits more than one reading, each is a
+//! parameter; the literal reading is each one's default, and `pipelines/svec.toml` ships
+//! the combination that best matches what the paper reports (docs/results.md, *Paper 2's
+//! readings*, measured on the ten rows of its Table 1 against its two baselines):
+//!
+//! 1. `factors` — whose shape and normal factors: `face` puts Wᵢ·Nᵢ inside every face's
+//!    Qᵢ (Eq. 4); `triangle` reads the abstract ("constricting error defined by a
+//!    combination of square volume error variation with constraint (SVEC), shape factor and
+//!    normal constraint factor of triangle") as cost = W_t·N_t · v̄ᵀ Q̄ v̄ with Q̄ = Σ
+//!    (1/9)Sᵢ²ppᵀ (Eq. 3) and v̄ its minimiser: no face is weightless because its
+//!    neighbours are coplanar, and faces weigh by Sᵢ² instead of Sᵢ³. For the finishing
+//!    edge collapses, W·N is the mean over the edge's faces.
+//! 2. `normal_abs` — N₀ = Σ (1 − |n₀·nᵢ|)/2 / m as extracted, or `false`: (1 − n₀·nᵢ)/2,
+//!    which alone spans the stated "0 ≤ N₀ ≤ 1" and reads a fold (Fig. 5's normals "near to
+//!    180 degree") as the sharpest place rather than a flat one.
+//! 3. `volume_constraint` — the φ weights below (the method is named for them; Eq. 4,
+//!    which Step 1 uses, has none).
+//! 4. `feature_rule` — `plan` costs a strong-feature triangle at its feature vertex;
+//!    `dequeue` (Step 5 ①: "Extract the top triangle in the heap queue and compute its
+//!    Gauss curvature factor") queues it at its free placement's cost and moves it to the
+//!    feature vertex only when it is collapsed.
+//! 5. `reach` — `kept` re-costs the triangles around the new vertex (others when they
+//!    come off the queue, see *Updates*); `two_rings` (Step 5 ②: "re-compute the
+//!    constriction error of the new triangles and the adjacent triangles of them")
+//!    re-costs every triangle within two edges.
+//!
+//! Readings 6 (the paper's baselines) and 7 (what its Table 1's SVE is) are not SVEC's:
+//! `simplify.qem` has `area_weighted = false` (its [3]) and `unit = "triangle"` (its [8]),
+//! and both stages report `sve`, `sve_max` and, with `sve_weighted = true`, the sum
+//! weighted as Eq. (4) (`coarsen_collapse::stage`).
 //!
 //! **The φ volume constraint** (`volume_constraint`, §3.1 "SVEC"). The paper weights each
 //! Qᵢ by "φᵢ, the square volume of the tetrahedron whose vertex is v̄ and whose bottom face
@@ -90,6 +126,11 @@
 //! | `target_scale` | `1` | stop at this multiple of the target's count, for a later stage to finish (`svec-then-cvt`) |
 //! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
 //! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
+//! | `factors` | `"face"` | reading 1: `face` or `triangle` (see *Readings*) |
+//! | `normal_abs` | `true` | reading 2: N from 1 − \|nᵢ·nⱼ\| (`true`) or 1 − nᵢ·nⱼ |
+//! | `feature_rule` | `"plan"` | reading 4: `plan` or `dequeue` |
+//! | `reach` | `"kept"` | reading 5: `kept` or `two_rings` |
+//! | `sve_weighted` | `false` | also report `sve_weighted` (Eq. 4's weights on the swept volumes) |
 //!
 //! The run is the collapse stages' shared skeleton (`coarsen_collapse::stage`, described
 //! in `simplify.qem`'s docs): target, progressive record, the **facing guard**
@@ -145,7 +186,7 @@
 
 mod model;
 
-pub use model::{SvecModel, SvecOptions};
+pub use model::{Factors, SvecModel, SvecOptions};
 
 use coarsen_collapse::stage::{Collapsed, Simplifier};
 use coarsen_collapse::{FaceGuard, Goal, LiveMesh, Options, PartOptions, StopReason, Unit};
@@ -190,6 +231,40 @@ params! {
         /// by side (`coarsen_collapse::LiveMesh::collapse_in_parts`) before the last ones
         /// in one greedy order; `false` makes them all in that order.
         pub parallel: bool = true,
+        /// Whose shape and normal factors weigh the cost (paper 2 readings, 1): `face` —
+        /// Wᵢ·Nᵢ inside every face's quadric, Eq. (4) "Qᵢ = (1/9)·W_shape-factorⁱ·
+        /// N_normal-factorⁱ·Sᵢ²·ppᵀ"; `triangle` — W_t·N_t of the collapsed triangle times
+        /// the plain squared volume, the abstract's "square volume error variation with
+        /// constraint (SVEC), shape factor and normal constraint factor of triangle".
+        pub factors: String = "face".to_string(),
+        /// Normal factor with the absolute value (readings, 2): N₀ = Σ((1 − abs(n₀·nᵢ))/2)/m
+        /// as extracted; `false` takes (1 − n₀·nᵢ)/2, which alone reaches the stated
+        /// "0 ≤ N₀ ≤ 1" and does not read a fold (normals near 180°, Fig. 5) as flat.
+        pub normal_abs: bool = true,
+        /// When the Gauss-curvature filter acts (readings, 4): `plan` — a strong-feature
+        /// triangle is costed at its feature vertex; `dequeue` — Step 5, "Extract the top
+        /// triangle in the heap queue and compute its Gauss curvature factor ... the strong
+        /// feature point can be denoted as the new point": queued at its free placement's
+        /// cost, moved to the feature vertex when collapsed.
+        pub feature_rule: String = "plan".to_string(),
+        /// Which triangles are re-costed after a collapse (readings, 5): `kept` — those
+        /// around the new vertex (others when they come off the queue); `two_rings` —
+        /// Step 5 ②, "re-compute the constriction error of the new triangles and the
+        /// adjacent triangles of them".
+        pub reach: String = "kept".to_string(),
+        /// Also report `sve_weighted`: each collapse's squared volume weighted as Eq. (4)
+        /// quadrics (Wᵢ·Nᵢ per face), to compare with `simplify.qem` runs.
+        pub sve_weighted: bool = false,
+    }
+}
+
+/// A string parameter that names none of its choices.
+fn check_choice(issues: &mut Vec<ParamIssue>, field: &'static str, value: &str, choices: &[&str]) {
+    if !choices.contains(&value) {
+        issues.push(ParamIssue {
+            field,
+            message: format!("`{value}` is not one of {}", choices.join(", ")),
+        });
     }
 }
 
@@ -207,6 +282,14 @@ impl Params for SvecParams {
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         check_range(&mut issues, "target_scale", self.target_scale, 1.0, 1e6);
+        check_choice(&mut issues, "factors", &self.factors, &["face", "triangle"]);
+        check_choice(
+            &mut issues,
+            "feature_rule",
+            &self.feature_rule,
+            &["plan", "dequeue"],
+        );
+        check_choice(&mut issues, "reach", &self.reach, &["kept", "two_rings"]);
         issues
     }
 }
@@ -288,6 +371,10 @@ impl Simplifier for Svec<'_> {
         self.p.max_error
     }
 
+    fn weighted_sve(&self) -> bool {
+        self.p.sve_weighted
+    }
+
     fn target_words(&self, target: &Target) -> String {
         if self.p.target_scale == 1.0 {
             target.to_string()
@@ -309,6 +396,14 @@ impl Simplifier for Svec<'_> {
             feature_sigma: p.feature_sigma,
             volume_constraint: p.volume_constraint,
             boundary_weight: p.boundary_weight,
+            factors: if p.factors == "triangle" {
+                Factors::Triangle
+            } else {
+                Factors::Face
+            },
+            normal_abs: p.normal_abs,
+            feature_on_dequeue: p.feature_rule == "dequeue",
+            two_rings: p.reach == "two_rings",
         };
         // The parts and the joined mesh get models of their own.
         let mut model = if live.will_part(&self.parts) {
@@ -325,6 +420,7 @@ impl Simplifier for Svec<'_> {
             max_error: (p.max_error > 0.0).then_some(p.max_error),
             min_quality: p.min_quality,
             keep_log: false,
+            weighted_sve: p.sve_weighted,
             ..Options::new(goal)
         };
         let run = live.collapse_parted(&mut model, new_guard, &opts, &self.parts, progress);

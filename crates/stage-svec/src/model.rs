@@ -7,8 +7,8 @@ use coarsen_geom::{DVec3, Quadric, triangle};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// Relative determinant below which the summed quadric's minimiser is not trusted (Eq. 8
-/// takes over).
+/// Relative determinant below which the summed quadric's minimiser is not trusted (§3.4's
+/// area-weighted point takes over).
 const SOLVE_TOLERANCE: f64 = 1e-10;
 
 /// 1 − |nᵢ·nⱼ| of two unit normals is a multiple of 2⁻⁵³ (the subtraction from 1 is exact
@@ -17,14 +17,27 @@ const SOLVE_TOLERANCE: f64 = 1e-10;
 const NORMAL_UNIT: f64 = (1u64 << 53) as f64;
 
 /// A face with more neighbours than this has its normal factor summed afresh (in 128 bits)
-/// whenever it changes: its wrapping 64-bit sum could have overflowed.
-const MAX_INCREMENTAL: u32 = 1000;
+/// whenever it changes: its wrapping 64-bit sum could have overflowed (a term is below
+/// 2⁵⁴).
+const MAX_INCREMENTAL: u32 = 500;
 
 /// The term of unit normal `n` and (non-zero) normal `m` in a normal-factor sum, in units
-/// of 2⁻⁵³: exact for unit normals, deterministic always.
+/// of 2⁻⁵³: 1 − |n·m| (`abs`) or 1 − n·m; the same number for the same normals whenever
+/// it is computed, so that a term removed is the term once added.
 #[inline]
-fn normal_term(n: DVec3, m: DVec3) -> i64 {
-    ((1.0 - n.dot(m).abs()) * NORMAL_UNIT) as i64
+fn normal_term(n: DVec3, m: DVec3, abs: bool) -> i64 {
+    let d = n.dot(m);
+    ((1.0 - if abs { d.abs() } else { d }) * NORMAL_UNIT) as i64
+}
+
+/// Whose shape and normal factors weigh the cost (see the crate docs, *Readings*).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Factors {
+    /// Wᵢ·Nᵢ inside every face's quadric Qᵢ (Eq. 4 as printed).
+    Face,
+    /// W_t·N_t of the collapsed triangle times the plain squared volume v̄ᵀ(Σ (1/9)Sᵢ²ppᵀ)v̄
+    /// (the abstract's "shape factor and normal constraint factor of triangle").
+    Triangle,
 }
 
 /// Faces or vertices whose data [`SvecModel::new`] computes in parallel at a time (bounds
@@ -85,7 +98,7 @@ struct FaceQuadric {
 }
 
 /// How far from the merged vertices' centroid the minimiser may lie, in units of their
-/// largest distance to it; farther, Eq. 8 takes over.
+/// largest distance to it; farther, §3.4's area-weighted point takes over.
 const MAX_REACH: f64 = 4.0;
 
 /// Settings of [`SvecModel`].
@@ -102,6 +115,15 @@ pub struct SvecOptions {
     /// the summed quadric (relative to the face's Wᵢ·(1/9)Sᵢ², as if its Nᵢ were 1);
     /// 0 leaves the paper's cost (see the crate docs).
     pub boundary_weight: f64,
+    /// Whose factors weigh the cost: each face's, or the collapsed triangle's.
+    pub factors: Factors,
+    /// Nᵢ from 1 − |nᵢ·nⱼ| (the extracted text) or from 1 − nᵢ·nⱼ.
+    pub normal_abs: bool,
+    /// Queue a strong-feature triangle at the cost of its free placement and move it to
+    /// its feature vertex only when it is collapsed (Step 5), instead of costing it there.
+    pub feature_on_dequeue: bool,
+    /// Re-cost every triangle within two edges of the new vertex after each collapse.
+    pub two_rings: bool,
 }
 
 impl Default for SvecOptions {
@@ -111,6 +133,10 @@ impl Default for SvecOptions {
             feature_sigma: 2.0,
             volume_constraint: false,
             boundary_weight: 0.0,
+            factors: Factors::Face,
+            normal_abs: true,
+            feature_on_dequeue: false,
+            two_rings: false,
         }
     }
 }
@@ -445,20 +471,28 @@ impl SvecModel {
             return None;
         }
         let face = mesh.face(f);
-        let (mut sum, mut count) = (0i128, 0u32);
-        for_faces_around(mesh, &face, |g| {
-            let m = self.face[g as usize].normal;
-            if g != f && m != DVec3::ZERO {
-                sum += normal_term(n, m) as i128;
-                count += 1;
-            }
-        });
+        let (sum, count) = self.normal_sum_of(mesh, f);
         Some(FaceQuadric {
             normal_sum: sum as i64,
             normal_count: count,
             offset: -n.dot(mesh.position(face[0])),
-            weight: self.shape_plain[fi] * normal_factor(sum, count),
+            weight: self.quadric_weight(fi, sum, count),
         })
+    }
+
+    /// Nᵢ's sum (units of 2⁻⁵³) and count of face `f`, summed afresh over the faces
+    /// sharing a vertex with it.
+    fn normal_sum_of(&self, mesh: &LiveMesh, f: Index) -> (i128, u32) {
+        let n = self.face[f as usize].normal;
+        let (mut sum, mut count) = (0i128, 0u32);
+        for_faces_around(mesh, &mesh.face(f), |g| {
+            let m = self.face[g as usize].normal;
+            if g != f && m != DVec3::ZERO {
+                sum += normal_term(n, m, self.opts.normal_abs) as i128;
+                count += 1;
+            }
+        });
+        (sum, count)
     }
 
     fn set_quadric(&mut self, f: Index, q: Option<FaceQuadric>) {
@@ -477,6 +511,54 @@ impl SvecModel {
         }
     }
 
+    /// Qᵢ's weight of face `fi` whose normal-factor sum is `sum` over `count` faces:
+    /// (1/9)·Wᵢ·Nᵢ·Sᵢ² (face factors) or the plain (1/9)·Sᵢ² (the triangle's factors
+    /// weigh the cost instead), unit-diagonal units.
+    fn quadric_weight(&self, fi: usize, sum: i128, count: u32) -> f64 {
+        match self.opts.factors {
+            Factors::Face => self.shape_plain[fi] * normal_factor(sum, count),
+            Factors::Triangle => {
+                let s = self.face[fi].area;
+                s * s / 9.0 * self.scale * self.scale
+            }
+        }
+    }
+
+    /// W_t·N_t of the merge's triangle (for an edge, the mean over the faces holding it)
+    /// under [`Factors::Triangle`]; 1 under [`Factors::Face`].
+    fn cost_factor(&self, mesh: &LiveMesh, verts: &[Index]) -> f64 {
+        if self.opts.factors == Factors::Face {
+            return 1.0;
+        }
+        let (mut sum, mut n) = (0.0, 0usize);
+        for &f in mesh.faces_around(verts[0]) {
+            let face = mesh.face(f);
+            if verts[1..].iter().all(|v| face.contains(v)) {
+                sum += self.triangle_factor(mesh, f);
+                n += 1;
+            }
+        }
+        if n > 0 { sum / n as f64 } else { 0.0 }
+    }
+
+    /// W_t·N_t of face `f`: 2(1 − cos α_min)·S_t (unit-diagonal units) times its Nᵢ.
+    fn triangle_factor(&self, mesh: &LiveMesh, f: Index) -> f64 {
+        let fi = f as usize;
+        if self.face[fi].normal == DVec3::ZERO {
+            return 0.0;
+        }
+        let [x, y, z] = self.angles[fi];
+        let w = 2.0 * (1.0 - x.min(y).min(z).cos()) * self.face[fi].area;
+        let count = self.normal_count[fi];
+        let n = if count > MAX_INCREMENTAL {
+            let (sum, count) = self.normal_sum_of(mesh, f);
+            normal_factor(sum, count)
+        } else {
+            normal_factor(self.normal_sum[fi] as i128, count)
+        };
+        w * n
+    }
+
     /// Qᵢ's weight of face `f` from its kept sum (a face with too many neighbours for the
     /// 64-bit sum is summed afresh).
     fn update_weight(&mut self, mesh: &LiveMesh, f: Index) {
@@ -488,8 +570,7 @@ impl SvecModel {
         if count > MAX_INCREMENTAL {
             self.update_quadric(mesh, f);
         } else {
-            self.face[fi].weight =
-                self.shape_plain[fi] * normal_factor(self.normal_sum[fi] as i128, count);
+            self.face[fi].weight = self.quadric_weight(fi, self.normal_sum[fi] as i128, count);
         }
     }
 
@@ -521,11 +602,12 @@ impl SvecModel {
                 continue;
             }
             let mut delta = 0i64;
+            let abs = self.opts.normal_abs;
             if has {
-                delta = delta.wrapping_add(normal_term(n, new));
+                delta = delta.wrapping_add(normal_term(n, new, abs));
             }
             if had {
-                delta = delta.wrapping_sub(normal_term(n, old));
+                delta = delta.wrapping_sub(normal_term(n, old, abs));
             }
             self.normal_sum[ii] = self.normal_sum[ii].wrapping_add(delta);
             self.normal_count[ii] = self.normal_count[ii].wrapping_add_signed(count_change);
@@ -586,7 +668,7 @@ impl SvecModel {
         if count > 0 { sum / count as f64 } else { 0.0 }
     }
 
-    /// Eq. 8: the A_v-weighted mean of the merged vertices (their plain mean when every
+    /// §3.4 (Step 3's "Eq. 8"): the A_v-weighted mean of the merged vertices (their plain mean when every
     /// A_v is zero).
     fn area_weighted_mean(&self, mesh: &LiveMesh, verts: &[Index]) -> DVec3 {
         let total: f64 = verts.iter().map(|&v| self.vertex_area[v as usize]).sum();
@@ -601,8 +683,14 @@ impl SvecModel {
     }
 
     /// Where the merged vertex goes, given the summed quadric `q` (the rules of the crate
-    /// docs), and whether the feature rule placed it.
-    fn place(&self, mesh: &LiveMesh, merge: &Merge<'_>, q: &Quadric) -> (DVec3, bool) {
+    /// docs, the feature rule only when `feature`), and whether the feature rule placed it.
+    fn place(
+        &self,
+        mesh: &LiveMesh,
+        merge: &Merge<'_>,
+        q: &Quadric,
+        feature: bool,
+    ) -> (DVec3, bool) {
         let verts = merge.vertices;
         if let Some(v) = merge.pinned {
             return (mesh.position(v), false);
@@ -614,7 +702,7 @@ impl SvecModel {
         if let (Some(i), Some(j)) = (boundary.next(), boundary.next()) {
             return (self.on_segment(mesh, q, i, j), false);
         }
-        if self.triangle_curvature(verts) > self.threshold {
+        if feature && self.triangle_curvature(verts) > self.threshold {
             // The strong-feature vertex: the largest |K_v|, the first of equals.
             let mut best = verts[0];
             for &v in &verts[1..] {
@@ -691,34 +779,44 @@ impl CostModel for SvecModel {
 
     fn reach(&self) -> Reach {
         // The triangles around the new vertex; those farther out are re-costed when
-        // they come off the queue (see the crate docs).
-        Reach::Kept
+        // they come off the queue (see the crate docs), or all within two edges.
+        if self.opts.two_rings {
+            Reach::TwoRings
+        } else {
+            Reach::Kept
+        }
     }
 
     fn plan(&self, mesh: &LiveMesh, merge: &Merge<'_>) -> Option<Plan> {
-        let q = self.summed(mesh, merge.vertices, None);
-        let (mut position, fixed) = self.place(mesh, merge, &q);
-        if !self.volume_constraint {
-            return Some(Plan {
-                position,
-                cost: q.eval(position),
-            });
+        let verts = merge.vertices;
+        let mut q = self.summed(mesh, verts, None);
+        let (mut position, feature) = self.place(mesh, merge, &q, true);
+        // Under the dequeue reading a strong-feature triangle is costed at its free
+        // placement (the rules other than the feature rule) and moved to its feature
+        // vertex when collapsed.
+        let dequeue = feature && self.opts.feature_on_dequeue;
+        let mut free = if dequeue {
+            self.place(mesh, merge, &q, false).0
+        } else {
+            position
+        };
+        if self.volume_constraint {
+            // φᵢ: each face's plain squared volume at the unconstrained v̄, over their mean.
+            let mean = self.mean_volume(mesh, verts, free);
+            if mean > 0.0 && mean.is_finite() {
+                q = self.summed(mesh, verts, Some((free, mean)));
+                if !feature || dequeue {
+                    free = self.place(mesh, merge, &q, false).0;
+                }
+                if !feature {
+                    position = free;
+                }
+            }
         }
-        // φᵢ: each face's plain squared volume at the unconstrained v̄, over their mean.
-        let mean = self.mean_volume(mesh, merge.vertices, position);
-        if mean <= 0.0 || !mean.is_finite() {
-            return Some(Plan {
-                position,
-                cost: q.eval(position),
-            });
-        }
-        let q_phi = self.summed(mesh, merge.vertices, Some((position, mean)));
-        if !fixed {
-            position = self.place(mesh, merge, &q_phi).0;
-        }
+        let at = if dequeue { free } else { position };
         Some(Plan {
             position,
-            cost: q_phi.eval(position),
+            cost: self.cost_factor(mesh, verts) * q.eval(at),
         })
     }
 

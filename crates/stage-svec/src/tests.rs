@@ -93,6 +93,11 @@ fn needs_a_target_and_checks_its_parameters() {
         target_scale: 0.5,
         facing_guard: true,
         parallel: true,
+        factors: "vertex".into(),
+        normal_abs: true,
+        feature_rule: "later".into(),
+        reach: "one_ring".into(),
+        sve_weighted: false,
     };
     let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
     assert_eq!(
@@ -103,7 +108,10 @@ fn needs_a_target_and_checks_its_parameters() {
             "max_error",
             "boundary_weight",
             "min_quality",
-            "target_scale"
+            "target_scale",
+            "factors",
+            "feature_rule",
+            "reach"
         ]
     );
     assert!(SvecParams::default().validate().is_empty());
@@ -340,6 +348,86 @@ fn volume_constraint_changes_the_plan_but_not_the_validity() {
     assert_eq!(closed_euler(&a), 2);
     assert_eq!(closed_euler(&b), 2);
     assert_ne!(a.positions, b.positions);
+}
+
+#[test]
+fn every_reading_changes_the_collapses_and_keeps_the_mesh_valid() {
+    let sphere = coarsen_shapes::bumpy_sphere(1.0, 3, 0.1, 5.0).unwrap();
+    let weighted = SvecParams {
+        sve_weighted: true,
+        // A low threshold: strong-feature triangles in plenty, for the filter's reading.
+        feature_sigma: 0.0,
+        ..SvecParams::default()
+    };
+    let (literal, report) = run(&sphere, Some(Target::Ratio(0.8)), weighted.clone());
+    let literal = literal.unwrap();
+    let figure = |r: &StageReport, name: &str| r.get(name).and_then(|x| x.as_f64()).unwrap();
+    let (sve, max, w) = (
+        figure(&report, "sve"),
+        figure(&report, "sve_max"),
+        figure(&report, "sve_weighted"),
+    );
+    assert!(
+        0.0 < max && max < sve && 0.0 < w && w < sve,
+        "{sve} {max} {w}"
+    );
+    let readings = [
+        SvecParams {
+            factors: "triangle".into(),
+            ..weighted.clone()
+        },
+        SvecParams {
+            feature_rule: "dequeue".into(),
+            ..weighted.clone()
+        },
+        SvecParams {
+            reach: "two_rings".into(),
+            ..weighted.clone()
+        },
+    ];
+    for params in readings {
+        let what = format!("{params:?}");
+        let (out, report) = run(&sphere, Some(Target::Ratio(0.8)), params);
+        let out = out.unwrap();
+        assert_eq!(closed_euler(&out), 2, "{what}");
+        assert_eq!(out.n_faces(), literal.n_faces(), "{what}");
+        assert_ne!(out.positions, literal.positions, "{what}");
+        assert!(figure(&report, "sve_weighted") > 0.0, "{what}");
+    }
+    // Normals more than 90° apart around a vertex: a needle's tips.
+    let mut needle = icosphere(1.0, 3).unwrap();
+    needle.positions.iter_mut().for_each(|p| p.z *= 40.0);
+    let at = |normal_abs| {
+        let params = SvecParams {
+            normal_abs,
+            ..SvecParams::default()
+        };
+        let out = run(&needle, Some(Target::Ratio(0.8)), params).0.unwrap();
+        assert_eq!(closed_euler(&out), 2);
+        out
+    };
+    assert_ne!(at(true).positions, at(false).positions);
+}
+
+#[test]
+fn without_the_absolute_value_a_fold_is_not_flat() {
+    // Two faces folded onto each other (normals opposite): |n₀·n₁| = 1 reads as flat,
+    // n₀·n₁ = −1 as the sharpest fold.
+    let mesh = Mesh::new(
+        vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 1e-9)],
+        vec![[0, 1, 2], [1, 0, 3]],
+    );
+    let live = LiveMesh::new(&mesh).unwrap();
+    let n = |normal_abs| {
+        let opts = SvecOptions {
+            normal_abs,
+            ..SvecOptions::default()
+        };
+        let model = SvecModel::new(&live, &opts);
+        model.face_quadric(0).eval(DVec3::Z)
+    };
+    assert!(n(true) < 1e-12 * n(false), "{} {}", n(true), n(false));
+    assert!(n(false) > 0.0);
 }
 
 #[test]
