@@ -618,7 +618,9 @@ fn render(rows: &[(Case, usize)], outcomes: &[Outcome]) -> String {
     let _ = writeln!(
         s,
         "Figures as defined in `../shared/spec/metrics.md`; fidelity against the cleaned input (unreferenced \
-         vertices dropped), 10 samples per face on each mesh plus every used vertex. *valid*: manifold, the \
+         vertices dropped), each direction sampled on its own mesh: every used vertex, points along every edge, and \
+         max(1,000,000, 100 × faces) points on the faces (the dense Hausdorff distance of `coarsen metrics`). \
+         *valid*: manifold, the \
          input's components, boundary loops and genus kept (for an input with pinched vertices, which a run splits \
          into one vertex per face fan and says so, those of the split input; for one with edges of three or more faces, \
          which a run before a dual cuts apart and says so, those of the cut input), no flipped or degenerate faces. Times: each stage's \
