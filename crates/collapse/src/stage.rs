@@ -20,8 +20,8 @@
 //! as paper 2's Eq. (4) quadrics (`sve_weighted`: Wᵢ·Nᵢ·Vᵢ²), all in world units.
 
 use crate::{
-    FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Outcome, Parted, Summary, Unit,
-    attributes_only,
+    CostModel, FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, Parted,
+    StopReason, Summary, Unit, attributes_only,
 };
 use coarsen_metrics::LazyGridFacing;
 use coarsen_stage::{
@@ -87,6 +87,38 @@ impl<G: FaceGuard> From<Parted<G>> for Collapsed {
             in_parts: run.in_parts,
         }
     }
+}
+
+/// The goal a run of triangle collapses stops at: a triangle collapse removes 2 vertices
+/// and at most 4 faces, so it stops one vertex (three faces) short of `goal`, which edge
+/// collapses then reach ([`finish_with_edges`]).
+pub fn triangle_goal(goal: Goal) -> Goal {
+    match goal {
+        Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
+        Goal::Faces(n) => Goal::Faces(n.saturating_add(3)),
+    }
+}
+
+/// Finishes a run of triangle collapses (`outcome`, stopped at [`triangle_goal`]) with edge
+/// collapses down to `opts.goal`, the model switched to edges by `to_edges`; nothing when
+/// the run stopped at the error limit. Returns the whole outcome and the edge collapses.
+pub fn finish_with_edges<M: CostModel, G: FaceGuard>(
+    live: &mut LiveMesh,
+    model: &mut M,
+    to_edges: impl FnOnce(&mut M),
+    guard: &mut G,
+    opts: &Options,
+    outcome: Outcome,
+    progress: &mut dyn FnMut(usize),
+) -> (Outcome, usize) {
+    if matches!(outcome.stop, StopReason::MaxError { .. }) {
+        return (outcome, 0);
+    }
+    to_edges(model);
+    let done = outcome.collapses;
+    let finish = live.collapse_guarded(model, guard, opts, &mut |n| progress(done + n));
+    let edges = finish.collapses;
+    (outcome.then(finish), edges)
 }
 
 /// The contract of a collapse stage: a target, and pinched vertices split per face fan

@@ -385,7 +385,7 @@ pub(crate) fn repair(
     n: usize,
     bad: &[u32],
 ) -> (Vec<u32>, usize) {
-    let graph = ClusterGraph::new(mesh, topo, labels, n);
+    let graph = ClusterGraph::new(topo, labels, n);
     let mut picker = MergePicker::new(&graph, bad);
     let mut changed = Vec::new();
     let mut splits = 0;
@@ -413,7 +413,7 @@ pub(crate) fn repair(
 /// neighbours, and whether it touches the boundary.
 struct ClusterGraph {
     /// Where each cluster's faces start in `members` (one more entry than clusters).
-    off: Vec<u32>,
+    off: Vec<usize>,
     members: Vec<u32>,
     /// Neighbouring pairs (a, b), sorted, both ways round.
     pairs: Vec<(u32, u32)>,
@@ -423,19 +423,9 @@ struct ClusterGraph {
 }
 
 impl ClusterGraph {
-    /// The graph of the `n` clusters `labels` gives the faces of `mesh` (adjacency `topo`).
-    fn new(mesh: &Mesh, topo: &Topology, labels: &[u32], n: usize) -> ClusterGraph {
-        let mut off = vec![0u32; n + 1];
-        labels.iter().for_each(|&c| off[c as usize + 1] += 1);
-        for i in 0..n {
-            off[i + 1] += off[i];
-        }
-        let mut pos = off.clone();
-        let mut members = vec![0u32; mesh.n_faces()];
-        for (f, &c) in labels.iter().enumerate() {
-            members[pos[c as usize] as usize] = f as u32;
-            pos[c as usize] += 1;
-        }
+    /// The graph of the `n` clusters `labels` gives the faces of a mesh (adjacency `topo`).
+    fn new(topo: &Topology, labels: &[u32], n: usize) -> ClusterGraph {
+        let (off, members) = faces_by_cluster(labels, n);
         let mut pairs: Vec<(u32, u32)> = Vec::new();
         let mut on_boundary = vec![false; n];
         for e in 0..topo.n_edges() as u32 {
@@ -470,11 +460,11 @@ impl ClusterGraph {
 
     /// The faces of cluster `c`.
     fn members(&self, c: u32) -> &[u32] {
-        &self.members[self.off[c as usize] as usize..self.off[c as usize + 1] as usize]
+        &self.members[self.off[c as usize]..self.off[c as usize + 1]]
     }
 
     /// The faces cluster `c` has.
-    fn size(&self, c: u32) -> u32 {
+    fn size(&self, c: u32) -> usize {
         self.off[c as usize + 1] - self.off[c as usize]
     }
 

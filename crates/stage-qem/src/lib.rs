@@ -69,9 +69,9 @@
 //! # Ok::<(), coarsen_stage::StageError>(())
 //! ```
 
-use coarsen_collapse::stage::{Collapsed, Simplifier};
+use coarsen_collapse::stage::{Collapsed, Simplifier, finish_with_edges, triangle_goal};
 use coarsen_collapse::{
-    FaceGuard, Goal, LiveMesh, Options, PartOptions, QemOptions, QuadricModel, StopReason, Unit,
+    FaceGuard, Goal, LiveMesh, Options, PartOptions, QemOptions, QuadricModel, Unit,
 };
 use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
@@ -214,7 +214,7 @@ impl Simplifier for Qem<'_> {
                 unit,
             },
         );
-        let mut opts = Options {
+        let opts = Options {
             goal,
             max_error: (p.max_error > 0.0).then_some(p.max_error),
             min_quality: p.min_quality,
@@ -228,22 +228,23 @@ impl Simplifier for Qem<'_> {
                 .collapse_parted(&mut model, new_guard, &opts, &parts, progress)
                 .into();
         }
-        // A triangle collapse removes 2 vertices and at most 4 faces: stop before one
-        // could overshoot, and finish with edge collapses.
-        opts.goal = match goal {
-            Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
-            Goal::Faces(n) => Goal::Faces(n.saturating_add(3)),
+        // Triangle collapses stop short of the goal; edge collapses finish.
+        let triangles = Options {
+            goal: triangle_goal(goal),
+            ..opts
         };
-        let run = live.collapse_parted(&mut model, new_guard, &opts, &parts, progress);
-        let (mut outcome, mut guard) = (run.outcome, run.guard);
-        if !matches!(outcome.stop, StopReason::MaxError { .. }) {
-            model.set_unit(Unit::Edge);
-            opts.goal = goal;
-            let done = outcome.collapses;
-            let finish =
-                live.collapse_guarded(&mut model, &mut guard, &opts, &mut |n| progress(done + n));
-            outcome = outcome.then(finish);
-        }
+        let run = live.collapse_parted(&mut model, new_guard, &triangles, &parts, progress);
+        let mut guard = run.guard;
+        let to_edges = |m: &mut QuadricModel| m.set_unit(Unit::Edge);
+        let (outcome, _) = finish_with_edges(
+            live,
+            &mut model,
+            to_edges,
+            &mut guard,
+            &opts,
+            run.outcome,
+            progress,
+        );
         Collapsed {
             outcome,
             in_parts: run.in_parts,

@@ -188,8 +188,8 @@ mod model;
 
 pub use model::{Factors, SvecModel, SvecOptions};
 
-use coarsen_collapse::stage::{Collapsed, Simplifier};
-use coarsen_collapse::{FaceGuard, Goal, LiveMesh, Options, PartOptions, StopReason, Unit};
+use coarsen_collapse::stage::{Collapsed, Simplifier, finish_with_edges, triangle_goal};
+use coarsen_collapse::{FaceGuard, Goal, LiveMesh, Options, PartOptions, Unit};
 use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
     Context, Contract, Mesh, ParamIssue, Params, Stage, StageError, StageReport, Target,
@@ -411,30 +411,33 @@ impl Simplifier for Svec<'_> {
         } else {
             SvecModel::new(live, &model_opts)
         };
-        let mut opts = Options {
-            // A triangle collapse removes 2 vertices and at most 4 faces.
-            goal: match goal {
-                Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
-                Goal::Faces(n) => Goal::Faces(n.saturating_add(3)),
-            },
+        // Triangle collapses stop short of the goal; edge collapses finish.
+        let opts = Options {
+            goal,
             max_error: (p.max_error > 0.0).then_some(p.max_error),
             min_quality: p.min_quality,
             keep_log: false,
             weighted_sve: p.sve_weighted,
             ..Options::new(goal)
         };
-        let run = live.collapse_parted(&mut model, new_guard, &opts, &self.parts, progress);
-        let (mut outcome, in_parts, mut guard) = (run.outcome, run.in_parts, run.guard);
-        self.triangle_collapses = outcome.collapses;
-        if !matches!(outcome.stop, StopReason::MaxError { .. }) {
-            model.set_unit(Unit::Edge);
-            opts.goal = goal;
-            let done = outcome.collapses;
-            let finish =
-                live.collapse_guarded(&mut model, &mut guard, &opts, &mut |n| progress(done + n));
-            self.edge_collapses = finish.collapses;
-            outcome = outcome.then(finish);
-        }
+        let triangles = Options {
+            goal: triangle_goal(goal),
+            ..opts
+        };
+        let run = live.collapse_parted(&mut model, new_guard, &triangles, &self.parts, progress);
+        let (in_parts, mut guard) = (run.in_parts, run.guard);
+        self.triangle_collapses = run.outcome.collapses;
+        let to_edges = |m: &mut SvecModel| m.set_unit(Unit::Edge);
+        let (outcome, edges) = finish_with_edges(
+            live,
+            &mut model,
+            to_edges,
+            &mut guard,
+            &opts,
+            run.outcome,
+            progress,
+        );
+        self.edge_collapses = edges;
         self.feature_collapses = model.feature_collapses();
         self.feature_threshold = model.feature_threshold();
         Collapsed {
