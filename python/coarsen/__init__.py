@@ -387,7 +387,8 @@ def metrics(*meshes, samples_per_face=None):
     input is, then measured as ``coarsen metrics --json`` measures them.
 
     Returns the report as a dict: ``quality`` (angles, shape quality), ``fidelity``
-    (Hausdorff and mean distances, in % of the input's bounding-box diagonal), ``validity``.
+    (Hausdorff and mean distances, in % of the input's bounding-box diagonal), ``validity``,
+    ``features`` (how far the input's sharp edges lie from the output).
     ``samples_per_face``: fidelity samples per face (default 10, the command's).
     """
     if len(meshes) == 4:

@@ -78,6 +78,10 @@ pub struct MetricsReport {
     pub fidelity: Option<Fidelity>,
     /// Counts, topology, degenerate and flipped faces of the output.
     pub validity: Validity,
+    /// Distance from the input's sharp edges (default angle) to the output; `None` without
+    /// an input.
+    #[serde(default)]
+    pub features: Option<FeatureEdges>,
 }
 
 /// Measures `output`, against `input` when given (fidelity and flipped faces need it).
@@ -113,6 +117,7 @@ fn measure_and_record(
     opts: &MetricsOptions,
     record: bool,
 ) -> Result<(MetricsReport, Option<Fields>), MetricsError> {
+    let inp_mesh = input;
     let (out, input) = rayon::join(
         || Prepared::new(output, Role::Output),
         || input.map(|m| Prepared::new(m, Role::Input)).transpose(),
@@ -154,10 +159,19 @@ fn measure_and_record(
         }
     };
     let validity = validity::validity_of(&out, &out_topology.summary(output), n_flipped);
+    let features = match input {
+        Some(_) => Some(feature_edges(
+            inp_mesh.expect("input given"),
+            output,
+            &FeatureOptions::default(),
+        )?),
+        None => None,
+    };
     let report = MetricsReport {
         quality,
         fidelity,
         validity,
+        features,
     };
     Ok((report, fields))
 }
@@ -189,6 +203,15 @@ impl MetricsReport {
                     f.n_samples, f.forward_samples, f.backward_samples
                 ),
             ));
+            if let Some(e) = self.features.as_ref().filter(|e| e.n_edges > 0) {
+                rows.push((
+                    "sharp edges → output",
+                    format!(
+                        "max {:.3} %, mean {:.4} % ({} input edges over 40°)",
+                        e.max_pct, e.mean_pct, e.n_edges
+                    ),
+                ));
+            }
             rows.push(("input bbox diagonal", format!("{:.6}", f.bbox_diagonal)));
             rows.push((
                 "volume change",
