@@ -331,9 +331,12 @@ pub(crate) fn pull(
 /// input. Within a round no vertex takes part twice. Attributes follow through
 /// [`Mesh::rebuilt`]. Stops early once [`FIT_MAX_FAILS`] far points in a row got no edit.
 /// Returns the edits made (pairs and pulls) and the points given up.
+// The mesh, what it is kept on and to, and the four bounds of the edits.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fit(
     mesh: &mut Mesh,
     surface: &Surface<'_>,
+    rails: &Rails,
     max_pairs: u32,
     cos_turn: f64,
     floor: f64,
@@ -342,6 +345,9 @@ pub(crate) fn fit(
 ) -> (usize, usize) {
     let origins = Origins::start(mesh);
     let guard = fit_guard(mesh, floor);
+    let locked = (0..mesh.n_vertices() as u32)
+        .map(|v| rails.locked(v))
+        .collect();
     let mut run = Fitting {
         mesh,
         surface,
@@ -356,6 +362,7 @@ pub(crate) fn fit(
         carry: origins.before.is_some(),
         v_from: origins.v_from,
         f_from: origins.f_from,
+        locked,
         given_up: vec![false; samples.len()],
         active: (0..samples.len() as u32).collect(),
         first: true,
@@ -415,6 +422,9 @@ struct Fitting<'m, 's> {
     carry: bool,
     v_from: Vec<Vec<(u32, f64)>>,
     f_from: Vec<u32>,
+    /// The corner and rail vertices (see [`Rails`]): every round starts with them touched,
+    /// so that no edit moves them or changes their faces.
+    locked: Vec<bool>,
     /// Points no split, collapse or pull could bring nearer: left alone from then on.
     given_up: Vec<bool>,
     /// The points looked at: after the first round, only those that were beyond `tol`
@@ -568,7 +578,7 @@ impl Fitting<'_, '_> {
             boundary_edges,
             refused_at: vec![f64::NEG_INFINITY; collapses.len()],
             collapses,
-            touched: vec![false; mesh.n_vertices()],
+            touched: self.locked.clone(),
         }
     }
 
@@ -576,6 +586,11 @@ impl Fitting<'_, '_> {
     /// collapse, or a pull, or the point given up.
     fn visit(&mut self, round: &mut RoundMesh<'_>, d: f64, iv: u32, f: u32) -> Visited {
         let face = self.mesh.faces[f as usize];
+        if face.iter().any(|&w| self.locked[w as usize]) {
+            // By a corner or a rail, which no edit touches: never nearer.
+            self.given_up[iv as usize] = true;
+            return Visited::Next;
+        }
         if face.iter().any(|&w| round.touched[w as usize]) {
             return Visited::Next;
         }

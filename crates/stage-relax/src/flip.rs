@@ -6,12 +6,14 @@ use super::*;
 /// the interior edge a–b of faces abc and bad becomes c–d when the smallest angle of the
 /// two faces grows, c–d is not an edge yet, neither new face turns by more than `cos_turn`
 /// from the face it replaces, both agree with `surface`, and the input points `watch` keeps
-/// near the two faces stay near the new ones. `topo` is `mesh`'s adjacency before the sweep.
+/// near the two faces stay near the new ones; rail edges (`rails`) stay. `topo` is `mesh`'s
+/// adjacency before the sweep.
 /// Returns the flips made.
 pub(crate) fn flip_sweep(
     mesh: &mut Mesh,
     topo: &Topology,
     surface: Option<&Surface<'_>>,
+    rails: &Rails,
     watch: Option<&Watch>,
     cos_turn: f64,
     floor: f64,
@@ -24,6 +26,9 @@ pub(crate) fn flip_sweep(
             continue;
         }
         let [a, b] = topo.edge(e);
+        if rails.is_rail_edge(a, b) {
+            continue;
+        }
         // f1 holds a → b, f2 holds b → a.
         let rot = |f: u32, x: u32, y: u32| -> Option<u32> {
             let t = mesh.faces[f as usize];

@@ -23,12 +23,14 @@ pub(crate) struct Mended {
 /// that face away from `surface` to points of the input where fewer of their faces face
 /// away, none is degenerate and the smallest angle of their faces stays at least `floor`
 /// (radians) or what it was; the best such point by faces facing away, then smallest
-/// angle. Vertices in index order, a few rounds.
+/// angle. Vertices in index order, a few rounds; corners and rail vertices (`rails`) stay,
+/// and rail edges are not flipped.
 pub(crate) fn mend(
     mesh: &mut Mesh,
     topo: &mut Topology,
     surface: &Surface<'_>,
     ends: &[Vec<u32>],
+    rails: &Rails,
     floor: f64,
 ) -> Mended {
     let mut away: Vec<bool> = (0..mesh.n_faces())
@@ -59,7 +61,7 @@ pub(crate) fn mend(
         let mut changed = false;
         for v in verts {
             let fan = topo.vertex_faces(v);
-            if fan.is_empty() || topo.n_vertex_fans(v) != 1 {
+            if fan.is_empty() || topo.n_vertex_fans(v) != 1 || rails.locked(v) {
                 continue;
             }
             let pos = |w: u32| mesh.positions[w as usize];
@@ -128,7 +130,7 @@ pub(crate) fn mend(
                 changed = true;
             }
         }
-        let flips = mend_flips(mesh, topo, surface, &mut away, tiny, floor);
+        let flips = mend_flips(mesh, topo, surface, rails, &mut away, tiny, floor);
         if flips > 0 {
             out.flips += flips;
             changed = true;
@@ -153,6 +155,7 @@ fn mend_flips(
     mesh: &mut Mesh,
     topo: &Topology,
     surface: &Surface<'_>,
+    rails: &Rails,
     away: &mut [bool],
     tiny: f64,
     floor: f64,
@@ -166,6 +169,9 @@ fn mend_flips(
         for k in 0..3 {
             let t = mesh.faces[f];
             let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            if rails.is_rail_edge(a, b) {
+                continue;
+            }
             let Some(e) = topo.find_edge(a, b) else {
                 continue;
             };

@@ -444,11 +444,12 @@ pub(crate) fn plan_split(
 pub(crate) fn rebalance(
     mesh: &mut Mesh,
     surface: Option<&Surface<'_>>,
+    rails: &Rails,
     max_pairs: u32,
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    rebalance_with(mesh, surface, max_pairs, cos_turn, floor, false).0
+    rebalance_with(mesh, surface, rails, max_pairs, cos_turn, floor, false).0
 }
 
 /// What one round of [`rebalance`] found: the split edge's ends and faces, its new faces
@@ -464,12 +465,15 @@ struct Pair {
 /// The next pair (see [`rebalance`]) of `mesh`, whose adjacency is `topo` and whose edges
 /// (sorted, with their face counts) are `edges`; `id` names an edge of `topo` by its ends
 /// and its place in `edges`.
+// The mesh and its adjacency in either form, what it is kept on and the two bounds.
+#[allow(clippy::too_many_arguments)]
 fn find_pair<A: Adjacency>(
     mesh: &Mesh,
     topo: &A,
     edges: &[([u32; 2], u32)],
     id: impl Fn([u32; 2], usize) -> Option<u32>,
     surface: Option<&Surface<'_>>,
+    rails: &Rails,
     cos_turn: f64,
     floor: f64,
 ) -> Option<Pair> {
@@ -487,12 +491,14 @@ fn find_pair<A: Adjacency>(
         .filter(|(_, (_, faces))| *faces == 2)
         .map(|(i, &(ab, _))| (len(ab), i, ab))
         .filter(|&(l, _, ab)| l > LONG_RATIO * mean || (l > SPLIT_RATIO * mean && bridge(ab)))
+        .filter(|&(_, _, [a, b])| !rails.is_rail_edge(a, b))
         .map(|(l, i, _)| (l, i))
         .collect();
     splits.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let mut collapses: Vec<(f64, usize)> = edges
         .iter()
         .enumerate()
+        .filter(|(_, ([a, b], _))| !rails.locked(*a) && !rails.locked(*b))
         .map(|(i, &(ab, _))| (len(ab), i))
         .filter(|&(l, _)| l < COLLAPSE_RATIO * mean)
         .collect();
@@ -540,6 +546,7 @@ fn find_pair<A: Adjacency>(
 pub(crate) fn rebalance_with(
     mesh: &mut Mesh,
     surface: Option<&Surface<'_>>,
+    rails: &Rails,
     max_pairs: u32,
     cos_turn: f64,
     floor: f64,
@@ -555,13 +562,13 @@ pub(crate) fn rebalance_with(
     let mut kept: Option<Kept> = None;
     while done < max_pairs as usize {
         let found = match kept.as_ref() {
-            Some(k) => pair_on_kept(mesh, k, surface, cos_turn, floor),
+            Some(k) => pair_on_kept(mesh, k, surface, rails, cos_turn, floor),
             None => {
                 let Ok(topo) = Topology::try_build(mesh) else {
                     break;
                 };
                 built += 1;
-                let (found, edges) = pair_on_built(mesh, &topo, surface, cos_turn, floor);
+                let (found, edges) = pair_on_built(mesh, &topo, surface, rails, cos_turn, floor);
                 if !fresh {
                     kept = Some(Kept::new(mesh, edges));
                 }
@@ -601,6 +608,7 @@ fn pair_on_kept(
     mesh: &Mesh,
     k: &Kept,
     surface: Option<&Surface<'_>>,
+    rails: &Rails,
     cos_turn: f64,
     floor: f64,
 ) -> Found {
@@ -609,7 +617,10 @@ fn pair_on_kept(
         faces: &mesh.faces,
     };
     let id = |_, i: usize| Some(i as u32);
-    find_pair(mesh, &adjacency, &k.edges, id, surface, cos_turn, floor).map(|p| {
+    find_pair(
+        mesh, &adjacency, &k.edges, id, surface, rails, cos_turn, floor,
+    )
+    .map(|p| {
         let around = k.faces_of[p.col.gone as usize].clone();
         (p, around)
     })
@@ -622,6 +633,7 @@ fn pair_on_built(
     mesh: &Mesh,
     topo: &Topology,
     surface: Option<&Surface<'_>>,
+    rails: &Rails,
     cos_turn: f64,
     floor: f64,
 ) -> (Found, Vec<([u32; 2], u32)>) {
@@ -629,7 +641,10 @@ fn pair_on_built(
     let ends = boundary_neighbours(topo, mesh.n_vertices());
     let adjacency = Built { topo, ends: &ends };
     let id = |[a, b]: [u32; 2], _| topo.find_edge(a, b);
-    let found = find_pair(mesh, &adjacency, &edges, id, surface, cos_turn, floor).map(|p| {
+    let found = find_pair(
+        mesh, &adjacency, &edges, id, surface, rails, cos_turn, floor,
+    )
+    .map(|p| {
         let around = topo.vertex_faces(p.col.gone).to_vec();
         (p, around)
     });

@@ -22,8 +22,10 @@ pub(crate) struct Sweep<'a> {
     pub faces: &'a [[u32; 3]],
     /// Their adjacency.
     pub topo: &'a Topology,
-    /// The two boundary neighbours of each boundary vertex.
+    /// The two boundary neighbours of each boundary vertex (rail neighbours on a rail).
     pub ends: &'a [Vec<u32>],
+    /// The corners that stay and the rails their vertices slide along.
+    pub rails: &'a Rails,
     /// The input surface faces must agree with.
     pub surface: Option<&'a Surface<'a>>,
     /// The input points kept near the mesh.
@@ -39,6 +41,8 @@ pub(crate) struct Sweep<'a> {
 pub(crate) struct SweepShared<'a> {
     /// See [`Sweep::ends`].
     pub ends: &'a [Vec<u32>],
+    /// See [`Sweep::rails`].
+    pub rails: &'a Rails,
     /// See [`Sweep::surface`].
     pub surface: Option<&'a Surface<'a>>,
     /// See [`Sweep::params`].
@@ -59,6 +63,7 @@ impl SweepShared<'_> {
             faces,
             topo,
             ends: self.ends,
+            rails: self.rails,
             surface: self.surface,
             watch,
             params: self.params,
@@ -259,8 +264,14 @@ impl Sweep<'_> {
             normals.push(triangle::normal(a, b, c));
         }
         // Candidate positions, best first: the full move, then partial ones (on the
-        // boundary: a third and two thirds of the way between the two neighbours).
-        let place = if topo.is_boundary_vertex(v) {
+        // boundary or a rail: a third and two thirds of the way between the two
+        // neighbours). A corner stays.
+        let rail = match self.rails.role(v) {
+            Role::Fixed => return None,
+            Role::On(r) => Some(r),
+            Role::Free => None,
+        };
+        let place = if rail.is_some() || topo.is_boundary_vertex(v) {
             let [u, w] = match self.ends[v as usize][..] {
                 [u, w] => [u, w].map(pos),
                 _ => return None,
@@ -268,8 +279,14 @@ impl Sweep<'_> {
             let place = Place {
                 from: p,
                 slide: Some((u.distance(p) + w.distance(p)) * BOUNDARY_REACH),
+                rail,
             };
             cands.extend([0.5, 1.0 / 3.0, 2.0 / 3.0].map(|s| p + params.step * (u.lerp(w, s) - p)));
+            // A rail vertex also finer steps: its faces reach across to other rails.
+            if rail.is_some() {
+                let finer = [0.4, 0.6, 0.25, 0.75, 0.45, 0.55];
+                cands.extend(finer.map(|s| p + params.step * (u.lerp(w, s) - p)));
+            }
             place
         } else {
             let normal = normal.normalize_or_zero();
@@ -289,19 +306,21 @@ impl Sweep<'_> {
             Place {
                 from: p,
                 slide: None,
+                rail: None,
             }
         };
         Some(place)
     }
 
-    /// Where `target` takes a vertex leaving `place.from`: onto the input surface (inside)
-    /// or along the input's boundary (on it) when projecting, else `target` itself (NaN
-    /// where a boundary projection finds nothing).
+    /// Where `target` takes a vertex leaving `place.from`: onto the input surface (inside),
+    /// along the input's boundary (on it) or onto its rail when projecting, else `target`
+    /// itself (NaN where a boundary or rail projection finds nothing).
     pub(crate) fn place(&self, place: &Place, target: DVec3) -> DVec3 {
-        match (self.projecting(), place.slide) {
-            (None, _) => target,
-            (Some(sf), None) => sf.project(target).unwrap_or(target),
-            (Some(sf), Some(reach)) => sf
+        match (self.projecting(), place.slide, place.rail) {
+            (None, _, _) => target,
+            (Some(_), Some(reach), Some(r)) => self.rails.project(r, place.from, target, reach),
+            (Some(sf), None, _) => sf.project(target).unwrap_or(target),
+            (Some(sf), Some(reach), None) => sf
                 .project_boundary_along(place.from, target, reach)
                 .unwrap_or(DVec3::NAN),
         }
@@ -362,8 +381,10 @@ fn border_classes(topo: &Topology, border: &[bool]) -> Vec<Vec<u32>> {
 pub(crate) struct Place {
     /// The vertex's position.
     from: DVec3,
-    /// On the boundary: how far along it (arc length) a target may be looked for.
+    /// On the boundary or a rail: how far along it (arc length) a target may be looked for.
     slide: Option<f64>,
+    /// The rail the vertex is on.
+    rail: Option<u32>,
 }
 
 /// A fixed split of a mesh's vertices into [`PARTS`] spatial parts.
