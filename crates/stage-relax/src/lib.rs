@@ -769,24 +769,12 @@ mod tests {
             let floor = 40f64.to_radians();
             let cos_turn = 30f64.to_radians().cos();
             let (mut fresh, mut kept) = (m.clone(), m);
-            let (a, built_a) = rebalance_with(
-                &mut fresh,
-                surface,
-                &Rails::default(),
-                40,
-                cos_turn,
-                floor,
-                true,
-            );
-            let (b, built_b) = rebalance_with(
-                &mut kept,
-                surface,
-                &Rails::default(),
-                40,
-                cos_turn,
-                floor,
-                false,
-            );
+            let no_rails = Rails::default();
+            let run = |m: &mut Mesh, fresh| {
+                rebalance_with(m, surface, &no_rails, 40, cos_turn, floor, fresh)
+            };
+            let (a, built_a) = run(&mut fresh, true);
+            let (b, built_b) = run(&mut kept, false);
             assert!(a >= 5, "{name}: {a} pairs");
             assert_eq!(a, b, "{name}");
             assert!(

@@ -669,6 +669,7 @@ fn split_chain(chain: Chain, at: &[usize], rails: &mut Vec<Rail>) {
         closed,
         boundary,
     } = chain;
+    let mut cuts = vec![0];
     if closed {
         let Some(&first) = at.first() else {
             rails.push(Rail::new(pts, true, boundary, None));
@@ -679,31 +680,15 @@ fn split_chain(chain: Chain, at: &[usize], rails: &mut Vec<Rail>) {
         pts.rotate_left(first);
         ids.push(ids[0]);
         pts.push(pts[0]);
-        let n = ids.len();
-        let mut cuts: Vec<usize> = at.iter().map(|&i| i - first).collect();
-        cuts.push(n - 1);
-        for w in cuts.windows(2) {
-            let (a, b) = (w[0], w[1]);
-            rails.push(Rail::new(
-                pts[a..=b].to_vec(),
-                false,
-                boundary,
-                Some([ids[a], ids[b]]),
-            ));
-        }
-        return;
+        cuts.extend(at[1..].iter().map(|&i| i - first));
+    } else {
+        cuts.extend_from_slice(at);
     }
-    let mut cuts = vec![0];
-    cuts.extend_from_slice(at);
     cuts.push(ids.len() - 1);
     for w in cuts.windows(2) {
         let (a, b) = (w[0], w[1]);
-        rails.push(Rail::new(
-            pts[a..=b].to_vec(),
-            false,
-            boundary,
-            Some([ids[a], ids[b]]),
-        ));
+        let ends = Some([ids[a], ids[b]]);
+        rails.push(Rail::new(pts[a..=b].to_vec(), false, boundary, ends));
     }
 }
 
