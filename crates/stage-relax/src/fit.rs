@@ -248,6 +248,7 @@ pub(crate) fn pull(
     back: f64,
     guard: f64,
     cos_turn: f64,
+    stays: &dyn Fn(u32) -> bool,
     touched: &mut [bool],
     tris: &mut Vec<[DVec3; 3]>,
 ) -> bool {
@@ -261,6 +262,7 @@ pub(crate) fn pull(
         for w in ends {
             let fan = topo.vertex_faces(w);
             if touched[w as usize]
+                || stays(w)
                 || topo.is_boundary_vertex(w) != on_boundary
                 || topo.n_vertex_fans(w) != 1
                 || fan
@@ -336,7 +338,7 @@ pub(crate) fn pull(
 pub(crate) fn fit(
     mesh: &mut Mesh,
     surface: &Surface<'_>,
-    rails: &Rails,
+    rails: &mut Rails,
     max_pairs: u32,
     cos_turn: f64,
     floor: f64,
@@ -345,9 +347,6 @@ pub(crate) fn fit(
 ) -> (usize, usize) {
     let origins = Origins::start(mesh);
     let guard = fit_guard(mesh, floor);
-    let locked = (0..mesh.n_vertices() as u32)
-        .map(|v| rails.locked(v))
-        .collect();
     let mut run = Fitting {
         mesh,
         surface,
@@ -362,7 +361,7 @@ pub(crate) fn fit(
         carry: origins.before.is_some(),
         v_from: origins.v_from,
         f_from: origins.f_from,
-        locked,
+        rails,
         given_up: vec![false; samples.len()],
         active: (0..samples.len() as u32).collect(),
         first: true,
@@ -422,9 +421,9 @@ struct Fitting<'m, 's> {
     carry: bool,
     v_from: Vec<Vec<(u32, f64)>>,
     f_from: Vec<u32>,
-    /// The corner and rail vertices (see [`Rails`]): every round starts with them touched,
-    /// so that no edit moves them or changes their faces.
-    locked: Vec<bool>,
+    /// The corners and rails (see [`Rails`]): no edit moves their vertices; a far point
+    /// by a rail edge gets a split of it on the rail (see [`Fitting::visit_rail`]).
+    rails: &'m mut Rails,
     /// Points no split, collapse or pull could bring nearer: left alone from then on.
     given_up: Vec<bool>,
     /// The points looked at: after the first round, only those that were beyond `tol`
@@ -578,7 +577,7 @@ impl Fitting<'_, '_> {
             boundary_edges,
             refused_at: vec![f64::NEG_INFINITY; collapses.len()],
             collapses,
-            touched: self.locked.clone(),
+            touched: vec![false; mesh.n_vertices()],
         }
     }
 
@@ -586,13 +585,11 @@ impl Fitting<'_, '_> {
     /// collapse, or a pull, or the point given up.
     fn visit(&mut self, round: &mut RoundMesh<'_>, d: f64, iv: u32, f: u32) -> Visited {
         let face = self.mesh.faces[f as usize];
-        if face.iter().any(|&w| self.locked[w as usize]) {
-            // By a corner or a rail, which no edit touches: never nearer.
-            self.given_up[iv as usize] = true;
-            return Visited::Next;
-        }
         if face.iter().any(|&w| round.touched[w as usize]) {
             return Visited::Next;
+        }
+        if face.iter().any(|&w| self.rails.locked(w)) {
+            return self.visit_rail(round, d, iv, f);
         }
         let (p, on_boundary) = self.samples[iv as usize];
         let edges = self.split_edges(round, p, on_boundary, f);
@@ -609,6 +606,7 @@ impl Fitting<'_, '_> {
                 l.tol.max(FIT_TRADE * d),
                 l.guard,
                 l.cos_turn,
+                &|w| self.rails.locked(w),
                 &mut round.touched,
                 &mut self.tris,
             ) {
@@ -633,6 +631,98 @@ impl Fitting<'_, '_> {
             true => Visited::Reindexed,
             false => Visited::Next,
         }
+    }
+
+    /// The far point `iv` (at distance `d`) by face `f`, which has a corner or rail vertex:
+    /// the rail edge of `f` nearest it split at the rail point nearest it, paired with a
+    /// collapse elsewhere; or the point given up.
+    fn visit_rail(&mut self, round: &mut RoundMesh<'_>, d: f64, iv: u32, f: u32) -> Visited {
+        let (p, _) = self.samples[iv as usize];
+        let split = self.plan_rail_split(round, p, d, f);
+        let gain = split.as_ref().map_or(0.0, |(s, _)| d - s.at.distance(p));
+        let col = match split.as_ref() {
+            Some((s, _)) if gain > 0.0 => self.pick_collapse(round, s, gain),
+            _ => None,
+        };
+        let (Some((split, [a, b])), Some(col)) = (split, col) else {
+            self.given_up[iv as usize] = true;
+            self.fails += 1;
+            return Visited::Next;
+        };
+        self.fails = 0;
+        self.done += 1;
+        let v = col.gone;
+        let reindexed = self.apply_pair(round, split, col);
+        self.rails.split_edge(a, b, v);
+        match reindexed {
+            true => Visited::Reindexed,
+            false => Visited::Next,
+        }
+    }
+
+    /// The split of the rail edge of face `f` nearest `p` at the point of its rail nearest
+    /// `p` (away from the edge's ends), when its new faces keep the angle guard and stay
+    /// near the input (as [`Fitting::plan_split_at`] asks for a point at distance `d`);
+    /// with the edge's ends.
+    fn plan_rail_split(
+        &self,
+        round: &RoundMesh<'_>,
+        p: DVec3,
+        d: f64,
+        f: u32,
+    ) -> Option<(SplitPlan, [u32; 2])> {
+        let (mesh, topo, rails) = (&*self.mesh, round.topo, &*self.rails);
+        let pos = |w: u32| mesh.positions[w as usize];
+        let face = mesh.faces[f as usize];
+        let (_, a, b) = (0..3)
+            .map(|k| (face[k], face[(k + 1) % 3]))
+            .filter(|&(a, b)| rails.is_rail_edge(a, b))
+            .map(|(a, b)| {
+                (
+                    closest_point_on_segment(p, pos(a), pos(b)).0.distance(p),
+                    a,
+                    b,
+                )
+            })
+            .min_by(|x, y| x.0.total_cmp(&y.0))?;
+        let r = rails.rail_of_edge(a, b)?;
+        let (pa, pb) = (pos(a), pos(b));
+        let at = rails.project(r, pa.lerp(pb, 0.5), p, 0.5 * pa.distance(pb));
+        let away = 0.25 * pa.distance(pb);
+        if !at.is_finite() || at.distance(pa) < away || at.distance(pb) < away {
+            return None;
+        }
+        let e = topo.find_edge(a, b)?;
+        let (old, new) = plan_split(
+            mesh,
+            &round.built,
+            Some(self.surface),
+            e,
+            NEW_VERTEX,
+            at,
+            self.limits.cos_turn,
+        )?;
+        let around: Vec<u32> = old.iter().flat_map(|&g| mesh.faces[g as usize]).collect();
+        if around.iter().any(|&w| round.touched[w as usize]) {
+            return None;
+        }
+        let place = |t: &[u32; 3]| t.map(|w| if w == NEW_VERTEX { at } else { pos(w) });
+        let l = &self.limits;
+        let shape_ok = new.iter().all(|t| {
+            let [x, y, z] = place(t);
+            triangle::min_angle(x, y, z) >= 0.5 * l.guard
+        });
+        let tris: Vec<[DVec3; 3]> = new.iter().map(place).collect();
+        (shape_ok && !leaves_input(self.surface, &tris, l.tol.max(FIT_TRADE * d))).then(|| {
+            let split = SplitPlan {
+                edge: e,
+                at,
+                old: old.to_vec(),
+                new: new.to_vec(),
+                around,
+            };
+            (split, [a, b])
+        })
     }
 
     /// The edges a split for point `p` (nearest face `f`) may cut, nearest to `p` first:
@@ -688,7 +778,10 @@ impl Fitting<'_, '_> {
                 .iter()
                 .flat_map(|&g| mesh.faces[g as usize])
                 .collect();
-            if around.iter().any(|&w| round.touched[w as usize]) {
+            if around
+                .iter()
+                .any(|&w| round.touched[w as usize] || self.rails.locked(w))
+            {
                 continue;
             }
             let mid = mesh.positions[c as usize].lerp(mesh.positions[dd as usize], 0.5);
@@ -763,6 +856,8 @@ impl Fitting<'_, '_> {
             let [a, b] = topo.edge(k);
             if round.touched[a as usize]
                 || round.touched[b as usize]
+                || self.rails.locked(a)
+                || self.rails.locked(b)
                 || split.around.contains(&a)
                 || split.around.contains(&b)
                 || bound <= round.refused_at[i]

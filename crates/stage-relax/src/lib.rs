@@ -68,8 +68,10 @@
 //! With `features`, first of all, the input's sharp features are captured (see the
 //! `rails` module): each corner of the input gets the nearest vertex, which then never
 //! moves; each sharp curve a chain of vertices traced along it, which then slide only along
-//! it; no edge of a chain is flipped, and rebalancing and fitting leave the chains' and
-//! corners' vertices and faces alone. Features are read at the mesh's scale (curves shorter
+//! it; no edge of a chain is flipped, and rebalancing and fitting move none of the chains'
+//! and corners' vertices. A far input point by a chain edge gets that edge split at the
+//! chain's nearest point (paired with a collapse elsewhere), new angles down to 0.4 of the
+//! floor. Features are read at the mesh's scale (curves shorter
 //! than its mean edge, or no longer sharp at that scale, are not features).
 //!
 //! The report gives `facing_away` (faces facing away before and after mending, when it
@@ -146,7 +148,7 @@ params! {
         pub polish: u32 = 0,
         /// Keep the input's sharp features (when projecting): its corners get a vertex
         /// that never moves, its sharp curves a chain of vertices that slide along them and
-        /// whose edges are neither flipped, split nor collapsed. Off by default: it costs
+        /// whose edges are neither flipped nor collapsed. Off by default: it costs
         /// smallest angle (fandisk at 2000 with `adaptive-cvt`: 30.9 → 20.1°), and on a
         /// scan it still finds creases (the bunny at 5000: 24.4 → 5.0°).
         pub features: bool = false,
@@ -335,7 +337,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         0.01 * params.max_dev_pct * s.mesh.bbox().diagonal()
     });
     // The input's features: corners and rails the vertices are put on and kept on.
-    let rails = match surface_on.and_then(|s| Some((s, s.features.as_deref()?))) {
+    let mut rails = match surface_on.and_then(|s| Some((s, s.features.as_deref()?))) {
         Some((sf, input)) if params.features => match Topology::try_build(mesh) {
             Ok(topo) => {
                 let (rails, captured) = Rails::capture(mesh, &topo, input, sf.mesh);
@@ -369,7 +371,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         (out.fitted, out.fit_given_up) = fit(
             mesh,
             sf,
-            &rails,
+            &mut rails,
             params.fit,
             cos_turn,
             params.floor_deg.to_radians(),

@@ -17,8 +17,9 @@
 //!   the rail; the path's inner vertices go onto the rail in path order. Boundary rails are
 //!   not traced: the boundary vertices already stay on the input's boundary.
 //! * Then, during the relaxation, a corner never moves, a rail vertex slides only along its
-//!   rail, no rail edge is flipped, split or collapsed, and the split/collapse edits of
-//!   rebalancing and fitting leave the rail and corner vertices alone.
+//!   rail, no rail edge is flipped or collapsed, the split/collapse edits of rebalancing
+//!   and fitting move no rail or corner vertex, and fitting may split a rail edge at a
+//!   point of its rail (the new vertex joins the rail).
 
 use super::*;
 use coarsen_features::{FeatureKind, FeatureOptions, Features};
@@ -243,8 +244,8 @@ pub(crate) struct Rails {
     role: Vec<Role>,
     /// The two rail neighbours of each rail vertex.
     ends: HashMap<u32, [u32; 2]>,
-    /// Rail edges, as (smaller, larger) vertex.
-    edges: HashSet<(u32, u32)>,
+    /// Rail edges, as (smaller, larger) vertex, and their rail.
+    edges: HashMap<(u32, u32), u32>,
     rails: Vec<Rail>,
 }
 
@@ -261,7 +262,32 @@ impl Rails {
 
     /// Whether `a`–`b` is a rail edge.
     pub(crate) fn is_rail_edge(&self, a: u32, b: u32) -> bool {
-        !self.edges.is_empty() && self.edges.contains(&(a.min(b), a.max(b)))
+        self.rail_of_edge(a, b).is_some()
+    }
+
+    /// The rail of edge `a`–`b`, when it is a rail edge.
+    pub(crate) fn rail_of_edge(&self, a: u32, b: u32) -> Option<u32> {
+        match self.edges.is_empty() {
+            true => None,
+            false => self.edges.get(&(a.min(b), a.max(b))).copied(),
+        }
+    }
+
+    /// Records that rail edge `a`–`b` was split at vertex `v`, now on its rail.
+    pub(crate) fn split_edge(&mut self, a: u32, b: u32, v: u32) {
+        let Some(r) = self.edges.remove(&(a.min(b), a.max(b))) else {
+            return;
+        };
+        self.role[v as usize] = Role::On(r);
+        self.ends.insert(v, [a, b]);
+        for (x, y) in [(a, b), (b, a)] {
+            if let Some(e) = self.ends.get_mut(&x)
+                && let Some(slot) = e.iter_mut().find(|w| **w == y)
+            {
+                *slot = v;
+            }
+            self.edges.insert((x.min(v), x.max(v)), r);
+        }
     }
 
     /// The two rail neighbours of rail vertex `v`.
@@ -395,7 +421,7 @@ impl Trial {
                 }
             }
             for w in chain.windows(2) {
-                rails.edges.insert((w[0].min(w[1]), w[0].max(w[1])));
+                rails.edges.insert((w[0].min(w[1]), w[0].max(w[1])), r);
             }
             rails.rails.push(rail);
             out.rails_kept += 1;
@@ -1088,6 +1114,33 @@ mod tests {
         );
         assert_eq!(r.features, Some(Captured::default()));
         assert_eq!(with.positions, without.positions);
+    }
+
+    #[test]
+    fn splitting_a_rail_edge_puts_the_new_vertex_between_its_ends() {
+        // Corner 0, rail vertices 1 and 2 of rail 0, corner 3; vertex 4 free.
+        let mut rails = Rails {
+            role: vec![
+                Role::Fixed,
+                Role::On(0),
+                Role::On(0),
+                Role::Fixed,
+                Role::Free,
+            ],
+            ends: HashMap::from([(1, [0, 2]), (2, [1, 3])]),
+            edges: HashMap::from([((0, 1), 0), ((1, 2), 0), ((2, 3), 0)]),
+            rails: Vec::new(),
+        };
+        rails.split_edge(2, 1, 4);
+        assert_eq!(rails.role(4), Role::On(0));
+        assert_eq!(rails.rail_ends(4), Some([2, 1]));
+        assert_eq!(rails.rail_ends(1), Some([0, 4]));
+        assert_eq!(rails.rail_ends(2), Some([4, 3]));
+        assert!(!rails.is_rail_edge(1, 2));
+        assert!(rails.is_rail_edge(1, 4) && rails.is_rail_edge(4, 2));
+        // Not a rail edge: nothing changes.
+        rails.split_edge(0, 3, 4);
+        assert!(!rails.is_rail_edge(0, 4));
     }
 
     #[test]
