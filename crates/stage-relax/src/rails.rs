@@ -6,8 +6,9 @@
 //!   curve shorter than `h`, or no longer sharp when each side's normal is averaged over
 //!   the input within `h` (a scan's noise), is dropped; the remaining curves are chained
 //!   through the corners where exactly two of them meet, and the chains cut at the points
-//!   where they turn by more than [`CORNER_TURN_DEG`] over `h / 2` on each side (a ragged
-//!   hole's boundary is not a corner at every step). Corners are those cuts and the points
+//!   where they turn by more than [`CORNER_TURN_DEG`] over `h` on each side, at least
+//!   [`CONCENTRATED`] of it within `h / 2` (neither a ragged hole's boundary nor a small
+//!   round hole is a corner at every step). Corners are those cuts and the points
 //!   where one, or three or more, curves end.
 //! * Capture ([`Rails::capture`]): each corner takes the nearest output vertex of its
 //!   kind (boundary or not) within [`TUBE`]·`h` and moves onto it; each sharp rail is then
@@ -25,9 +26,11 @@ use super::*;
 use coarsen_features::{FeatureKind, FeatureOptions, Features};
 use std::collections::{BinaryHeap, HashMap, HashSet};
 
-/// A chain of curves is cut where it turns by more than this (degrees), measured half an
+/// A chain of curves is cut where it turns by more than this (degrees), measured one
 /// output edge along each side.
 pub(crate) const CORNER_TURN_DEG: f64 = 45.0;
+/// A turn is a corner when at least this share of it happens within half its reach.
+pub(crate) const CONCENTRATED: f64 = 0.75;
 /// How near a rail or corner (in mean output edges) the output vertices it may take lie.
 pub(crate) const TUBE: f64 = 1.5;
 /// The cost of a path vertex's distance from the rail, per unit of distance (its length
@@ -640,14 +643,15 @@ fn chain_curves(
     chains
 }
 
-/// The points of `chain` where it turns by more than [`CORNER_TURN_DEG`] over half an
-/// output edge `h` on each side, the sharpest first and none within `h / 2` (along the
-/// chain) of one taken before or of an open chain's ends; in chain order.
+/// The points of `chain` where it turns by more than [`CORNER_TURN_DEG`] over an output
+/// edge `h` on each side, at least [`CONCENTRATED`] of it within `h / 2`: the sharpest
+/// first and none within `h` (along the chain) of one taken before or of an open chain's
+/// ends; in chain order.
 fn sharp_turns(chain: &Chain, h: f64) -> Vec<usize> {
     let rail = Rail::new(chain.pts.clone(), chain.closed, chain.boundary, None);
     let length = rail.length();
     let n = chain.pts.len();
-    let reach = 0.5 * h;
+    let reach = h;
     if length <= 0.0 || (!chain.closed && length < 2.0 * reach) {
         return Vec::new();
     }
@@ -666,9 +670,19 @@ fn sharp_turns(chain: &Chain, h: f64) -> Vec<usize> {
                 return None;
             }
             let p = chain.pts[i];
-            let (d1, d2) = (p - rail.at(wrap(t - reach)), rail.at(wrap(t + reach)) - p);
-            let l = d1.length() * d2.length();
-            (l > 0.0 && d1.dot(d2) < cos_limit * l).then(|| (d1.dot(d2) / l, i))
+            let turn = |s: f64| {
+                let (d1, d2) = (p - rail.at(wrap(t - s)), rail.at(wrap(t + s)) - p);
+                let l = d1.length() * d2.length();
+                if l > 0.0 {
+                    (d1.dot(d2) / l).clamp(-1.0, 1.0).acos()
+                } else {
+                    0.0
+                }
+            };
+            // A corner turns at the point: over half the reach nearly as much (an arc of a
+            // small hole turns half as much).
+            let (wide, narrow) = (turn(reach), turn(0.5 * reach));
+            (wide.cos() < cos_limit && narrow >= CONCENTRATED * wide).then(|| (wide.cos(), i))
         })
         .collect();
     cands.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
@@ -1151,6 +1165,25 @@ mod tests {
         let mut sorted = vec![0.0, 1.0, 2.0];
         non_decreasing(&mut sorted);
         assert_eq!(sorted, vec![0.0, 1.0, 2.0]);
+    }
+
+    #[test]
+    fn a_small_round_hole_has_no_corners() {
+        // A circle of circumference 2π seen at h = 1.5: it turns far more than 45° over
+        // ±h, but evenly, half of it over ±h / 2.
+        let pts: Vec<DVec3> = (0..64)
+            .map(|i| {
+                let a = i as f64 * std::f64::consts::TAU / 64.0;
+                DVec3::new(a.cos(), a.sin(), 0.0)
+            })
+            .collect();
+        let chain = Chain {
+            ids: (0..64).collect(),
+            pts,
+            closed: true,
+            boundary: true,
+        };
+        assert!(sharp_turns(&chain, 1.5).is_empty());
     }
 
     #[test]
