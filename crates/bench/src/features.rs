@@ -1,10 +1,12 @@
 //! The feature-edge rows (issues #5 and #6): how far the output of each simplifier lies
 //! from the fandisk's sharp feature edges (`coarsen_metrics::feature_edges`), at paper 2's
-//! 70 %, and how much `quadric` placement recovers for the CVT pipelines.
+//! 70 %, how much `quadric` placement recovers for the CVT pipelines, and what `relax`'s
+//! `features` (the input's corners and sharp curves kept) gives them, at what cost in
+//! angles.
 
 use anyhow::Result;
 use coarsen_mesh::Mesh;
-use coarsen_metrics::{FeatureOptions, feature_edges, fidelity};
+use coarsen_metrics::{FeatureOptions, feature_edges, fidelity, quality};
 use coarsen_stage::{Registry, Target};
 use std::fmt::Write as _;
 
@@ -28,6 +30,9 @@ const ROWS: &[(&str, &[&str])] = &[
         ],
     ),
     ("goal", &[]),
+    ("uniform-cvt", &["relax.features=true"]),
+    ("adaptive-cvt", &["relax.features=true"]),
+    ("goal", &["shape.features=true", "fit.features=true"]),
 ];
 
 /// The section: `qem` and `svec` at 70 % removed, then the CVT pipelines (paper 1's also
@@ -71,15 +76,18 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
         }
         let f = feature_edges(input, &out, &opts)?;
         let h = fidelity(input, &out, &Default::default())?;
+        let q = quality(&out)?;
         edges = Some((f.n_edges, f.length_pct, f.n_samples));
         let _ = writeln!(
             rows,
-            "| {label} | {} | {} | {:.4} | {:.4} | {:.4} |",
+            "| {label} | {} | {} | {:.4} | {:.4} | {:.4} | {:.2} | {:.3} |",
             out.n_vertices(),
             out.n_faces(),
             f.max_pct,
             f.mean_pct,
-            h.hausdorff_pct
+            h.hausdorff_pct,
+            q.alpha_min_deg,
+            q.q_avg
         );
     }
     let (n, length, samples) = edges.unwrap_or_default();
@@ -90,11 +98,14 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
          the diagonal apart ({samples} in all), are measured to the nearest point of the output \
          (`coarsen_metrics::feature_edges`). The CVT pipelines run to `qem`'s vertex count. \
          Distances in % of the bounding-box diagonal; *Hausdorff* is the whole surface's, as in \
-         the tables above.\n",
+         the tables above. `features=true` (off by default) captures the input's corners and \
+         sharp curves in `relax` (see its docs).\n",
         opts.angle_deg, opts.spacing
     );
-    s.push_str("| pipeline | V | F | feature max % | feature mean % | Hausdorff % |\n");
-    s.push_str("| --- | ---: | ---: | ---: | ---: | ---: |\n");
+    s.push_str(
+        "| pipeline | V | F | feature max % | feature mean % | Hausdorff % | α_min ° | Q_avg |\n",
+    );
+    s.push_str("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
     s.push_str(&rows);
     s.push('\n');
     Ok(s)

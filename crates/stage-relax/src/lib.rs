@@ -149,8 +149,9 @@ params! {
         /// Keep the input's sharp features (when projecting): its corners get a vertex
         /// that never moves, its sharp curves a chain of vertices that slide along them and
         /// whose edges are neither flipped nor collapsed. Off by default: it costs
-        /// smallest angle (fandisk at 2000 with `adaptive-cvt`: 30.9 → 20.1°), and on a
-        /// scan it still finds creases (the bunny at 5000: 24.4 → 5.0°).
+        /// smallest angle (fandisk at 2000 with `adaptive-cvt`: 30.9 → 21.3°; at 1500 or
+        /// 3000 a face may stay turned over), and on a scan it still finds creases (the
+        /// bunny at 5000: 24.4 → 7.3°).
         pub features: bool = false,
         /// An input edge is sharp when its two faces' normals differ by more than this
         /// (degrees).

@@ -15,8 +15,9 @@
 //!   traced on the output mesh by a shortest path between its corners (closed rails: between
 //!   two points half a rail apart) through the vertices within [`TUBE`]·`h` of the rail,
 //!   each edge costing its length plus [`OFF_RAIL_COST`] times its far end's distance from
-//!   the rail; the path's inner vertices go onto the rail in path order. Boundary rails are
-//!   not traced: the boundary vertices already stay on the input's boundary.
+//!   the rail; the path's inner vertices go onto the rail in path order, evenly spaced
+//!   between the corners (or the two points). Boundary rails are not traced: the boundary
+//!   vertices already stay on the input's boundary.
 //! * Then, during the relaxation, a corner never moves, a rail vertex slides only along its
 //!   rail, no rail edge is flipped or collapsed, the split/collapse edits of rebalancing
 //!   and fitting move no rail or corner vertex, and fitting may split a rail edge at a
@@ -882,15 +883,12 @@ fn trace(
         let (t0, t1) = (anchors[k - 1].1, anchors[k].1);
         let end = start + 1 + chain[start + 1..].iter().position(|&v| v == anchors[k].0)?;
         let inner = &chain[start + 1..end];
-        let mut ts: Vec<f64> = inner
-            .iter()
-            .map(|&v| rail.nearest_between(mesh.positions[v as usize], t0, t1).1)
-            .collect();
-        non_decreasing(&mut ts);
+        // Evenly along the rail between the anchors, in path order (the path's own
+        // spacing, projected, left vertices bunched where it cut across a bend).
         let n = inner.len() as f64 + 1.0;
-        for (i, t) in ts.iter().enumerate() {
+        for i in 0..inner.len() {
             let even = t0 + (t1 - t0) * (i as f64 + 1.0) / n;
-            at[start + 1 + i] = Some(rail.at(0.5 * (t + even)));
+            at[start + 1 + i] = Some(rail.at(even));
         }
         start = end;
     }
@@ -982,31 +980,6 @@ fn shortcut(topo: &Topology, path: Vec<u32>) -> Vec<u32> {
             .unwrap_or(i + 1);
     }
     out
-}
-
-/// Makes `ts` non-decreasing with the least squared change (pooling adjacent violators).
-fn non_decreasing(ts: &mut [f64]) {
-    let mut blocks: Vec<(f64, usize)> = Vec::new();
-    for &t in ts.iter() {
-        blocks.push((t, 1));
-        while blocks.len() > 1 {
-            let (b, nb) = blocks[blocks.len() - 1];
-            let (a, na) = blocks[blocks.len() - 2];
-            if a <= b {
-                break;
-            }
-            blocks.pop();
-            let n = na + nb;
-            *blocks.last_mut().unwrap() = ((a * na as f64 + b * nb as f64) / n as f64, n);
-        }
-    }
-    let mut i = 0;
-    for (t, n) in blocks {
-        for x in &mut ts[i..i + n] {
-            *x = t;
-        }
-        i += n;
-    }
 }
 
 #[cfg(test)]
@@ -1155,16 +1128,6 @@ mod tests {
         // Not a rail edge: nothing changes.
         rails.split_edge(0, 3, 4);
         assert!(!rails.is_rail_edge(0, 4));
-    }
-
-    #[test]
-    fn pooling_makes_a_sequence_non_decreasing_by_the_least_change() {
-        let mut t = vec![1.0, 3.0, 2.0, 4.0, 0.0];
-        non_decreasing(&mut t);
-        assert_eq!(t, vec![1.0, 2.25, 2.25, 2.25, 2.25]);
-        let mut sorted = vec![0.0, 1.0, 2.0];
-        non_decreasing(&mut sorted);
-        assert_eq!(sorted, vec![0.0, 1.0, 2.0]);
     }
 
     #[test]
