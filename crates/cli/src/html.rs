@@ -65,6 +65,20 @@ impl Recorder {
         self.keep(title, coarsen_render::render(&[mesh], &opts));
     }
 
+    /// Renders `meshes` side by side (the input first) with their wire and sharp features,
+    /// and keeps the picture.
+    pub fn features(&self, title: String, meshes: &[&Mesh]) {
+        let opts = RenderOptions {
+            width: self.size,
+            height: self.size,
+            view: self.view,
+            wireframe: true,
+            features: true,
+            ..Default::default()
+        };
+        self.keep(title, coarsen_render::render(meshes, &opts));
+    }
+
     /// Renders `meshes` side by side (the input first) coloured by a measured `field`,
     /// with its colour bar, and keeps the picture; `worst` highlights that percent of
     /// each mesh's worst faces; `sheet` draws four views (a 2×2 sheet).
@@ -164,8 +178,8 @@ impl Recorder {
 }
 
 /// The report's maps of the output against the input: the distance of each to the other
-/// (far in red: where the output left the surface, e.g. rounded feature edges) and the
-/// smallest angles, the worst 1 % of faces in magenta.
+/// (far in red: where the output left the surface, e.g. rounded feature edges), the
+/// smallest angles (the worst 1 % of faces in magenta) and the sharp features of both.
 pub fn maps_of(r: &Recorder, input: &Mesh, output: &Mesh, fields: &coarsen_metrics::Fields) {
     let (mut a, mut b) = (input.clone(), output.clone());
     fields.input.attach(&mut a);
@@ -183,6 +197,10 @@ pub fn maps_of(r: &Recorder, input: &Mesh, output: &Mesh, fields: &coarsen_metri
         Some(1.0),
         false,
     );
+    let title = "sharp features: input and output (edges over 40° red, boundary blue, of three \
+                 or more faces purple, corners yellow)"
+        .to_string();
+    r.features(title, &[input, output]);
 }
 
 fn escape(s: &str) -> String {

@@ -153,6 +153,10 @@ enum Command {
         /// Samples per pixel along each axis, for anti-aliasing (1 for none).
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=4))]
         supersample: u32,
+        /// Draw each mesh's sharp features over it (edges over 40°: red; boundary: blue;
+        /// of three or more faces: purple; corners: yellow dots).
+        #[arg(long)]
+        features: bool,
     },
     /// Rebuild a level of detail from a coarse mesh and its progressive record (`run
     /// --progressive`) by undoing collapses: level 0 is the coarse mesh, the last level the input.
@@ -450,6 +454,7 @@ where
             views,
             size,
             supersample,
+            features,
         } => {
             let opts = coarsen_render::RenderOptions {
                 width: size.0,
@@ -461,6 +466,7 @@ where
                 attribute,
                 scale: None,
                 supersample,
+                features,
             };
             commands::render(&meshes, &output, opts, worst)
         }

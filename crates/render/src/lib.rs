@@ -102,6 +102,9 @@ pub struct RenderOptions {
     pub scale: Option<ColorScale>,
     /// Samples per pixel along each axis (1 = none, up to 4).
     pub supersample: u32,
+    /// Draw each mesh's sharp features over it (`coarsen-features` at its defaults): sharp
+    /// edges red, boundary edges blue, edges of three or more faces purple, corners yellow.
+    pub features: bool,
 }
 
 impl Default for RenderOptions {
@@ -116,6 +119,7 @@ impl Default for RenderOptions {
             attribute: None,
             scale: None,
             supersample: 3,
+            features: false,
         }
     }
 }
@@ -365,6 +369,13 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
     {
         return Err(RenderError::NoAttribute(name.into()));
     }
+    let overlays: Vec<raster::Overlay> = meshes
+        .iter()
+        .map(|m| match opts.features {
+            true => features_overlay(m),
+            false => raster::Overlay::default(),
+        })
+        .collect();
     let base = camera::frame(opts.view, meshes[0]);
     let frames = if opts.views == 4 {
         camera::sheet(base).to_vec()
@@ -397,7 +408,7 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
     for (c, frame) in frames.iter().enumerate() {
         let (cx, cy) = ((c % cols) * cell_w, (c / cols) * ph);
         for (i, (mesh, colors)) in meshes.iter().zip(&colors).enumerate() {
-            let panel = panel(meshes, mesh, colors.as_deref(), *frame, opts);
+            let panel = panel(meshes, mesh, colors.as_deref(), &overlays[i], *frame, opts);
             for y in 0..ph {
                 let dst = ((cy + y) * total_w + cx + i * pw) * 3;
                 image.rgb[dst..dst + pw * 3].copy_from_slice(&panel[y * pw * 3..(y + 1) * pw * 3]);
@@ -412,6 +423,41 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
     }
     Ok(image)
 }
+
+/// The sharp features of `mesh` as lines and dots (none when its adjacency cannot be built).
+fn features_overlay(mesh: &Mesh) -> raster::Overlay {
+    use coarsen_features::{FeatureKind, FeatureOptions, Features};
+    let Ok(topo) = coarsen_mesh::Topology::try_build(mesh) else {
+        return raster::Overlay::default();
+    };
+    let f = Features::detect(mesh, &topo, &FeatureOptions::default());
+    let p = |v: u32| mesh.positions[v as usize];
+    raster::Overlay {
+        segments: f
+            .edges
+            .iter()
+            .map(|&(e, kind)| {
+                let [a, b] = topo.edge(e);
+                let rgb = match kind {
+                    FeatureKind::Sharp => FEATURE_SHARP,
+                    FeatureKind::Boundary => FEATURE_BOUNDARY,
+                    FeatureKind::Junction => FEATURE_JUNCTION,
+                };
+                ([p(a), p(b)], rgb)
+            })
+            .collect(),
+        dots: f.corners.iter().map(|&v| (p(v), FEATURE_CORNER)).collect(),
+    }
+}
+
+/// Colour of sharp feature edges.
+pub const FEATURE_SHARP: [f32; 3] = [0.85, 0.1, 0.1];
+/// Colour of boundary edges.
+pub const FEATURE_BOUNDARY: [f32; 3] = [0.1, 0.35, 0.9];
+/// Colour of edges of three or more faces.
+pub const FEATURE_JUNCTION: [f32; 3] = [0.6, 0.1, 0.75];
+/// Colour of corners.
+pub const FEATURE_CORNER: [f32; 3] = [1.0, 0.85, 0.0];
 
 /// Grey lines between the cells of a 2×2 sheet (`cell_w × cell_h` each, `grid_h` high in
 /// all), so that the panels of one view read as one.
@@ -433,6 +479,7 @@ fn panel(
     all: &[&Mesh],
     mesh: &Mesh,
     colors: Option<&[[[f32; 3]; 3]]>,
+    overlay: &raster::Overlay,
     frame: camera::Frame,
     opts: &RenderOptions,
 ) -> Vec<u8> {
@@ -454,7 +501,7 @@ fn panel(
         outline: opts.wireframe,
         ambient: if opts.scale.is_some() { 0.6 } else { 0.28 },
     };
-    let fine = raster::draw(mesh, colors, &cam, &pass);
+    let fine = raster::draw(mesh, colors, &cam, &pass, overlay);
     let mut out = Vec::with_capacity(w * h * 3);
     let n = (s * s) as f32;
     for y in 0..h {

@@ -47,12 +47,23 @@ pub(crate) fn wire_opacity(edge_px: f64) -> f32 {
     (0.15 + 0.85 * ((edge_px - 2.0) / 6.0).clamp(0.0, 1.0)) as f32
 }
 
-/// Draws one mesh; returns the colour of every pixel, rows top to bottom.
+/// Lines and dots drawn over a mesh where they are not hidden by it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct Overlay {
+    /// Segments and their colours.
+    pub segments: Vec<([DVec3; 2], [f32; 3])>,
+    /// Dots and their colours.
+    pub dots: Vec<(DVec3, [f32; 3])>,
+}
+
+/// Draws one mesh, then `overlay` over it; returns the colour of every pixel, rows top to
+/// bottom.
 pub(crate) fn draw(
     mesh: &Mesh,
     colors: Option<&[[[f32; 3]; 3]]>,
     cam: &Camera,
     pass: &Pass,
+    overlay: &Overlay,
 ) -> Vec<[f32; 3]> {
     let (w, h) = (pass.width, pass.height);
     let mut depth = vec![f64::NEG_INFINITY; w * h];
@@ -149,7 +160,66 @@ pub(crate) fn draw(
             4.0 / cam.scale * pass.wire_half_width,
         );
     }
+    draw_overlay(
+        &mut color,
+        &depth,
+        (w, h),
+        cam,
+        pass.wire_half_width,
+        overlay,
+    );
     color
+}
+
+/// Paints `overlay` into `color`: each segment as a line `2·half_width` pixels wide (twice
+/// that for dots), where nothing of the mesh (`depth`) lies in front of it by more than a
+/// few pixels' worth.
+fn draw_overlay(
+    color: &mut [[f32; 3]],
+    depth: &[f64],
+    (w, h): (usize, usize),
+    cam: &Camera,
+    half_width: f64,
+    overlay: &Overlay,
+) {
+    let slack = 3.0 * half_width / cam.scale;
+    let mut paint = |p: DVec3, radius: f64, rgb: [f32; 3]| {
+        let r = radius.ceil() as i64;
+        let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
+        for y in cy - r..=cy + r {
+            for x in cx - r..=cx + r {
+                let (dx, dy) = (x as f64 + 0.5 - p.x, y as f64 + 0.5 - p.y);
+                if x < 0
+                    || y < 0
+                    || x >= w as i64
+                    || y >= h as i64
+                    || dx * dx + dy * dy > radius * radius
+                {
+                    continue;
+                }
+                let i = y as usize * w + x as usize;
+                if p.z >= depth[i] - slack {
+                    color[i] = rgb;
+                }
+            }
+        }
+    };
+    for &([a, b], rgb) in &overlay.segments {
+        let (a, b) = (cam.project(a), cam.project(b));
+        if !(a.is_finite() && b.is_finite()) {
+            continue;
+        }
+        let steps = (2.0 * (b - a).truncate().length()).ceil().clamp(1.0, 1e5) as usize;
+        for k in 0..=steps {
+            paint(a.lerp(b, k as f64 / steps as f64), half_width, rgb);
+        }
+    }
+    for &(p, rgb) in &overlay.dots {
+        let p = cam.project(p);
+        if p.is_finite() {
+            paint(p, 3.0 * half_width, rgb);
+        }
+    }
 }
 
 /// Darkens the covered pixels within `radius` of an empty one (the silhouette) or of one
@@ -205,6 +275,32 @@ mod tests {
             supersample: 1,
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn features_draw_a_cubes_edges_and_corners_and_only_with_the_option() {
+        let cube = coarsen_shapes::cube(2.0, 2).unwrap();
+        let count = |features: bool, rgb: [f32; 3]| {
+            let img = render(
+                &[&cube],
+                &RenderOptions {
+                    view: View::Iso,
+                    features,
+                    ..opts(200)
+                },
+            )
+            .unwrap();
+            let want = rgb.map(|x| (x * 255.0).round() as u8);
+            (0..200)
+                .flat_map(|y| (0..200).map(move |x| (x, y)))
+                .filter(|&(x, y)| img.pixel(x, y) == want)
+                .count()
+        };
+        // Nine edges and seven corners face an iso camera.
+        assert!(count(true, crate::FEATURE_SHARP) > 300);
+        assert!(count(true, crate::FEATURE_CORNER) > 7 * 10);
+        assert_eq!(count(false, crate::FEATURE_SHARP), 0);
+        assert_eq!(count(false, crate::FEATURE_CORNER), 0);
     }
 
     #[test]
