@@ -321,17 +321,18 @@ impl Rails {
         surface: &Mesh,
     ) -> (Rails, Captured) {
         let n_edges = topo.n_edges();
-        if n_edges == 0 {
+        let h = (0..n_edges as u32)
+            .map(|e| edge_length(mesh, topo, e))
+            .sum::<f64>()
+            / n_edges.max(1) as f64;
+        // No edges, or none with a length: nothing to put on features.
+        if !(h > 0.0 && h.is_finite()) {
             let rails = Rails {
                 role: vec![Role::Free; mesh.n_vertices()],
                 ..Rails::default()
             };
             return (rails, Captured::default());
         }
-        let h = (0..n_edges as u32)
-            .map(|e| edge_length(mesh, topo, e))
-            .sum::<f64>()
-            / n_edges as f64;
         let (chained, fixed) = chain_rails(input, surface, h);
         let mut chained: Vec<Rail> = chained.into_iter().filter(|r| !r.boundary).collect();
         chained.sort_by(|x, y| y.length().total_cmp(&x.length()));
@@ -1070,6 +1071,22 @@ mod tests {
             "smallest angle {}",
             r.min_angle_after
         );
+    }
+
+    #[test]
+    fn a_mesh_collapsed_to_a_point_captures_nothing() {
+        let input = coarsen_shapes::cube(2.0, 2).unwrap();
+        let topo = Topology::build(&input);
+        let features = Arc::new(InputFeatures::detect(&input, &topo, 40.0));
+        let surface = Surface::new(&input).with_features(features);
+        let mut m = input.clone();
+        m.positions.iter_mut().for_each(|p| *p = DVec3::ZERO);
+        let params = RelaxParams {
+            features: true,
+            ..RelaxParams::default()
+        };
+        let r = relax(&mut m, Some(&surface), &params);
+        assert_eq!(r.features, Some(Captured::default()));
     }
 
     #[test]
