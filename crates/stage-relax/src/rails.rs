@@ -16,8 +16,11 @@
 //!   two points half a rail apart) through the vertices within [`TUBE`]·`h` of the rail,
 //!   each edge costing its length plus [`OFF_RAIL_COST`] times its far end's distance from
 //!   the rail; the path's inner vertices go onto the rail in path order, evenly spaced
-//!   between the corners (or the two points). Boundary rails are not traced: the boundary
-//!   vertices already stay on the input's boundary.
+//!   between the corners (or the two points). Rails are traced longest first; one that no
+//!   path reaches (others' chains wall it off) is tried in wider tubes (2 and 5 times), and
+//!   when some stay untraced the capture is made once more with those first, the trial that
+//!   keeps more rails winning. Boundary rails are not traced: the boundary vertices already
+//!   stay on the input's boundary.
 //! * Then, during the relaxation, a corner never moves, a rail vertex slides only along its
 //!   rail, no rail edge is flipped or collapsed, the split/collapse edits of rebalancing
 //!   and fitting move no rail or corner vertex, and fitting may split a rail edge at a
