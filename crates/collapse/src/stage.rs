@@ -20,8 +20,8 @@
 //! as paper 2's Eq. (4) quadrics (`sve_weighted`: Wᵢ·Nᵢ·Vᵢ²), all in world units.
 
 use crate::{
-    CostModel, FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome, Parted,
-    StopReason, Summary, Unit, attributes_only,
+    CostModel, FaceGuard, Gated, Goal, GuardCounts, LiveMesh, NoGuard, Options, Outcome,
+    PartOptions, Parted, StopReason, Summary, Unit, attributes_only,
 };
 use coarsen_metrics::LazyGridFacing;
 use coarsen_stage::{
@@ -91,7 +91,7 @@ impl<G: FaceGuard> From<Parted<G>> for Collapsed {
 
 /// The goal a run of triangle collapses stops at: a triangle collapse removes 2 vertices
 /// and at most 4 faces, so it stops one vertex (three faces) short of `goal`, which edge
-/// collapses then reach ([`finish_with_edges`]).
+/// collapses then reach ([`triangles_then_edges`]).
 pub fn triangle_goal(goal: Goal) -> Goal {
     match goal {
         Goal::Vertices(n) => Goal::Vertices(n.saturating_add(1)),
@@ -99,26 +99,49 @@ pub fn triangle_goal(goal: Goal) -> Goal {
     }
 }
 
-/// Finishes a run of triangle collapses (`outcome`, stopped at [`triangle_goal`]) with edge
-/// collapses down to `opts.goal`, the model switched to edges by `to_edges`; nothing when
-/// the run stopped at the error limit. Returns the whole outcome and the edge collapses.
-pub fn finish_with_edges<M: CostModel, G: FaceGuard>(
+/// Triangle collapses (in `parts`, then serially) to [`triangle_goal`], then edge
+/// collapses down to `opts.goal` with the model switched to edges by `to_edges` (none when
+/// the triangles stopped at the error limit). Returns the whole run and, of its collapses,
+/// the edge collapses.
+pub fn triangles_then_edges<M, G, F>(
     live: &mut LiveMesh,
     model: &mut M,
-    to_edges: impl FnOnce(&mut M),
-    guard: &mut G,
+    new_guard: F,
     opts: &Options,
-    outcome: Outcome,
+    parts: &PartOptions,
+    to_edges: impl FnOnce(&mut M),
     progress: &mut dyn FnMut(usize),
-) -> (Outcome, usize) {
-    if matches!(outcome.stop, StopReason::MaxError { .. }) {
-        return (outcome, 0);
+) -> (Parted<G>, usize)
+where
+    M: CostModel + Send,
+    G: FaceGuard + Send,
+    F: Fn() -> G + Sync,
+{
+    let triangles = Options {
+        goal: triangle_goal(opts.goal),
+        ..*opts
+    };
+    let run = live.collapse_parted(model, new_guard, &triangles, parts, progress);
+    if matches!(run.outcome.stop, StopReason::MaxError { .. }) {
+        return (run, 0);
     }
+    let Parted {
+        outcome,
+        in_parts,
+        part_counts,
+        mut guard,
+    } = run;
     to_edges(model);
     let done = outcome.collapses;
-    let finish = live.collapse_guarded(model, guard, opts, &mut |n| progress(done + n));
+    let finish = live.collapse_guarded(model, &mut guard, opts, &mut |n| progress(done + n));
     let edges = finish.collapses;
-    (outcome.then(finish), edges)
+    let run = Parted {
+        outcome: outcome.then(finish),
+        in_parts,
+        part_counts,
+        guard,
+    };
+    (run, edges)
 }
 
 /// The contract of a collapse stage: a target, and pinched vertices split per face fan

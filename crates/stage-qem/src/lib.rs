@@ -69,7 +69,7 @@
 //! # Ok::<(), coarsen_stage::StageError>(())
 //! ```
 
-use coarsen_collapse::stage::{Collapsed, Simplifier, finish_with_edges, triangle_goal};
+use coarsen_collapse::stage::{Collapsed, Simplifier, triangles_then_edges};
 use coarsen_collapse::{
     FaceGuard, Goal, LiveMesh, Options, PartOptions, QemOptions, QuadricModel, Unit,
 };
@@ -229,27 +229,11 @@ impl Simplifier for Qem<'_> {
                 .into();
         }
         // Triangle collapses stop short of the goal; edge collapses finish.
-        let triangles = Options {
-            goal: triangle_goal(goal),
-            ..opts
-        };
-        let run = live.collapse_parted(&mut model, new_guard, &triangles, &parts, progress);
-        let mut guard = run.guard;
         let to_edges = |m: &mut QuadricModel| m.set_unit(Unit::Edge);
-        let (outcome, _) = finish_with_edges(
-            live,
-            &mut model,
-            to_edges,
-            &mut guard,
-            &opts,
-            run.outcome,
-            progress,
+        let (run, _) = triangles_then_edges(
+            live, &mut model, new_guard, &opts, &parts, to_edges, progress,
         );
-        Collapsed {
-            outcome,
-            in_parts: run.in_parts,
-            guarded: run.part_counts.plus(&guard.counts()),
-        }
+        run.into()
     }
 }
 

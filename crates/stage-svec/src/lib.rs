@@ -188,7 +188,7 @@ mod model;
 
 pub use model::{Factors, SvecModel, SvecOptions};
 
-use coarsen_collapse::stage::{Collapsed, Simplifier, finish_with_edges, triangle_goal};
+use coarsen_collapse::stage::{Collapsed, Simplifier, triangles_then_edges};
 use coarsen_collapse::{FaceGuard, Goal, LiveMesh, Options, PartOptions, Unit};
 use coarsen_stage::params::{check_finite_min, check_range};
 use coarsen_stage::{
@@ -420,31 +420,16 @@ impl Simplifier for Svec<'_> {
             weighted_sve: p.sve_weighted,
             ..Options::new(goal)
         };
-        let triangles = Options {
-            goal: triangle_goal(goal),
-            ..opts
-        };
-        let run = live.collapse_parted(&mut model, new_guard, &triangles, &self.parts, progress);
-        let (in_parts, mut guard) = (run.in_parts, run.guard);
-        self.triangle_collapses = run.outcome.collapses;
         let to_edges = |m: &mut SvecModel| m.set_unit(Unit::Edge);
-        let (outcome, edges) = finish_with_edges(
-            live,
-            &mut model,
-            to_edges,
-            &mut guard,
-            &opts,
-            run.outcome,
-            progress,
+        let parts = &self.parts;
+        let (run, edges) = triangles_then_edges(
+            live, &mut model, new_guard, &opts, parts, to_edges, progress,
         );
+        self.triangle_collapses = run.outcome.collapses - edges;
         self.edge_collapses = edges;
         self.feature_collapses = model.feature_collapses();
         self.feature_threshold = model.feature_threshold();
-        Collapsed {
-            outcome,
-            in_parts,
-            guarded: run.part_counts.plus(&guard.counts()),
-        }
+        run.into()
     }
 
     fn figures(&self, r: &mut StageReport) {
