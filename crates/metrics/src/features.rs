@@ -14,7 +14,7 @@
 use crate::error::{MetricsError, Role};
 use crate::prepare::{Prepared, map_chunks};
 use crate::validity::topology;
-use coarsen_mesh::Mesh;
+use coarsen_mesh::{Mesh, Topology};
 use coarsen_spatial::Bvh;
 use serde::{Deserialize, Serialize};
 
@@ -88,8 +88,24 @@ pub fn feature_edges(
     if output.n_faces() == 0 {
         return Err(MetricsError::NoFaces { mesh: Role::Output });
     }
-    let edges = sharp_edges(input, opts.angle_deg)?;
-    let bvh = Bvh::build(&prepared_out.mesh.positions, &prepared_out.mesh.faces);
+    let topo = topology(&prepared_in, Role::Input)?;
+    Ok(edges_to(input, &topo, prepared_out.mesh, diagonal, opts))
+}
+
+/// [`feature_edges`] of a checked `input` (adjacency `topo`, bounding-box `diagonal` above
+/// zero) against a checked `output` with faces.
+pub(crate) fn edges_to(
+    input: &Mesh,
+    topo: &Topology,
+    output: &Mesh,
+    diagonal: f64,
+    opts: &FeatureOptions,
+) -> FeatureEdges {
+    let edges: Vec<[u32; 2]> = coarsen_features::sharp_edges(input, topo, opts.angle_deg)
+        .into_iter()
+        .map(|e| topo.edge(e))
+        .collect();
+    let bvh = Bvh::build(&output.positions, &output.faces);
     let step = (opts.spacing * diagonal).max(f64::MIN_POSITIVE);
     // Per chunk: (samples, sum of distances, largest distance, total length).
     let parts = map_chunks(edges.len(), CHUNK, |range| {
@@ -114,13 +130,13 @@ pub fn feature_edges(
         |(n, s, m, l), (n2, s2, m2, l2)| (n + n2, s + s2, m.max(m2), l + l2),
     );
     let pct = |x: f64| 100.0 * x / diagonal;
-    Ok(FeatureEdges {
+    FeatureEdges {
         n_edges: edges.len(),
         length_pct: pct(length),
         n_samples: n,
         max_pct: pct(max),
         mean_pct: if n > 0 { pct(sum / n as f64) } else { 0.0 },
-    })
+    }
 }
 
 #[cfg(test)]

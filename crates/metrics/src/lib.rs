@@ -117,7 +117,6 @@ fn measure_and_record(
     opts: &MetricsOptions,
     record: bool,
 ) -> Result<(MetricsReport, Option<Fields>), MetricsError> {
-    let inp_mesh = input;
     let (out, input) = rayon::join(
         || Prepared::new(output, Role::Output),
         || input.map(|m| Prepared::new(m, Role::Input)).transpose(),
@@ -125,8 +124,8 @@ fn measure_and_record(
     let (out, input) = (out?, input?);
     let out_topology = validity::topology(&out, Role::Output)?;
     let quality = quality::quality_of(&out);
-    let (fidelity, n_flipped, fields) = match &input {
-        None => (None, None, None),
+    let (fidelity, n_flipped, fields, features) = match &input {
+        None => (None, None, None, None),
         Some(inp) => {
             let floor = fidelity::rounding_floor(inp, &out)?;
             // The input's topology (for its closedness and the flip test's edge normals)
@@ -139,6 +138,15 @@ fn measure_and_record(
             let both_closed =
                 validity::encloses_volume(&out_topology) && validity::encloses_volume(in_topology);
             let fid = fidelity::figures(inp, &out, &sampled, both_closed);
+            // The sharp edges' distance, on the adjacency and checks made above.
+            let feature_opts = FeatureOptions::default();
+            let edges = features::edges_to(
+                inp.mesh,
+                in_topology,
+                out.mesh,
+                fid.bbox_diagonal,
+                &feature_opts,
+            );
             let (n_flipped, fields) = if record {
                 let flipped = validity::flipped_faces(&out, inp, &sampled.input_bvh, in_topology);
                 let n = flipped.iter().filter(|&&f| f).count();
@@ -155,18 +163,10 @@ fn measure_and_record(
                 let n = validity::count_flipped(&out, inp, &sampled.input_bvh, in_topology);
                 (n, None)
             };
-            (Some(fid), Some(n_flipped), fields)
+            (Some(fid), Some(n_flipped), fields, Some(edges))
         }
     };
     let validity = validity::validity_of(&out, &out_topology.summary(output), n_flipped);
-    let features = match input {
-        Some(_) => Some(feature_edges(
-            inp_mesh.expect("input given"),
-            output,
-            &FeatureOptions::default(),
-        )?),
-        None => None,
-    };
     let report = MetricsReport {
         quality,
         fidelity,
