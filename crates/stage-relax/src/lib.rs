@@ -71,8 +71,8 @@
 //! it; no edge of a chain is flipped, and rebalancing and fitting move none of the chains'
 //! and corners' vertices. A far input point by a chain edge gets that edge split at the
 //! chain's nearest point (paired with a collapse elsewhere), new angles down to 0.4 of the
-//! floor. Features are read at the mesh's scale (curves shorter
-//! than its mean edge, or no longer sharp at that scale, are not features).
+//! floor. Features are read at the mesh's scale (curves shorter than its mean edge, or no
+//! longer sharp at that scale, are not features).
 //!
 //! The report gives `facing_away` (faces facing away before and after mending, when it
 //! ran), `moved` (moves kept, per sweep), `flipped` (edges flipped, per sweep),
