@@ -401,6 +401,34 @@ fn fit_guard(mesh: &Mesh, floor: f64) -> f64 {
         }
 }
 
+/// Whether the faces `new` of a split at `at` (its new vertex written [`NEW_VERTEX`]) have
+/// no angle under `guard` and leave no input point near them beyond `bound` (`tris` is
+/// scratch).
+fn split_fits(
+    mesh: &Mesh,
+    surface: &Surface<'_>,
+    new: &[[u32; 3]],
+    at: DVec3,
+    guard: f64,
+    bound: f64,
+    tris: &mut Vec<[DVec3; 3]>,
+) -> bool {
+    let place = |t: &[u32; 3]| {
+        t.map(|w| match w {
+            NEW_VERTEX => at,
+            w => mesh.positions[w as usize],
+        })
+    };
+    new.iter().all(|t| {
+        let [a, b, c] = place(t);
+        triangle::min_angle(a, b, c) >= guard
+    }) && {
+        tris.clear();
+        tris.extend(new.iter().map(place));
+        !leaves_input(surface, tris, bound)
+    }
+}
+
 /// The bounds of one [`fit`].
 struct Limits {
     max_pairs: usize,
@@ -706,14 +734,19 @@ impl Fitting<'_, '_> {
         if around.iter().any(|&w| round.touched[w as usize]) {
             return None;
         }
-        let place = |t: &[u32; 3]| t.map(|w| if w == NEW_VERTEX { at } else { pos(w) });
         let l = &self.limits;
-        let shape_ok = new.iter().all(|t| {
-            let [x, y, z] = place(t);
-            triangle::min_angle(x, y, z) >= 0.5 * l.guard
-        });
-        let tris: Vec<[DVec3; 3]> = new.iter().map(place).collect();
-        (shape_ok && !leaves_input(self.surface, &tris, l.tol.max(FIT_TRADE * d))).then(|| {
+        let bound = l.tol.max(FIT_TRADE * d);
+        let mut tris = Vec::new();
+        split_fits(
+            mesh,
+            self.surface,
+            &new,
+            at,
+            0.5 * l.guard,
+            bound,
+            &mut tris,
+        )
+        .then(|| {
             let split = SplitPlan {
                 edge: e,
                 at,
@@ -810,21 +843,8 @@ impl Fitting<'_, '_> {
                 let Some((old, new)) = split else {
                     continue;
                 };
-                let place = |t: &[u32; 3]| {
-                    t.map(|w| match w {
-                        NEW_VERTEX => at,
-                        w => mesh.positions[w as usize],
-                    })
-                };
-                let shape_ok = new.iter().all(|t| {
-                    let [a, b, c] = place(t);
-                    triangle::min_angle(a, b, c) >= l.guard
-                }) && {
-                    self.tris.clear();
-                    self.tris.extend(new.iter().map(place));
-                    !leaves_input(surface, &self.tris, l.tol.max(FIT_TRADE * d))
-                };
-                if shape_ok {
+                let bound = l.tol.max(FIT_TRADE * d);
+                if split_fits(mesh, surface, &new, at, l.guard, bound, &mut self.tris) {
                     return Some(SplitPlan {
                         edge: s,
                         at,

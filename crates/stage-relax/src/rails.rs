@@ -196,12 +196,9 @@ impl Rail {
                 continue;
             }
             let (q, s) = closest_point_on_segment(p, self.pts[i - 1], self.pts[i]);
-            let t = (self.cum[i - 1] + s * (self.cum[i] - self.cum[i - 1])).clamp(t0, t1);
-            let q = if t == self.cum[i - 1] + s * (self.cum[i] - self.cum[i - 1]) {
-                q
-            } else {
-                self.at(t)
-            };
+            let on = self.cum[i - 1] + s * (self.cum[i] - self.cum[i - 1]);
+            let t = on.clamp(t0, t1);
+            let q = if t == on { q } else { self.at(t) };
             let d = q.distance(p);
             if d < best.2 {
                 best = (q, t, d);
@@ -383,7 +380,7 @@ impl Trial {
         fixed: &[Corner],
         order: &[Rail],
     ) -> Trial {
-        let mut m = Mesh::new(mesh.positions.clone(), Vec::new());
+        let mut positions = mesh.positions.clone();
         let mut out = Captured::default();
         let mut rails = Rails {
             role: vec![Role::Free; mesh.n_vertices()],
@@ -397,9 +394,9 @@ impl Trial {
                     && topo.is_boundary_vertex(v) == on_boundary
                     && topo.n_vertex_fans(v) == 1
             };
-            if let Some(v) = grid.nearest(&m.positions, p, TUBE * h, free) {
+            if let Some(v) = grid.nearest(&positions, p, TUBE * h, free) {
                 rails.role[v as usize] = Role::Fixed;
-                m.positions[v as usize] = p;
+                positions[v as usize] = p;
                 corner_at.insert(c, v);
                 out.corners_kept += 1;
             }
@@ -409,9 +406,17 @@ impl Trial {
             out.rails += 1;
             let r = rails.rails.len() as u32;
             // A rail whose tube is crowded by others' vertices: again in wider tubes.
-            let traced = [1.0, 2.0, 5.0]
-                .into_iter()
-                .find_map(|w| trace(&m, topo, grid, &rails, rail, &corner_at, w * TUBE * h));
+            let traced = [1.0, 2.0, 5.0].into_iter().find_map(|w| {
+                trace(
+                    &positions,
+                    topo,
+                    grid,
+                    &rails,
+                    rail,
+                    &corner_at,
+                    w * TUBE * h,
+                )
+            });
             let Some(Traced { rail, chain, at }) = traced else {
                 missed.push(k);
                 continue;
@@ -419,7 +424,7 @@ impl Trial {
             for (i, &v) in chain.iter().enumerate() {
                 if let Some(q) = at[i] {
                     rails.role[v as usize] = Role::On(r);
-                    m.positions[v as usize] = q;
+                    positions[v as usize] = q;
                     let (prev, next) = match i {
                         0 => (chain[chain.len() - 2], chain[1]),
                         _ => (chain[i - 1], chain[i + 1]),
@@ -437,7 +442,7 @@ impl Trial {
         Trial {
             rails,
             captured: out,
-            positions: m.positions,
+            positions,
             missed,
         }
     }
@@ -793,10 +798,10 @@ struct Traced {
     at: Vec<Option<DVec3>>,
 }
 
-/// Traces `rail` on `mesh` through the vertices within `radius` of it (see the module
+/// Traces `rail` on the mesh (vertex `positions`, adjacency `topo`) through the vertices within `radius` of it (see the module
 /// docs); `None` when a corner of it has no vertex or no path joins its anchors.
 fn trace(
-    mesh: &Mesh,
+    positions: &[DVec3],
     topo: &Topology,
     grid: &Grid,
     rails: &Rails,
@@ -815,7 +820,7 @@ fn trace(
         let (a, b) = (rail.pts[i - 1], rail.pts[i]);
         let r = DVec3::splat(radius);
         for v in grid.around(a.min(b) - r, a.max(b) + r) {
-            let p = mesh.positions[v as usize];
+            let p = positions[v as usize];
             let d = closest_point_on_segment(p, a, b).0.distance(p);
             if d <= radius {
                 let e = near.entry(v).or_insert(d);
@@ -829,7 +834,7 @@ fn trace(
     // Anchors: (vertex, arc length, whether it is a corner).
     let pseudo = |t: f64, taken: &[u32]| -> Option<u32> {
         let p = rail.at(t);
-        grid.nearest(&mesh.positions, p, radius, |v| {
+        grid.nearest(positions, p, radius, |v| {
             usable(v) && near.contains_key(&v) && !taken.contains(&v)
         })
     };
@@ -857,7 +862,7 @@ fn trace(
     let mut taken: HashSet<u32> = anchors.iter().map(|a| a.0).collect();
     for k in 1..anchors.len() {
         let (from, to) = (anchors[k - 1].0, anchors[k].0);
-        let path = shortest_path(mesh, topo, &near, &taken, from, to, usable);
+        let path = shortest_path(positions, topo, &near, &taken, from, to, usable);
         let path = path?;
         let path = shortcut(topo, path);
         // A loop's first half may have gone the other way round: turn the rail.
@@ -865,10 +870,7 @@ fn trace(
             let inner = &path[1..path.len() - 1];
             let mean_t = inner
                 .iter()
-                .map(|&v| {
-                    rail.nearest_between(mesh.positions[v as usize], 0.0, length)
-                        .1
-                })
+                .map(|&v| rail.nearest_between(positions[v as usize], 0.0, length).1)
                 .sum::<f64>()
                 / inner.len() as f64;
             if mean_t > 0.5 * length {
@@ -912,7 +914,7 @@ fn trace(
 /// `taken`, but for `to`): an edge costs its length plus [`OFF_RAIL_COST`] times its far
 /// end's distance from the rail.
 fn shortest_path(
-    mesh: &Mesh,
+    positions: &[DVec3],
     topo: &Topology,
     near: &HashMap<u32, f64>,
     taken: &HashSet<u32>,
@@ -951,7 +953,7 @@ fn shortest_path(
         if dist.get(&v).is_some_and(|x| x.0 < d) {
             continue;
         }
-        let p = mesh.positions[v as usize];
+        let p = positions[v as usize];
         for &w in topo.vertex_neighbors(v) {
             let ok = w == to || (usable(w) && !taken.contains(&w));
             let Some(&off) = near.get(&w).or(if w == to { Some(&0.0) } else { None }) else {
@@ -960,7 +962,7 @@ fn shortest_path(
             if !ok {
                 continue;
             }
-            let c = d + p.distance(mesh.positions[w as usize]) + OFF_RAIL_COST * off;
+            let c = d + p.distance(positions[w as usize]) + OFF_RAIL_COST * off;
             if dist.get(&w).is_none_or(|x| c < x.0) {
                 dist.insert(w, (c, v));
                 heap.push(Item(c, w));
