@@ -1,5 +1,6 @@
 //! Coarsen's integration tests: one binary (ripgrep style), one module per concern.
 
+mod cad;
 mod cli;
 mod data;
 mod facade;

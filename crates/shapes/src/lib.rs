@@ -16,6 +16,9 @@
 //! | [`plane_grid`]`(nx, ny, size)` | disc, 1 boundary loop | (nx + 1)(ny + 1) | 2·nx·ny |
 //! | [`disk_with_holes`]`(h, res, size)` | h holes, h + 1 loops | see its docs | see its docs |
 //!
+//! CAD-like parts with sharp edges, tessellated as a CAD program's STL export is (a plate,
+//! a block, a shaft), are in `cad` (with the crate feature `cad`).
+//!
 //! ```
 //! let m = coarsen_shapes::icosphere(1.0, 2).unwrap();
 //! assert_eq!((m.n_vertices(), m.n_faces()), (162, 320));
@@ -25,7 +28,11 @@
 use coarsen_mesh::{DVec3, Index, Mesh, Topology, topology};
 use std::f64::consts::{PI, TAU};
 
-/// Parameters that do not describe a valid shape.
+#[cfg(feature = "cad")]
+pub mod cad;
+
+/// Why a shape could not be made: parameters that describe none, or (a bug) a failed
+/// construction step.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ShapeError {
     /// A parameter outside its valid range.
@@ -47,6 +54,15 @@ pub enum ShapeError {
         faces: u64,
         /// The limit.
         max: u64,
+    },
+    /// A construction step failed on valid parameters: a broken invariant of this crate (a
+    /// bug; please report it with the call).
+    #[error("{what} could not be built: {reason} (a bug in coarsen-shapes)")]
+    Internal {
+        /// The shape.
+        what: &'static str,
+        /// What failed.
+        reason: String,
     },
 }
 
