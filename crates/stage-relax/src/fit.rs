@@ -384,6 +384,58 @@ pub(crate) fn fit(
     (done, given_up.iter().filter(|&&g| g).count())
 }
 
+/// Up to `max_pairs` times, in rounds, for the faces of `mesh` facing away from `surface`
+/// that moves and flips left (a part of the input thinner than a face): splits an edge
+/// of such a face at a point of the input on the side the face faces, where fewer of the
+/// new faces face away than of the old, paired with the collapse elsewhere that moves the
+/// surface least (at most [`FIT_TRADE`] of how far the face's centroid is from that side);
+/// the angle guard and the rails as in [`fit`]. Returns the pairs made.
+pub(crate) fn unfold(
+    mesh: &mut Mesh,
+    surface: &Surface<'_>,
+    rails: &mut Rails,
+    max_pairs: u32,
+    cos_turn: f64,
+    floor: f64,
+) -> usize {
+    let origins = Origins::start(mesh);
+    let guard = fit_guard(mesh, floor);
+    let mut run = Fitting {
+        mesh,
+        surface,
+        samples: &[],
+        limits: Limits {
+            max_pairs: max_pairs as usize,
+            cos_turn,
+            floor,
+            tol: 0.0,
+            guard,
+        },
+        carry: origins.before.is_some(),
+        v_from: origins.v_from,
+        f_from: origins.f_from,
+        rails,
+        given_up: Vec::new(),
+        active: Vec::new(),
+        first: false,
+        tris: Vec::new(),
+        done: 0,
+        fails: 0,
+    };
+    while run.done < run.limits.max_pairs && run.unfold_round() {}
+    let Fitting {
+        mesh,
+        done,
+        v_from,
+        f_from,
+        ..
+    } = run;
+    if let Some(before) = origins.before.filter(|_| done > 0) {
+        carry_attributes(mesh, &before, v_from, f_from);
+    }
+    done
+}
+
 /// The smallest angle [`fit`] lets a new face have: [`FIT_GUARD`] of `floor` or of the
 /// mesh's smallest angle, whichever is lower (of the mesh's without a floor).
 fn fit_guard(mesh: &Mesh, floor: f64) -> f64 {
@@ -544,6 +596,123 @@ impl Fitting<'_, '_> {
             || far
                 .iter()
                 .any(|x| x.0 > tol && !self.given_up[x.1 as usize])
+    }
+
+    /// One round of [`unfold`]: a pair at each face facing away in turn. False when no
+    /// pair was made.
+    fn unfold_round(&mut self) -> bool {
+        let Ok(topo) = Topology::try_build(self.mesh) else {
+            return false;
+        };
+        let surface = self.surface;
+        let away: Vec<u32> = (0..self.mesh.n_faces() as u32)
+            .filter(|&f| {
+                let [a, b, c] = self.mesh.corners(f as usize);
+                !surface.agrees(a, b, c)
+            })
+            .collect();
+        if away.is_empty() {
+            return false;
+        }
+        let ends = boundary_neighbours(&topo, self.mesh.n_vertices());
+        let mut round = self.round_mesh(&topo, &ends);
+        let before = self.done;
+        for f in away {
+            if self.done >= self.limits.max_pairs {
+                break;
+            }
+            if let Visited::Reindexed = self.visit_away(&mut round, f) {
+                break;
+            }
+        }
+        self.done > before
+    }
+
+    /// Face `f`, facing away: the first split of one of its interior edges (longest first)
+    /// at a point of the input on the side it faces that leaves fewer new faces facing away
+    /// than old, paired with a collapse elsewhere.
+    fn visit_away(&mut self, round: &mut RoundMesh<'_>, f: u32) -> Visited {
+        let (mesh, topo, surface) = (&*self.mesh, round.topo, self.surface);
+        let face = mesh.faces[f as usize];
+        if face
+            .iter()
+            .any(|&w| round.touched[w as usize] || self.rails.locked(w))
+        {
+            return Visited::Next;
+        }
+        let pos = |w: u32| mesh.positions[w as usize];
+        let [a, b, c] = face.map(pos);
+        let normal = triangle::cross(a, b, c);
+        let centroid = triangle::centroid(a, b, c);
+        let Some(side) = surface.project_facing(centroid, normal) else {
+            return Visited::Next;
+        };
+        let mut edges: Vec<(f64, u32)> = topo
+            .face_edges(f)
+            .into_iter()
+            .filter(|&e| topo.edge_faces(e).len() == 2)
+            .map(|e| (edge_length(mesh, topo, e), e))
+            .collect();
+        edges.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        let l = &self.limits;
+        let n_away = |tris: &mut dyn Iterator<Item = [DVec3; 3]>| {
+            tris.filter(|[x, y, z]| !surface.agrees(*x, *y, *z)).count()
+        };
+        let mut plan = None;
+        'edges: for &(_, e) in &edges {
+            let [p, q] = topo.edge(e);
+            let old: Vec<u32> = topo.edge_faces(e).to_vec();
+            let around: Vec<u32> = old.iter().flat_map(|&g| mesh.faces[g as usize]).collect();
+            if around
+                .iter()
+                .any(|&w| round.touched[w as usize] || self.rails.locked(w))
+            {
+                continue;
+            }
+            let mid = pos(p).lerp(pos(q), 0.5);
+            let was = n_away(&mut old.iter().map(|&g| mesh.corners(g as usize)));
+            let cands = [
+                Some(side),
+                surface.project_facing(mid, normal),
+                surface.project(mid),
+            ];
+            for at in cands.into_iter().flatten() {
+                let Some((old, new)) =
+                    plan_split(mesh, &round.built, None, e, NEW_VERTEX, at, l.cos_turn)
+                else {
+                    continue;
+                };
+                let place = |t: &[u32; 3]| t.map(|w| if w == NEW_VERTEX { at } else { pos(w) });
+                if new.iter().any(|t| {
+                    let [x, y, z] = place(t);
+                    triangle::min_angle(x, y, z) < 0.5 * l.guard
+                }) {
+                    continue;
+                }
+                if n_away(&mut new.iter().map(place)) < was {
+                    plan = Some(SplitPlan {
+                        edge: e,
+                        at,
+                        old: old.to_vec(),
+                        new: new.to_vec(),
+                        around,
+                    });
+                    break 'edges;
+                }
+            }
+        }
+        let Some(split) = plan else {
+            return Visited::Next;
+        };
+        let gain = centroid.distance(side);
+        let Some(col) = self.pick_collapse(round, &split, gain) else {
+            return Visited::Next;
+        };
+        self.done += 1;
+        match self.apply_pair(round, split, col) {
+            true => Visited::Reindexed,
+            false => Visited::Next,
+        }
     }
 
     /// The active points not given up with their distance to the mesh and nearest face,

@@ -34,10 +34,14 @@
 //! around it (a quarter and half of the way to each neighbour, its faces' centroids, its
 //! neighbours' mean; boundary vertices along the input boundary) and moves to the one where
 //! fewest of its faces face away, when that is fewer than now, none is degenerate and the
-//! smallest angle of its faces stays at least `floor_deg`, the mesh's smallest angle, or
-//! what it was; then the edges of faces still facing away are flipped where the two new
-//! faces face away less (same guards). A few rounds. Where the input is thinner than the
-//! faces (a horn, an ear's rim) a face can stay turned: no single move or flip turns it.
+//! smallest angle of its faces stays at least `floor_deg` or what it was (failing that,
+//! the mesh's smallest angle before the stage); then the edges of faces still facing away
+//! are flipped where the two new faces face away less (the first guard). A few rounds.
+//! Where the input is thinner than the faces (a horn, an ear's rim) a face can stay
+//! turned, as no single move or flip turns it: an edge of such a face is split at the
+//! input point nearest its centroid on the side it faces (or its midpoint's), when fewer
+//! of the new faces face away, paired with the collapse elsewhere that moves the surface
+//! least (as `fit` pairs them, so the vertex count stays), and the vertices mended again.
 //!
 //! With `rebalance` > 0, before the sweeps, pairs of one split and one collapse move
 //! vertices from short edges to long ones: the longest interior edges (those joining two
@@ -140,7 +144,8 @@ params! {
         /// farther still; `fit` works on the points beyond it. 0 = no bound.
         pub max_dev_pct: f64 = 0.0,
         /// Before the sweeps, move the vertices of faces facing away from the input (a
-        /// part thinner than a face, a fold) to nearby points of the input where fewer do.
+        /// part thinner than a face, a fold) to nearby points of the input where fewer do,
+        /// flip their edges, or split them paired with a collapse elsewhere.
         pub mend: bool = true,
         /// Rounds of polishing after the sweeps: the vertices of the worst faces by quality
         /// (the lowest 0.2 %, at least 8) move where the smallest quality of their faces
@@ -402,8 +407,34 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
     {
         // The mesh's smallest angle does not drop (nor one above it below the floor).
         let floor = params.floor_deg.max(out.min_angle_before).to_radians();
-        let m = mend(mesh, &mut topo, sf, &ends, &rails, floor);
-        out.facing_away = Some([m.before, m.after]);
+        let smallest = out.min_angle_before.to_radians();
+        let m = mend(mesh, &mut topo, sf, &ends, &rails, floor, smallest);
+        let mut after = m.after;
+        if after > 0 {
+            // What moves and flips cannot mend (a part thinner than a face): a new vertex
+            // on the side such a face faces, paid for by a collapse elsewhere.
+            let made = unfold(
+                mesh,
+                sf,
+                &mut rails,
+                (4 * after) as u32,
+                cos_turn,
+                params.floor_deg.to_radians(),
+            );
+            if made > 0
+                && let Ok(t) = Topology::try_build(mesh)
+            {
+                topo = t;
+                ends = boundary_neighbours(&topo, mesh.n_vertices());
+                for (v, e) in ends.iter_mut().enumerate() {
+                    if let Some(pair) = rails.rail_ends(v as u32) {
+                        *e = pair.to_vec();
+                    }
+                }
+                after = mend(mesh, &mut topo, sf, &ends, &rails, floor, smallest).after;
+            }
+        }
+        out.facing_away = Some([m.before, after]);
     }
     let shared = SweepShared {
         ends: &ends,

@@ -22,7 +22,7 @@ pub(crate) struct Mended {
 /// Moves vertices of the faces of `mesh` (adjacency `topo`, boundary neighbours `ends`)
 /// that face away from `surface` to points of the input where fewer of their faces face
 /// away, none is degenerate and the smallest angle of their faces stays at least `floor`
-/// (radians) or what it was; the best such point by faces facing away, then smallest
+/// (radians) or what it was (failing that, at least `smallest`); the best such point by faces facing away, then smallest
 /// angle. Vertices in index order, a few rounds; corners and rail vertices (`rails`) stay,
 /// and rail edges are not flipped.
 pub(crate) fn mend(
@@ -32,6 +32,7 @@ pub(crate) fn mend(
     ends: &[Vec<u32>],
     rails: &Rails,
     floor: f64,
+    smallest: f64,
 ) -> Mended {
     let mut away: Vec<bool> = (0..mesh.n_faces())
         .into_par_iter()
@@ -114,13 +115,21 @@ pub(crate) fn mend(
                 cands.extend(surface.project_facing(p, mesh.faces_cross(fan)));
             }
             let least = now.1.min(floor);
-            let best = cands
+            let scored: Vec<((usize, f64), DVec3)> = cands
                 .iter()
                 .filter(|q| q.is_finite() && **q != p)
                 .filter_map(|&q| score(q).map(|s| (s, q)))
-                .filter(|&((n, a), _)| n < now.0 && a >= least)
-                .min_by(|x, y| x.0.0.cmp(&y.0.0).then(y.0.1.total_cmp(&x.0.1)));
-            if let Some((_, q)) = best {
+                .filter(|&((n, _), _)| n < now.0)
+                .collect();
+            // The fan's smallest angle kept (up to the floor); failing that, the mesh's.
+            let best_above = |bound: f64| {
+                scored
+                    .iter()
+                    .filter(|&&((_, a), _)| a >= bound)
+                    .min_by(|x, y| x.0.0.cmp(&y.0.0).then(y.0.1.total_cmp(&x.0.1)))
+            };
+            let best = best_above(least).or_else(|| best_above(least.min(smallest)));
+            if let Some(&(_, q)) = best {
                 mesh.positions[v as usize] = q;
                 for &f in fan {
                     let [a, b, c] = mesh.corners(f as usize);
