@@ -30,6 +30,9 @@ fn readers() {
     let mut with_uv = coarsen_shapes::plane_grid(2, 2, 1.0).expect("grid");
     let uv: Vec<DVec2> = with_uv.positions.iter().map(|p| p.truncate()).collect();
     with_uv.vertex_attrs.insert("uv", AttrValues::Vec2(uv));
+    // Marked edges, which OBJ writes as `l` lines and PLY as an `edge` element: each
+    // face's first side (the other formats leave them out).
+    with_uv.marked_edges = with_uv.faces.iter().map(|&[a, b, _]| [a, b]).collect();
     for (i, m) in [small, with_uv].iter().enumerate() {
         put(
             "read_obj",
@@ -81,6 +84,11 @@ fn readers() {
              usemtl m\ns off\nf 1/1/1 2/2/1 3/3/1\nf 1//1 3//1 2//1\nf 1/1 2/2 3/3\nl 1 2\n",
         ),
         (
+            "read_obj",
+            "lines.obj",
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nf 1 2 3 4\nl 1 2/1 3 -1\nl -4 -2\nl 4 5\nv 2 2 0\n",
+        ),
+        (
             "read_off",
             "coff.off",
             "COFF\n# c\n4 2 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n1 1 0 0 0 255 255\n0 1 0 9 9 9 255\n4 0 1 2 3\n3 0 2 1 7\n",
@@ -110,6 +118,14 @@ fn readers() {
              property float nx\nproperty float ny\nproperty float nz\nproperty float quality\n\
              element face 2\nproperty list uchar uint vertex_indices\nproperty int label\nend_header\n\
              0 0 0 0 0 1 0.5\n1 0 0 0 0 1 0.5\n1 1 0 0 0 1 0.5\n0 1 0 0 0 1 0.5\n4 0 1 2 3 7\n3 0 2 1 8\n",
+        ),
+        (
+            "read_ply",
+            "edges.ply",
+            "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uchar int vertex_indices\n\
+             element edge 3\nproperty uchar red\nproperty short vertex2\nproperty uint vertex1\nend_header\n\
+             0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n255 1 0\n0 2 1\n9 0 2\n",
         ),
     ];
     for (target, name, text) in texts {

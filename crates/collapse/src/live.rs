@@ -123,8 +123,9 @@ pub fn attributes_only(mesh: Mesh) -> Mesh {
         face_attrs,
         wedges,
         materials,
+        marked_edges,
     } = mesh;
-    drop((positions, faces));
+    drop((positions, faces, marked_edges));
     Mesh {
         vertex_attrs,
         face_attrs,

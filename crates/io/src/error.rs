@@ -112,7 +112,7 @@ impl fmt::Display for Location {
     }
 }
 
-/// What a face corner refers to in an index-out-of-range error.
+/// What a face corner or edge end refers to in an index-out-of-range error.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RefKind {
     /// A vertex position.
@@ -171,9 +171,11 @@ pub enum ErrorKind {
     /// Something the format allows but this reader does not handle.
     #[error("unsupported: {0}")]
     Unsupported(String),
-    /// A face corner names an element that does not exist.
-    #[error("face refers to {what} {index} but only {count} {} are defined", what.plural())]
+    /// A face corner or an edge end names an element that does not exist.
+    #[error("{by} refers to {what} {index} but only {count} {} are defined", what.plural())]
     OutOfRange {
+        /// What refers to it: `face` (a face corner) or `edge` (an end of a marked edge).
+        by: &'static str,
         /// What the corner refers to.
         what: RefKind,
         /// The index as written in the file.

@@ -25,11 +25,18 @@
 //!
 //! | format | reads | writes |
 //! | --- | --- | --- |
-//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` per vertex, or per corner (wedges) across seams and hard edges; `mtllib`/`usemtl` materials and their diffuse textures, read by path | positions, `uv`, `normal` (per vertex or per corner) |
-//! | PLY | ASCII and both binary encodings, every scalar type, `vertex`, `face`, `tristrips`; other elements skipped | every attribute kind (binary little endian by default) |
+//! | OBJ | `v`, `vt`, `vn`, `f` (all corner forms, negative indices, polygons); `uv` and `normal` per vertex, or per corner (wedges) across seams and hard edges; `mtllib`/`usemtl` materials and their diffuse textures, read by path; `l` polylines as marked edges | positions, `uv`, `normal` (per vertex or per corner), marked edges as `l a b` |
+//! | PLY | ASCII and both binary encodings, every scalar type, `vertex`, `face`, `tristrips`; `edge` (`vertex1`, `vertex2`) as marked edges; other elements skipped | every attribute kind (binary little endian by default), marked edges as an `edge` element |
 //! | STL | ASCII and binary (via `stl_io`), welded by exact position | binary, positions only (as `f32`) |
 //! | OFF | `OFF`, `COFF`, `NOFF`, … (colours and normals ignored) | positions and faces |
 //! | glTF, GLB | triangle primitives of the scene's meshes (node transforms applied) or of one mesh by name; `POSITION`, `NORMAL`, `TEXCOORD_0`, `COLOR_0`, any index width, sparse accessors; welded by exact position, corner values as wedges; materials and images kept (`Mesh::materials`) | positions, `normal`, `uv`, `color` (+`alpha`) per vertex or wedge, one primitive per material, the carried materials and images |
+//!
+//! Marked edges ([`Mesh::marked_edges`]: edges the file marks as features, which
+//! `coarsen-features` keeps whatever their angle) are carried by OBJ (`l v1 v2 … vn`, each
+//! consecutive pair an edge) and PLY (an `edge` element with integer `vertex1` and
+//! `vertex2` properties) only; STL, OFF and glTF carry none (a glTF line primitive is
+//! refused, as every mode but triangles is). Written only with
+//! [`WriteOptions::attributes`].
 //!
 //! Polygons are split into the triangles of a fan from their first corner:
 //! `(c0, c1, c2), (c0, c2, c3), …`; a polygon's face properties go to each of its
@@ -330,8 +337,8 @@ fn read_beside(
 }
 
 /// What writing `mesh` as `format` with `opts` leaves out of what coarsen-io reads:
-/// per-corner columns (wedges) a format cannot hold per corner, and materials outside
-/// glTF; one sentence each, empty when nothing is lost. (Vertex and face columns OBJ, STL
+/// per-corner columns (wedges) a format cannot hold per corner, materials outside glTF,
+/// and marked edges outside OBJ and PLY; one sentence each, empty when nothing is lost. (Vertex and face columns OBJ, STL
 /// and OFF have no place for are left out as documented for each format.)
 pub fn left_out(mesh: &Mesh, format: Format, opts: &WriteOptions) -> Vec<String> {
     let mut out = Vec::new();
@@ -374,6 +381,12 @@ pub fn left_out(mesh: &Mesh, format: Format, opts: &WriteOptions) -> Vec<String>
     if !mesh.materials.is_empty() && !matches!(format, Format::Gltf | Format::Glb) {
         out.push(format!(
             "materials and textures not written: {format} output carries no materials (glTF does)"
+        ));
+    }
+    if !mesh.marked_edges.is_empty() && !matches!(format, Format::Obj | Format::Ply) {
+        out.push(format!(
+            "{} marked edges not written: {format} output carries none (OBJ and PLY do)",
+            mesh.marked_edges.len()
         ));
     }
     out
@@ -584,6 +597,35 @@ mod tests {
     }
 
     #[test]
+    fn marked_edges_survive_obj_and_ply_and_no_other_format() {
+        let mut m = tetrahedron();
+        m.marked_edges = vec![[0, 1], [3, 2]];
+        for f in Format::ALL {
+            let mut bytes = Vec::new();
+            write_to(&m, f, &mut bytes, &WriteOptions::default()).unwrap();
+            let back = read_bytes(&bytes, f, "t", &ReadOptions::default()).unwrap();
+            let carried = matches!(f, Format::Obj | Format::Ply);
+            assert_eq!(
+                back.mesh.marked_edges.len(),
+                2 * usize::from(carried),
+                "{f}"
+            );
+            if carried {
+                assert_eq!(back.mesh.marked_edges, m.marked_edges, "{f}");
+            }
+        }
+        // A marked edge naming a missing vertex is refused, as a face would be.
+        m.marked_edges.push([1, 4]);
+        let e = write_to(&m, Format::Obj, &mut Vec::new(), &WriteOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "<OBJ output>: the mesh to write is invalid: marked edge 2 names vertex 4, but the mesh has 4 vertices"
+        );
+    }
+
+    #[test]
     fn writing_an_invalid_mesh_is_refused() {
         let mut m = tetrahedron();
         m.faces[1] = [0, 1, 9];
@@ -787,5 +829,14 @@ mod tests {
             ..all
         };
         assert!(left_out(&m, Format::Ply, &bare).is_empty());
+        let mut marked = tetrahedron();
+        marked.marked_edges = vec![[0, 1], [1, 2]];
+        for f in [Format::Obj, Format::Ply] {
+            assert!(left_out(&marked, f, &all).is_empty(), "{f}");
+        }
+        assert_eq!(
+            left_out(&marked, Format::Stl, &all),
+            ["2 marked edges not written: STL output carries none (OBJ and PLY do)"]
+        );
     }
 }

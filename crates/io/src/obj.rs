@@ -8,8 +8,11 @@
 //! Read: `v x y z` (a trailing `w` or vertex colours are ignored, with a note), `vt u [v
 //! [w]]`, `vn x y z`, faces with corners `a`, `a/b`, `a//c`, `a/b/c` and negative
 //! (relative) indices. A polygon of `n ≥ 3` corners becomes the `n − 2` triangles of a
-//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. `l`, `p`, `g`, `o`, `s`
-//! and free-form statements are ignored and counted in a note. `mtllib` libraries beside a
+//! fan from its first corner: `(c0, c1, c2), (c0, c2, c3), …`. A polyline `l v1 v2 … vn`
+//! (`n ≥ 2`; vertices as `v` or `v/vt`, the texture coordinate ignored; indices as for
+//! faces) marks each pair of consecutive vertices as a feature edge
+//! ([`Mesh::marked_edges`], in file order, as written). `p`, `g`, `o`, `s` and free-form
+//! statements are ignored and counted in a note. `mtllib` libraries beside a
 //! file read by path give the materials its faces name with `usemtl` (see `crate::mtl`:
 //! diffuse colour, opacity, diffuse texture, carried for glTF output) and the face column
 //! `material`; read from bytes alone, they are ignored with a note. A line
@@ -25,8 +28,8 @@
 //!
 //! Write: `v` with shortest round-trip decimals (positions read back bit for bit), `vt`
 //! from a `uv` column, `vn` from a `normal` column (one per vertex, or one per wedge when
-//! the column is per corner), and `f` with matching indices. Other attributes have no
-//! place in OBJ and are not written.
+//! the column is per corner), `f` with matching indices, and one `l a b` per marked edge.
+//! Other attributes have no place in OBJ and are not written.
 
 use crate::ReadOptions;
 use crate::error::{ErrorKind, IoError, RefKind};
@@ -37,11 +40,13 @@ use std::io::{self, Write};
 /// Marks "no texture coordinate / normal" at a corner.
 const NONE: u32 = u32::MAX;
 
-/// The largest absolute index seen for one kind of reference, and its line.
+/// The largest absolute index seen for one kind of reference, its line and what
+/// referred to it (`face` or `edge`).
 #[derive(Default)]
 struct Farthest {
     index: i64,
     line: usize,
+    by: &'static str,
 }
 
 /// Per-corner references to `vt` or `vn`, stored only once some corner has one.
@@ -76,6 +81,8 @@ struct Reader<'o> {
     uvs: Vec<DVec2>,
     normals: Vec<DVec3>,
     faces: Vec<[u32; 3]>,
+    /// The edges of `l` statements.
+    edges: Vec<[u32; 2]>,
     corner_vt: CornerRefs,
     corner_vn: CornerRefs,
     far: [Farthest; 3],
@@ -121,6 +128,7 @@ pub(crate) fn read_in(
         uvs: Vec::new(),
         normals: Vec::new(),
         faces: Vec::new(),
+        edges: Vec::new(),
         corner_vt: CornerRefs::default(),
         corner_vn: CornerRefs::default(),
         far: Default::default(),
@@ -181,6 +189,7 @@ impl Reader<'_> {
                 Ok(())
             }
             b"f" => self.face(line, toks),
+            b"l" => self.polyline(line, toks),
             b"mtllib" => {
                 let names = toks.map(|t| String::from_utf8_lossy(t).into_owned());
                 self.mtllibs.extend(names);
@@ -270,8 +279,15 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// Resolves one index as written (1-based, or negative = relative) into a 0-based one.
-    fn resolve(&mut self, line: usize, tok: &[u8], what: RefKind) -> Result<u32, IoError> {
+    /// Resolves one index as written (1-based, or negative = relative) into a 0-based one;
+    /// `by` is what refers to it (`face` or `edge`), for errors.
+    fn resolve(
+        &mut self,
+        line: usize,
+        tok: &[u8],
+        what: RefKind,
+        by: &'static str,
+    ) -> Result<u32, IoError> {
         let (slot, count) = match what {
             RefKind::Vertex => (0, self.positions.len()),
             RefKind::TexCoord => (1, self.uvs.len()),
@@ -283,6 +299,7 @@ impl Reader<'_> {
             self.err(
                 line,
                 ErrorKind::OutOfRange {
+                    by,
                     what,
                     index,
                     count: count as u64,
@@ -306,7 +323,7 @@ impl Reader<'_> {
             i => {
                 let far = &mut self.far[slot];
                 if i > count as i64 && i > far.index {
-                    *far = Farthest { index: i, line };
+                    *far = Farthest { index: i, line, by };
                 }
                 Ok((i - 1) as u32)
             }
@@ -334,14 +351,14 @@ impl Reader<'_> {
                     ),
                 ));
             }
-            let v = self.resolve(line, v, RefKind::Vertex)?;
+            let v = self.resolve(line, v, RefKind::Vertex, "face")?;
             let vt = match vt {
                 [] => NONE,
-                t => self.resolve(line, t, RefKind::TexCoord)?,
+                t => self.resolve(line, t, RefKind::TexCoord, "face")?,
             };
             let vn = match vn {
                 [] => NONE,
-                t => self.resolve(line, t, RefKind::Normal)?,
+                t => self.resolve(line, t, RefKind::Normal, "face")?,
             };
             poly[0].push(v);
             poly[1].push(vt);
@@ -380,8 +397,42 @@ impl Reader<'_> {
         Ok(())
     }
 
+    /// A polyline `l v1 v2 … vn`: each pair of consecutive vertices a marked edge.
+    fn polyline<'t>(
+        &mut self,
+        line: usize,
+        toks: impl Iterator<Item = &'t [u8]>,
+    ) -> Result<(), IoError> {
+        let mut poly = std::mem::take(&mut self.poly);
+        poly[0].clear();
+        for tok in toks {
+            let mut parts = tok.split(|&b| b == b'/');
+            let v = parts.next().unwrap_or_default();
+            // The texture coordinate, if any, is not used.
+            let _vt = parts.next();
+            if parts.next().is_some() || v.is_empty() {
+                return Err(self.syntax(
+                    line,
+                    format!("`{}` is not a line vertex (v or v/vt)", show(tok)),
+                ));
+            }
+            let v = self.resolve(line, v, RefKind::Vertex, "edge")?;
+            poly[0].push(v);
+        }
+        let n = poly[0].len();
+        if n < 2 {
+            return Err(self.syntax(
+                line,
+                format!("a line needs at least 2 vertices, this one has {n}"),
+            ));
+        }
+        self.edges.extend(poly[0].windows(2).map(|w| [w[0], w[1]]));
+        self.poly = poly;
+        Ok(())
+    }
+
     fn ignore(&mut self, line: usize, keyword: &[u8]) {
-        const KNOWN: [&str; 6] = ["l", "p", "g", "o", "s", "vp"];
+        const KNOWN: [&str; 5] = ["p", "g", "o", "s", "vp"];
         let key = match std::str::from_utf8(keyword) {
             Ok(k) if KNOWN.contains(&k) => format!("`{k}`"),
             _ => "unrecognised".to_string(),
@@ -400,6 +451,7 @@ impl Reader<'_> {
                 return Err(self.err(
                     far.line,
                     ErrorKind::OutOfRange {
+                        by: far.by,
                         what,
                         index: far.index,
                         count: count as u64,
@@ -420,7 +472,10 @@ impl Reader<'_> {
                 "{n} {key} statement{s} ignored (first at line {first})"
             ));
         }
-        let mesh = Mesh::new(self.positions, self.faces);
+        let mesh = Mesh {
+            marked_edges: self.edges,
+            ..Mesh::new(self.positions, self.faces)
+        };
         let mut cols = Attributes::default();
         match per_corner(&self.corner_vt, &self.uvs, self.bad_vt, UV) {
             Ok(Some(v)) => cols.insert("uv", AttrValues::Vec2(v)),
@@ -573,18 +628,28 @@ fn source<'m, T>(
 }
 
 /// Writes `mesh` as OBJ (positions, `uv` and `normal` columns per vertex or per corner,
-/// faces).
+/// faces, and the marked edges as `l` lines, all but the positions and faces only with
+/// `attributes`).
 pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Result<()> {
     let uv = attributes.then(|| source(mesh, |a| a.vec2("uv"))).flatten();
     let normal = attributes
         .then(|| source(mesh, |a| a.vec3("normal")))
         .flatten();
-    writeln!(
+    let edges = if attributes {
+        &mesh.marked_edges[..]
+    } else {
+        &[]
+    };
+    write!(
         w,
         "# {} vertices, {} faces",
         mesh.n_vertices(),
         mesh.n_faces()
     )?;
+    match edges.len() {
+        0 => writeln!(w)?,
+        n => writeln!(w, ", {n} marked edges")?,
+    }
     for p in &mesh.positions {
         vector(w, "v", &[p.x, p.y, p.z])?;
     }
@@ -608,6 +673,9 @@ pub(crate) fn write(mesh: &Mesh, w: &mut impl Write, attributes: bool) -> io::Re
             }
         }
         w.write_all(b"\n")?;
+    }
+    for &[a, b] in edges {
+        writeln!(w, "l {} {}", u64::from(a) + 1, u64::from(b) + 1)?;
     }
     Ok(())
 }
@@ -668,13 +736,88 @@ mod tests {
         );
         let (m, notes) = load(&src).unwrap();
         assert_eq!(m.faces, vec![[0, 1, 2]]);
+        assert_eq!(m.marked_edges, vec![[0, 1]]);
         assert!(notes.contains(&"2 `g` statements ignored (first at line 3)".to_string()));
-        assert!(notes.contains(&"1 `l` statement ignored (first at line 11)".to_string()));
+        assert!(notes.iter().all(|n| !n.contains("`l`")), "{notes:?}");
         assert!(
             notes
                 .iter()
                 .any(|n| n.starts_with("1 unrecognised statement"))
         );
+    }
+
+    #[test]
+    fn polylines_mark_their_edges_with_any_index_form() {
+        // Relative indices count back from the line they are on, `v/vt` gives its vertex,
+        // and an absolute index may point forward.
+        let src = format!("{SQUARE}vt 0 0\nl 1 2/1 -2 -1\nl 4 5\nf 1 2 3\nv 2 2 0\n");
+        let (m, notes) = load(&src).unwrap();
+        assert_eq!(
+            notes,
+            ["uv not kept: no face refers to the 1 texture coordinates"]
+        );
+        assert_eq!(m.marked_edges, vec![[0, 1], [1, 2], [2, 3], [3, 4]]);
+        assert!(m.validate_indices().is_ok());
+    }
+
+    #[test]
+    fn malformed_polylines_are_errors_naming_the_line() {
+        assert_eq!(
+            err(&format!("{SQUARE}l 1 9\n")),
+            "t.obj:5: edge refers to vertex 9 but only 4 vertices are defined"
+        );
+        assert_eq!(
+            err(&format!("{SQUARE}l 1 -5\n")),
+            "t.obj:5: edge refers to vertex -5 but only 4 vertices are defined"
+        );
+        // A forward reference that never comes is named where it was made.
+        assert_eq!(
+            err(&format!("{SQUARE}f 1 2 3\nl 3 6\nv 0 0 1\n")),
+            "t.obj:6: edge refers to vertex 6 but only 5 vertices are defined"
+        );
+        assert_eq!(
+            err(&format!("{SQUARE}l 1 x\n")),
+            "t.obj:5: `x` is not a vertex index"
+        );
+        assert_eq!(
+            err(&format!("{SQUARE}l 1.5 2\n")),
+            "t.obj:5: `1.5` is not a vertex index"
+        );
+        assert_eq!(
+            err(&format!("{SQUARE}l 2\n")),
+            "t.obj:5: a line needs at least 2 vertices, this one has 1"
+        );
+        assert_eq!(
+            err(&format!("{SQUARE}l 1//1 2\n")),
+            "t.obj:5: `1//1` is not a line vertex (v or v/vt)"
+        );
+        assert_eq!(
+            err(&format!("{SQUARE}l 0 2\n")),
+            "t.obj:5: vertex index 0 is invalid (OBJ indices start at 1)"
+        );
+    }
+
+    #[test]
+    fn marked_edges_are_written_as_lines_and_read_back() {
+        let src = format!("{SQUARE}f 1 2 3 4\nl 3 1 2\n");
+        let (m, _) = load(&src).unwrap();
+        assert_eq!(m.marked_edges, vec![[2, 0], [0, 1]]);
+        let mut bytes = Vec::new();
+        write(&m, &mut bytes, true).unwrap();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        assert!(
+            text.starts_with("# 4 vertices, 2 faces, 2 marked edges\n"),
+            "{text}"
+        );
+        assert!(text.ends_with("l 3 1\nl 1 2\n"), "{text}");
+        let (back, notes) = read(&bytes, "t.obj", &ReadOptions::default()).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
+        assert_eq!(back, m);
+        // Positions and faces only: no lines.
+        let mut bare = Vec::new();
+        write(&m, &mut bare, false).unwrap();
+        let (back, _) = read(&bare, "t.obj", &ReadOptions::default()).unwrap();
+        assert!(back.marked_edges.is_empty());
     }
 
     #[test]

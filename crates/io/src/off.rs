@@ -277,6 +277,7 @@ fn read_faces(
             })?;
             if v < 0 || v as u64 >= nv {
                 return Err(at(ErrorKind::OutOfRange {
+                    by: "face",
                     what: RefKind::Vertex,
                     index: v,
                     count: nv,

@@ -312,6 +312,10 @@ impl Mesh {
     ///
     /// `vertex_origins` must have one entry per new position and `face_origins` one per new
     /// face; sources must index `self`'s vertices and faces.
+    ///
+    /// The marked edges are not carried (the new mesh has none): only a caller that knows
+    /// which new vertex each old one became can renumber them, as load-time hygiene and
+    /// the Morton renumbering do.
     pub fn rebuilt(
         &self,
         positions: Vec<DVec3>,
@@ -352,6 +356,7 @@ impl Mesh {
                 face_attrs,
                 wedges,
                 materials: self.materials.clone(),
+                marked_edges: Vec::new(),
             },
             CarryReport {
                 dropped,

@@ -14,7 +14,11 @@
 //! 4. **drop duplicate faces** (optional): a face with the same vertex triple as an earlier
 //!    face, up to rotation, is dropped; a face on the same vertices in the *opposite*
 //!    orientation is kept and only counted (two-sided sheets are real geometry);
-//! 5. **drop unreferenced vertices** (optional), compacting the indices.
+//! 5. **drop unreferenced vertices** (optional), compacting the indices;
+//! 6. **marked edges** ([`Mesh::marked_edges`]) follow every weld and renumbering; those
+//!    whose ends became one vertex, repeats of an earlier one (either way round), and those
+//!    that are no edge of a remaining face are dropped and counted. The rest are stored
+//!    with the smaller vertex first, sorted. Listed only when the input marks edges.
 //!
 //! All re-indexing happens once, at the end, through [`Mesh::rebuilt`], so every
 //! attribute column travels with its vertices and faces.
@@ -121,6 +125,16 @@ pub struct HygieneReport {
     pub vertices_out: usize,
     /// Faces after clean-up.
     pub faces_out: usize,
+    /// Marked edges before clean-up.
+    pub marked_edges_in: usize,
+    /// Marked edges dropped because both ends are (or were welded into) one vertex.
+    pub marked_on_one_vertex: usize,
+    /// Marked edges dropped for repeating an earlier one (in either direction).
+    pub marked_repeated: usize,
+    /// Marked edges dropped because no remaining face has them as an edge.
+    pub marked_off_faces: usize,
+    /// Marked edges after clean-up.
+    pub marked_edges_out: usize,
     /// Attribute columns that could not be carried (`"vertex k"`, `"face cluster"`).
     pub dropped_attributes: Vec<String>,
 }
@@ -160,11 +174,28 @@ impl HygieneReport {
                 off(o.drop_unreferenced),
                 self.unreferenced_vertices
             ),
-            format!(
-                "result: {} → {} vertices, {} → {} faces",
-                self.vertices_in, self.vertices_out, self.faces_in, self.faces_out
-            ),
         ];
+        if self.marked_edges_in > 0 {
+            lines.extend([
+                format!(
+                    "drop marked edges with both ends on one vertex: {}",
+                    self.marked_on_one_vertex
+                ),
+                format!("drop repeated marked edges: {}", self.marked_repeated),
+                format!(
+                    "drop marked edges that are no edge of a face: {}",
+                    self.marked_off_faces
+                ),
+            ]);
+        }
+        let marked = match self.marked_edges_in {
+            0 => String::new(),
+            n => format!(", {n} → {} marked edges", self.marked_edges_out),
+        };
+        lines.push(format!(
+            "result: {} → {} vertices, {} → {} faces{marked}",
+            self.vertices_in, self.vertices_out, self.faces_in, self.faces_out
+        ));
         lines.extend(
             self.dropped_attributes
                 .iter()
@@ -175,7 +206,9 @@ impl HygieneReport {
 
     /// True when clean-up changed nothing.
     pub fn is_clean(&self) -> bool {
-        self.vertices_in == self.vertices_out && self.faces_in == self.faces_out
+        self.vertices_in == self.vertices_out
+            && self.faces_in == self.faces_out
+            && self.marked_edges_in == self.marked_edges_out
     }
 }
 
@@ -550,6 +583,11 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         unreferenced_vertices: 0,
         vertices_out: 0,
         faces_out: 0,
+        marked_edges_in: mesh.marked_edges.len(),
+        marked_on_one_vertex: 0,
+        marked_repeated: 0,
+        marked_off_faces: 0,
+        marked_edges_out: 0,
         dropped_attributes: Vec::new(),
     };
 
@@ -600,6 +638,9 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
     let (dups, opposite) = mark_duplicates(&faces, &mut keep, opts.drop_duplicate_faces);
     report.duplicate_faces = dups;
     report.opposite_duplicate_pairs = opposite;
+    // In the welded numbering, ends of kept faces only: the renumbering below keeps them.
+    let marked = clean_marked_edges(&mesh.marked_edges, &rep, &faces, &keep, &mut report);
+    report.marked_edges_out = marked.len();
 
     // Surviving vertices: group representatives, referenced ones unless told to keep all.
     let mut referenced = vec![false; nv];
@@ -624,6 +665,8 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
     if old_of_new.len() == nv && keep.iter().all(|&k| k) {
         // Nothing welded, dropped or renumbered: the mesh goes on as it came.
         drop(faces);
+        let mut mesh = mesh;
+        mesh.marked_edges = marked;
         report.vertices_out = nv;
         report.faces_out = mesh.n_faces();
         return Ok((mesh, report));
@@ -648,6 +691,11 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         &FaceOrigins::from_parents(kept_faces),
     );
     out.wedges = wedges;
+    // The renumbering keeps the vertices' order: the edges stay normalised and sorted.
+    out.marked_edges = marked
+        .into_iter()
+        .map(|e| e.map(|v| new_index[v as usize]))
+        .collect();
     report.dropped_attributes = carry
         .dropped
         .iter()
@@ -703,6 +751,52 @@ fn weld_map(positions: &[DVec3]) -> Vec<Index> {
         }
     }
     rep
+}
+
+/// The marked edges `marked` in the welded numbering `rep` (each vertex's surviving
+/// vertex), smaller end first, sorted, without those on one vertex, repeats and those that
+/// no kept face (`faces` where `keep`) has as an edge; each drop counted in `report`.
+fn clean_marked_edges(
+    marked: &[[Index; 2]],
+    rep: &[Index],
+    faces: &[[Index; 3]],
+    keep: &[bool],
+    report: &mut HygieneReport,
+) -> Vec<[Index; 2]> {
+    if marked.is_empty() {
+        return Vec::new();
+    }
+    let mut edges: Vec<[Index; 2]> = marked
+        .iter()
+        .map(|e| e.map(|v| rep[v as usize]))
+        .filter(|[a, b]| a != b)
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    report.marked_on_one_vertex = marked.len() - edges.len();
+    edges.sort_unstable();
+    edges.dedup();
+    report.marked_repeated = marked.len() - report.marked_on_one_vertex - edges.len();
+    // Which of them some kept face has: one search per face edge among the marked ones.
+    let found: Vec<usize> = faces
+        .par_iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .flat_map_iter(|(&[a, b, c], _)| {
+            [[a, b], [b, c], [c, a]]
+                .into_iter()
+                .filter_map(|[u, v]| edges.binary_search(&[u.min(v), u.max(v)]).ok())
+        })
+        .collect();
+    let mut on_face = vec![false; edges.len()];
+    found.into_iter().for_each(|i| on_face[i] = true);
+    let n = edges.len();
+    let mut i = 0;
+    edges.retain(|_| {
+        i += 1;
+        on_face[i - 1]
+    });
+    report.marked_off_faces = n - edges.len();
+    edges
 }
 
 /// Among kept faces, marks same-orientation repeats of an earlier face as dropped (when
@@ -1016,6 +1110,99 @@ mod tests {
         assert_eq!(out.faces, vec![[0, 1, 2], [0, 2, 3], [2, 1, 0]]);
         assert_eq!(out.face_attrs.label("tag").unwrap(), &[10, 11, 13]);
         assert_eq!(out.n_vertices(), 4);
+    }
+
+    #[test]
+    fn marked_edges_follow_the_clean_up_and_the_dropped_ones_are_counted() {
+        // The mesh of the test above: vertex 4 only on the flat face, vertex 5 unused.
+        let positions = vec![
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::Y,
+            DVec3::X * 2.0,
+            DVec3::Z,
+        ];
+        let faces = vec![[0, 1, 2], [0, 2, 3], [1, 1, 3], [0, 1, 4]];
+        let mut m = Mesh::new(positions, faces);
+        // 1-0 kept (as 0-1), 0-1 repeats it, 3-3 is one vertex, 1-3 was only on the face
+        // with a repeated index, 1-4 only on the flat one, 5-0 on none; 3-2 kept (as 2-3).
+        m.marked_edges = vec![[1, 0], [0, 1], [3, 3], [1, 3], [1, 4], [5, 0], [3, 2]];
+        let (out, r) = clean(m, &HygieneOptions::default()).unwrap();
+        assert_eq!(out.marked_edges, vec![[0, 1], [2, 3]]);
+        assert_eq!(
+            (
+                r.marked_edges_in,
+                r.marked_on_one_vertex,
+                r.marked_repeated,
+                r.marked_off_faces,
+                r.marked_edges_out
+            ),
+            (7, 1, 1, 3, 2)
+        );
+        let lines = r.lines();
+        for line in [
+            "drop marked edges with both ends on one vertex: 1",
+            "drop repeated marked edges: 1",
+            "drop marked edges that are no edge of a face: 3",
+            "result: 6 → 4 vertices, 4 → 2 faces, 7 → 2 marked edges",
+        ] {
+            assert!(lines.iter().any(|l| l == line), "{line}: {lines:?}");
+        }
+        assert!(!r.is_clean());
+    }
+
+    #[test]
+    fn marked_edges_are_welded_with_their_vertices() {
+        let mut m = cube_soup();
+        // The diagonal of the cube's side z = 0 as soup face 0 has it, again (the other
+        // way round) as soup face 1 has it, and an edge between two copies of one corner.
+        let [a, _, c] = m.faces[0];
+        let [d, e, _] = m.faces[1];
+        assert_eq!(m.positions[a as usize], m.positions[d as usize]);
+        assert_eq!(m.positions[c as usize], m.positions[e as usize]);
+        m.marked_edges = vec![[a, c], [e, d], [a, d]];
+        let (ends_a, ends_c) = (m.positions[a as usize], m.positions[c as usize]);
+        let (out, r) = clean(m, &HygieneOptions::soup()).unwrap();
+        assert_eq!((r.marked_on_one_vertex, r.marked_repeated), (1, 1));
+        assert_eq!(out.marked_edges.len(), 1);
+        let [u, v] = out.marked_edges[0];
+        assert!(u < v);
+        let mut got = [out.positions[u as usize], out.positions[v as usize]];
+        let mut want = [ends_a, ends_c];
+        got.sort_by(|p, q| p.to_array().partial_cmp(&q.to_array()).unwrap());
+        want.sort_by(|p, q| p.to_array().partial_cmp(&q.to_array()).unwrap());
+        assert_eq!(got, want);
+        // Without marked edges the report has no line about them.
+        let (_, plain) = clean(cube_soup(), &HygieneOptions::soup()).unwrap();
+        assert!(plain.lines().iter().all(|l| !l.contains("marked")));
+    }
+
+    #[test]
+    fn marked_edges_of_a_clean_mesh_are_put_in_order() {
+        let mut m = Mesh::new(
+            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        m.marked_edges = vec![[2, 1], [0, 2], [1, 0]];
+        let (out, r) = clean(m.clone(), &HygieneOptions::default()).unwrap();
+        assert!(r.is_clean());
+        assert_eq!(out.marked_edges, vec![[0, 1], [0, 2], [1, 2]]);
+        assert_eq!((out.positions, out.faces), (m.positions, m.faces));
+    }
+
+    #[test]
+    fn an_out_of_range_marked_edge_is_refused() {
+        let mut m = cube_soup();
+        m.marked_edges = vec![[0, 1], [2, 99]];
+        assert_eq!(
+            clean(m, &HygieneOptions::default()),
+            Err(HygieneError::Index(IndexError::EdgeOutOfRange {
+                edge: 1,
+                vertex: 99,
+                n_vertices: 36
+            }))
+        );
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The mesh of coarsen: an indexed triangle mesh in `f64` with named attribute columns.
 //!
-//! * [`Mesh`]: positions (`DVec3`), faces (`[u32; 3]`, consistently oriented), and
-//!   per-vertex and per-face [`Attributes`].
+//! * [`Mesh`]: positions (`DVec3`), faces (`[u32; 3]`, consistently oriented),
+//!   per-vertex and per-face [`Attributes`], and the edges the input marks as features.
 //! * [`wedge`]: per-corner attributes ([`Wedges`]): a vertex's distinct UVs and normals
 //!   across seams and hard edges, and which corners use which.
 //! * [`material`]: materials and textures a file named, carried for writing back.
@@ -76,6 +76,9 @@ pub struct Mesh {
     /// Materials and textures the file named, carried unchanged for writing back; the
     /// face label column `material` says which one each face uses.
     pub materials: Materials,
+    /// The edges the input marks as features (an OBJ `l`, a PLY `edge` element), as
+    /// vertex pairs; empty by default, and not carried by [`Mesh::rebuilt`].
+    pub marked_edges: Vec<[Index; 2]>,
 }
 
 /// An index out of range, a wrong column length or a repeated index in one face.
@@ -102,6 +105,16 @@ pub enum IndexError {
         len: usize,
         /// The element count.
         expected: usize,
+    },
+    /// A marked edge names a vertex that does not exist.
+    #[error("marked edge {edge} names vertex {vertex}, but the mesh has {n_vertices} vertices")]
+    EdgeOutOfRange {
+        /// The edge's position in [`Mesh::marked_edges`].
+        edge: usize,
+        /// The vertex index it names.
+        vertex: Index,
+        /// How many vertices there are.
+        n_vertices: usize,
     },
     /// Wedges that do not match the faces.
     #[error("wedges: {detail}")]
@@ -220,8 +233,8 @@ impl Mesh {
         n
     }
 
-    /// Checks that every face index is in range, that the counts fit `u32`, and that every
-    /// attribute column has the right length.
+    /// Checks that every face index and marked edge end is in range, that the counts fit
+    /// `u32`, and that every attribute column has the right length.
     pub fn validate_indices(&self) -> Result<(), IndexError> {
         if self.positions.len() > Index::MAX as usize {
             return Err(IndexError::TooMany {
@@ -240,6 +253,15 @@ impl Mesh {
             if let Some(&vertex) = f.iter().find(|&&v| v as usize >= n) {
                 return Err(IndexError::OutOfRange {
                     face,
+                    vertex,
+                    n_vertices: n,
+                });
+            }
+        }
+        for (edge, e) in self.marked_edges.iter().enumerate() {
+            if let Some(&vertex) = e.iter().find(|&&v| v as usize >= n) {
+                return Err(IndexError::EdgeOutOfRange {
+                    edge,
                     vertex,
                     n_vertices: n,
                 });
@@ -278,6 +300,26 @@ mod tests {
                 n_vertices: 4
             })
         );
+    }
+
+    #[test]
+    fn out_of_range_marked_edge_is_named() {
+        let mut m = tetrahedron();
+        m.marked_edges = vec![[0, 1], [3, 4]];
+        assert_eq!(
+            m.validate_indices(),
+            Err(IndexError::EdgeOutOfRange {
+                edge: 1,
+                vertex: 4,
+                n_vertices: 4
+            })
+        );
+        assert_eq!(
+            m.validate_indices().unwrap_err().to_string(),
+            "marked edge 1 names vertex 4, but the mesh has 4 vertices"
+        );
+        m.marked_edges.pop();
+        assert!(m.validate_indices().is_ok());
     }
 
     #[test]

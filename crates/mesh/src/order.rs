@@ -117,7 +117,7 @@ fn min3([a, b, c]: [Index; 3]) -> Index {
 }
 
 /// `mesh` with its vertices and faces renumbered along the Morton curve, every attribute
-/// carried; the same surface, faces keeping their corners' cyclic order. A mesh already in
+/// and marked edge carried; the same surface, faces keeping their corners' cyclic order. A mesh already in
 /// that order, or with a face naming a vertex out of range, comes back as it is.
 pub fn along_curve(mesh: Mesh) -> Mesh {
     let Some(order) = CurveOrder::of(&mesh) else {
@@ -136,12 +136,23 @@ pub fn along_curve(mesh: Mesh) -> Mesh {
         .par_iter()
         .map(|&f| mesh.faces[f as usize].map(|v| order.vertex_rank[v as usize]))
         .collect();
+    // The marked edges renumbered, smaller end first and sorted again.
+    let mut marked_edges: Vec<[Index; 2]> = mesh
+        .marked_edges
+        .iter()
+        .map(|e| e.map(|v| order.vertex_rank[v as usize]))
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    marked_edges.sort_unstable();
     if mesh.vertex_attrs.is_empty()
         && mesh.face_attrs.is_empty()
         && mesh.wedges.is_empty()
         && mesh.materials.is_empty()
     {
-        return Mesh::new(positions, faces);
+        return Mesh {
+            marked_edges,
+            ..Mesh::new(positions, faces)
+        };
     }
     let CurveOrder {
         vertices,
@@ -149,13 +160,16 @@ pub fn along_curve(mesh: Mesh) -> Mesh {
         ..
     } = order;
     // Pure copies: every column carries.
-    mesh.rebuilt(
-        positions,
-        faces,
-        &VertexOrigins::from_map(&vertices),
-        &FaceOrigins::from_parents(face_order),
-    )
-    .0
+    let mut out = mesh
+        .rebuilt(
+            positions,
+            faces,
+            &VertexOrigins::from_map(&vertices),
+            &FaceOrigins::from_parents(face_order),
+        )
+        .0;
+    out.marked_edges = marked_edges;
+    out
 }
 
 /// The Morton code of `p`, a point of the box `[-1, 1]³` (coordinates beyond it are
@@ -252,6 +266,45 @@ mod tests {
             f
         };
         assert_eq!(sorted(&again), sorted(&ordered));
+    }
+
+    #[test]
+    fn marked_edges_follow_the_renumbering() {
+        // The grid's row y = 3, marked one edge at a time, in both directions.
+        let mut mesh = shuffled_grid(40);
+        let at = |x: f64, y: f64| {
+            let p = DVec3::new(x, y, 0.0);
+            mesh.positions.iter().position(|&q| q == p).unwrap() as u32
+        };
+        let marked: Vec<[u32; 2]> = (0..40)
+            .map(|x| [at(f64::from(x + 1), 3.0), at(f64::from(x), 3.0)])
+            .collect();
+        mesh.marked_edges = marked;
+        let ends = |m: &Mesh| {
+            let mut pairs: Vec<[[u64; 3]; 2]> = m
+                .marked_edges
+                .iter()
+                .map(|e| {
+                    let mut p = e.map(|v| m.positions[v as usize].to_array().map(f64::to_bits));
+                    p.sort_unstable();
+                    p
+                })
+                .collect();
+            pairs.sort_unstable();
+            pairs
+        };
+        for ordered in [along_curve(mesh.clone()), {
+            // Without attributes: the other way out.
+            let mut bare = mesh.clone();
+            bare.vertex_attrs.clear();
+            bare.face_attrs.clear();
+            along_curve(bare)
+        }] {
+            assert_eq!(ends(&ordered), ends(&mesh));
+            assert!(ordered.marked_edges.iter().all(|[a, b]| a < b));
+            assert!(ordered.marked_edges.is_sorted());
+            assert!(ordered.validate_indices().is_ok());
+        }
     }
 
     #[test]

@@ -18,6 +18,10 @@
 //! tenth less. Stages see the renumbered mesh as the run's input and original. A run that
 //! records a progressive record keeps the input's numbering, so that rebuilding its finest
 //! level gives the input back vertex for vertex.
+//!
+//! The input's marked edges (`Mesh::marked_edges`) stay on the original
+//! ([`Context::original`]), where stages read them; the mesh passed from stage to stage
+//! carries none.
 
 use crate::{Pipeline, PipelineStage, RunReport, StageRecord};
 use coarsen_mesh::material::MATERIAL;
@@ -231,6 +235,9 @@ impl Pipeline {
         let input = opts.prepare(input);
         let original = input.clone();
         let mut mesh = input;
+        // The marked edges stay on the original, where stages read them; the mesh the
+        // stages change carries none (a stage editing in place would leave them stale).
+        mesh.marked_edges = Vec::new();
         let mut report = RunReport {
             pipeline: self.name.clone(),
             target: self.target,

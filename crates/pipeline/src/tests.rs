@@ -43,6 +43,8 @@ impl Stage for Mark {
         mesh.vertex_attrs
             .insert(self.0.name.clone(), AttrValues::Scalar(v));
         cx.report.figure("marked", mesh.n_vertices());
+        cx.report
+            .figure("marked edges", cx.original.marked_edges.len());
         Ok(mesh)
     }
 }
@@ -623,6 +625,16 @@ fn large_inputs_are_renumbered_along_the_curve_unless_a_record_is_kept() {
             (&input.positions, &input.faces)
         );
     }
+    // The marked edges go along with the renumbering, on the original only.
+    let mut marked = input.clone();
+    marked.marked_edges = vec![[0, 1], [1, 2]];
+    let opts = RunOptions {
+        reorder_min_faces: 0,
+        ..Default::default()
+    };
+    let (out, report) = marks_only.run(marked, opts).unwrap();
+    assert_eq!(report.stages[0].figures["marked edges"], 2);
+    assert!(out.marked_edges.is_empty());
     // Small meshes by default.
     assert_eq!(
         marks_only

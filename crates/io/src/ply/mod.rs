@@ -23,14 +23,19 @@
 //!   strip is `(s[i], s[i+1], s[i+2])`, with the first two swapped when `i` is odd so
 //!   that all keep the strip's orientation; triangles with a repeated index (the padding
 //!   of strip joins) are skipped.
+//! * `edge`: its `vertex1` and `vertex2` properties (any integer type) are a marked
+//!   feature edge ([`coarsen_mesh::Mesh::marked_edges`]), in file order, as written; its
+//!   other properties (colours, …) are skipped with a note. Without either property, or
+//!   with one that is not an integer, the file is refused.
 //! * any other element is skipped, and named in a note.
 //!
 //! # Writing
 //!
 //! `double x y z`, then the vertex attributes named back by the rules above (labels as
 //! `uint`, scalars as `double`), then `face` with a `uchar`-counted `int` list
-//! (`uint` past 2³¹ vertices) and the face attributes. Reading the result gives the same
-//! mesh bit for bit.
+//! (`uint` past 2³¹ vertices) and the face attributes, then, when the mesh has marked
+//! edges, `edge` with `vertex1 vertex2` of the same index type. Reading the result gives
+//! the same mesh bit for bit.
 
 mod read;
 mod write;

@@ -334,6 +334,8 @@ struct Reader<'o> {
     n_vertices: u64,
     positions: Vec<DVec3>,
     faces: Vec<[u32; 3]>,
+    /// The `edge` element's vertex pairs.
+    edges: Vec<[u32; 2]>,
     vertex_attrs: Attributes,
     face_attrs: Attributes,
     strip_triangles: usize,
@@ -397,6 +399,7 @@ pub(crate) fn read(
         n_vertices,
         positions: Vec::new(),
         faces: Vec::new(),
+        edges: Vec::new(),
         vertex_attrs: Attributes::default(),
         face_attrs: Attributes::default(),
         strip_triangles: 0,
@@ -451,6 +454,7 @@ impl<'o> Reader<'o> {
                 "vertex" => self.vertices(src, el)?,
                 "face" => self.faces(src, el)?,
                 "tristrips" => self.strips(src, el)?,
+                "edge" => self.edges(src, el)?,
                 _ => {
                     self.skip(src, el)?;
                     self.notes.push(format!(
@@ -731,6 +735,7 @@ impl<'o> Reader<'o> {
                 &el.name,
                 i,
                 ErrorKind::OutOfRange {
+                    by: "face",
                     what: RefKind::Vertex,
                     index: v,
                     count: self.n_vertices,
@@ -997,6 +1002,79 @@ impl<'o> Reader<'o> {
         Ok(())
     }
 
+    /// Reads the `edge` element: its `vertex1` and `vertex2` (integer scalars) are a
+    /// marked edge; other properties are skipped, with a note.
+    fn edges<'a, S: Source<'a>>(&mut self, src: &mut S, el: &Element) -> Result<(), IoError> {
+        let mut ends = [None; 2];
+        for (k, end) in ["vertex1", "vertex2"].into_iter().enumerate() {
+            let Some(at) = el.props.iter().position(|p| p.name == end) else {
+                return Err(IoError::file(
+                    self.name,
+                    ErrorKind::Syntax(format!("the edge element has no `{end}` property")),
+                ));
+            };
+            match el.props[at].kind {
+                PropKind::Scalar(t) if !t.is_float() => ends[k] = Some(at),
+                kind => {
+                    let is = match kind {
+                        PropKind::Scalar(t) => format!("a {}", t.name()),
+                        PropKind::List { .. } => "a list".to_string(),
+                    };
+                    return Err(IoError::file(
+                        self.name,
+                        ErrorKind::Syntax(format!(
+                            "the edge element's `{end}` property is {is}, not an integer"
+                        )),
+                    ));
+                }
+            }
+        }
+        let others: Vec<&str> = el
+            .props
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| !ends.contains(&Some(k)))
+            .map(|(_, p)| p.name.as_str())
+            .collect();
+        if !others.is_empty() {
+            self.notes
+                .push(format!("edge properties ({}) not kept", others.join(", ")));
+        }
+        // `check_count` has bounded `count` by the bytes left.
+        self.edges.reserve(el.count as usize);
+        for i in 0..el.count {
+            let mut edge = [0u32; 2];
+            for (k, p) in el.props.iter().enumerate() {
+                let end = ends.iter().position(|&e| e == Some(k));
+                let r = match (end, p.kind) {
+                    (Some(j), PropKind::Scalar(t)) => {
+                        let v = src.int(t).map_err(|m| self.miss(src, el, i, m))?;
+                        if v < 0 || v as u64 >= self.n_vertices {
+                            return Err(self.at(
+                                src,
+                                &el.name,
+                                i,
+                                ErrorKind::OutOfRange {
+                                    by: "edge",
+                                    what: RefKind::Vertex,
+                                    index: v,
+                                    count: self.n_vertices,
+                                },
+                            ));
+                        }
+                        edge[j] = v as u32;
+                        Ok(())
+                    }
+                    (_, PropKind::Scalar(t)) => src.skip(t),
+                    (_, PropKind::List { count, item }) => skip_list(src, count, item),
+                };
+                r.map_err(|m| self.miss(src, el, i, m))?;
+            }
+            self.edges.push(edge);
+        }
+        Ok(())
+    }
+
     /// Skips an element the reader does not use.
     fn skip<'a, S: Source<'a>>(&mut self, src: &mut S, el: &Element) -> Result<(), IoError> {
         if el.props.is_empty() {
@@ -1032,6 +1110,7 @@ impl<'o> Reader<'o> {
         let mut mesh = Mesh::new(self.positions, self.faces);
         mesh.vertex_attrs = self.vertex_attrs;
         mesh.face_attrs = self.face_attrs;
+        mesh.marked_edges = self.edges;
         Ok((mesh, self.notes))
     }
 }
@@ -1411,6 +1490,92 @@ mod tests {
             err(&file("ascii", header, b"0 0 0\n1 0 0\n0 1 0\n2 0 1\n")),
             "x.ply:13: face 0: a face needs at least 3 vertex indices, this one has 2"
         );
+    }
+
+    /// The header of a triangle with an `edge` element of `n` edges whose properties are
+    /// `props` (property lines).
+    fn edge_header(n: usize, props: &str) -> String {
+        format!(
+            "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uchar int vertex_indices\n\
+             element edge {n}\n{props}"
+        )
+    }
+
+    #[test]
+    fn edge_elements_are_read_in_every_encoding() {
+        // vertex2 before vertex1, of two integer types, between properties that are skipped.
+        let props = "property uchar red\nproperty short vertex2\nproperty uint vertex1\n\
+                     property float w\n";
+        let header = edge_header(2, props);
+        let ascii = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n255 1 0 0.5\n0 0 2 1\n";
+        let (m, notes) = load(&file("ascii", &header, ascii.as_bytes())).unwrap();
+        assert_eq!(m.marked_edges, vec![[0, 1], [2, 0]]);
+        assert_eq!(notes, ["edge properties (red, w) not kept"]);
+        for (be, format) in [(false, "binary_little_endian"), (true, "binary_big_endian")] {
+            let mut b = Body::new(be);
+            for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+                b.f32(p[0]).f32(p[1]).f32(p[2]);
+            }
+            b.u8(3).i32(0).i32(1).i32(2);
+            b.u8(255).i16(1).u32(0).f32(0.5);
+            b.u8(0).i16(0).u32(2).f32(1.0);
+            let (back, _) = load(&file(format, &header, &b.bytes)).unwrap();
+            assert_eq!(back, m, "{format}");
+        }
+    }
+
+    #[test]
+    fn malformed_edge_elements_are_named() {
+        let plain = edge_header(1, "property int vertex1\nproperty int vertex2\n");
+        let tri = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        let ascii = |edge: &str| file("ascii", &plain, format!("{tri}{edge}").as_bytes());
+        assert_eq!(
+            err(&ascii("0 3\n")),
+            "x.ply:17: edge 0: edge refers to vertex 3 but only 3 vertices are defined"
+        );
+        assert_eq!(
+            err(&ascii("-1 2\n")),
+            "x.ply:17: edge 0: edge refers to vertex -1 but only 3 vertices are defined"
+        );
+        assert_eq!(
+            err(&ascii("0 1.5\n")),
+            "x.ply:17: edge 0: `1.5` is not a int"
+        );
+        assert_eq!(
+            err(&ascii("0\n")),
+            "x.ply:17: edge 0: the data ends inside edge 0"
+        );
+        let mut b = Body::new(false);
+        for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+            b.f32(p[0]).f32(p[1]).f32(p[2]);
+        }
+        b.u8(3).i32(0).i32(1).i32(2);
+        b.i32(2).i32(7);
+        assert_eq!(
+            err(&file("binary_little_endian", &plain, &b.bytes)),
+            "x.ply: edge 0: edge refers to vertex 7 but only 3 vertices are defined"
+        );
+        for (props, message) in [
+            (
+                "property int vertex1\nproperty uchar red\n",
+                "x.ply: the edge element has no `vertex2` property",
+            ),
+            (
+                "property float vertex1\nproperty int vertex2\n",
+                "x.ply: the edge element's `vertex1` property is a float, not an integer",
+            ),
+            (
+                "property list uchar int vertex1\nproperty int vertex2\n",
+                "x.ply: the edge element's `vertex1` property is a list, not an integer",
+            ),
+        ] {
+            let header = edge_header(1, props);
+            assert_eq!(
+                err(&file("ascii", &header, format!("{tri}0 1\n").as_bytes())),
+                message
+            );
+        }
     }
 
     #[test]

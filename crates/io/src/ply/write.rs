@@ -116,10 +116,10 @@ pub(crate) fn write(
     attributes: bool,
 ) -> Result<(), ErrorKind> {
     let none = Attributes::default();
-    let (vattrs, fattrs) = if attributes {
-        (&mesh.vertex_attrs, &mesh.face_attrs)
+    let (vattrs, fattrs, edges) = if attributes {
+        (&mesh.vertex_attrs, &mesh.face_attrs, &mesh.marked_edges[..])
     } else {
-        (&none, &none)
+        (&none, &none, &[][..])
     };
     let index_type = if mesh.n_vertices() > i32::MAX as usize {
         Scalar::U32
@@ -144,24 +144,36 @@ pub(crate) fn write(
     );
     let mut taken = vec!["vertex_indices".to_string()];
     declare(&mut header, fattrs, &mut taken, "face")?;
+    if !edges.is_empty() {
+        let t = index_type.name();
+        header += &format!(
+            "element edge {}\nproperty {t} vertex1\nproperty {t} vertex2\n",
+            edges.len()
+        );
+    }
     header.push_str("end_header\n");
     w.write_all(header.as_bytes())?;
     let buf = Vec::with_capacity(CHUNK + 1024);
     match encoding {
         PlyEncoding::Ascii => body(
             mesh,
-            vattrs,
-            fattrs,
+            (vattrs, fattrs, edges),
             &mut Text {
                 buf,
                 w,
                 first: true,
             },
         )?,
-        PlyEncoding::BinaryLittleEndian => {
-            body(mesh, vattrs, fattrs, &mut Bin::<_, false> { buf, w })?
-        }
-        PlyEncoding::BinaryBigEndian => body(mesh, vattrs, fattrs, &mut Bin::<_, true> { buf, w })?,
+        PlyEncoding::BinaryLittleEndian => body(
+            mesh,
+            (vattrs, fattrs, edges),
+            &mut Bin::<_, false> { buf, w },
+        )?,
+        PlyEncoding::BinaryBigEndian => body(
+            mesh,
+            (vattrs, fattrs, edges),
+            &mut Bin::<_, true> { buf, w },
+        )?,
     }
     Ok(())
 }
@@ -209,14 +221,13 @@ fn columns(sink: &mut impl Sink, attrs: &Attributes, i: usize) {
     }
 }
 
-/// Writes every vertex and face. The caller has checked that every column has one value
-/// per element.
-fn body(
-    mesh: &Mesh,
-    vattrs: &Attributes,
-    fattrs: &Attributes,
-    sink: &mut impl Sink,
-) -> io::Result<()> {
+/// What the body holds besides positions and faces: the vertex and face columns and the
+/// marked edges written.
+type Extras<'m> = (&'m Attributes, &'m Attributes, &'m [[u32; 2]]);
+
+/// Writes every vertex, face and marked edge. The caller has checked that every column has
+/// one value per element.
+fn body(mesh: &Mesh, (vattrs, fattrs, edges): Extras<'_>, sink: &mut impl Sink) -> io::Result<()> {
     for (i, p) in mesh.positions.iter().enumerate() {
         sink.f64(p.x);
         sink.f64(p.y);
@@ -228,6 +239,10 @@ fn body(
         sink.u8(3);
         f.iter().for_each(|&v| sink.u32(v));
         columns(sink, fattrs, i);
+        sink.end()?;
+    }
+    for e in edges {
+        e.iter().for_each(|&v| sink.u32(v));
         sink.end()?;
     }
     sink.flush()
@@ -295,6 +310,35 @@ mod tests {
             assert_eq!(bits(&back), bits(&m), "{encoding:?}");
             assert_eq!(back, m, "{encoding:?}");
         }
+    }
+
+    #[test]
+    fn marked_edges_round_trip_as_an_edge_element_in_every_encoding() {
+        let mut m = decorated();
+        m.marked_edges = vec![[2, 0], [0, 1], [3, 2]];
+        for encoding in [
+            PlyEncoding::Ascii,
+            PlyEncoding::BinaryLittleEndian,
+            PlyEncoding::BinaryBigEndian,
+        ] {
+            let (back, notes) = round_trip(&m, encoding);
+            assert!(notes.is_empty(), "{encoding:?}: {notes:?}");
+            assert_eq!(back, m, "{encoding:?}");
+        }
+        let mut bytes = Vec::new();
+        write(&m, &mut bytes, PlyEncoding::Ascii, true).unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        assert!(
+            text.contains(
+                "element edge 3\nproperty int vertex1\nproperty int vertex2\nend_header\n"
+            ),
+            "{text}"
+        );
+        assert!(text.ends_with("\n2 0\n0 1\n3 2\n"), "{text}");
+        // Positions and faces only: no edge element.
+        let mut bytes = Vec::new();
+        write(&m, &mut bytes, PlyEncoding::Ascii, false).unwrap();
+        assert!(!String::from_utf8(bytes).unwrap().contains("element edge"));
     }
 
     #[test]
