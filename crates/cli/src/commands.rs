@@ -403,8 +403,12 @@ pub fn info(path: &Path, json: bool, raw: bool, weld: bool) -> CmdResult {
     );
     outln!("  area               {:.6}", mesh.area());
     print_topology(&topo);
+    let marked = match features.marked_edges {
+        0 => String::new(),
+        n => format!(", {n} marked by the input"),
+    };
     outln!(
-        "  features           {} sharp edges (over {}°), {} boundary, {} of 3+ faces; {} curves ({} closed), {} corners",
+        "  features           {} sharp edges (over {}°), {} boundary, {} of 3+ faces{marked}; {} curves ({} closed), {} corners",
         features.sharp_edges,
         feature_opts.angle_deg,
         features.boundary_edges,

@@ -4,8 +4,12 @@
 //! * A **feature edge** is an edge of two faces whose normals differ by more than
 //!   [`FeatureOptions::angle_deg`] (the supplement of the dihedral angle: 0° on a flat
 //!   region, 90° on a cube's edge) — [`FeatureKind::Sharp`] —, an edge of one face
-//!   ([`FeatureKind::Boundary`], with [`FeatureOptions::boundary`]), or an edge of three or
-//!   more faces ([`FeatureKind::Junction`]).
+//!   ([`FeatureKind::Boundary`], with [`FeatureOptions::boundary`]), an edge of three or
+//!   more faces ([`FeatureKind::Junction`]), or an edge the input marks
+//!   ([`FeatureKind::Marked`]: one of [`Mesh::marked_edges`], e.g. an OBJ `l` or a PLY
+//!   `edge` element, whatever its angle; a marked edge that is also sharp, boundary or
+//!   junction is of this kind; a marked pair of vertices that is no edge of the topology
+//!   is ignored).
 //! * A **corner** is a vertex where a feature curve cannot go on through: where one, or
 //!   three or more, feature edges meet, or where two meet at a turn sharper than
 //!   [`FeatureOptions::corner_angle_deg`].
@@ -53,6 +57,8 @@ pub enum FeatureKind {
     Boundary,
     /// It has three or more faces.
     Junction,
+    /// The input marks it.
+    Marked,
 }
 
 /// What a vertex is to the features.
@@ -93,6 +99,9 @@ pub struct FeatureCounts {
     pub boundary_edges: usize,
     /// Edges of three or more faces.
     pub junction_edges: usize,
+    /// Edges the input marks (counted here only, whatever else they are).
+    #[serde(default)]
+    pub marked_edges: usize,
     /// Feature curves.
     pub curves: usize,
     /// Of which closed.
@@ -162,6 +171,7 @@ impl Features {
             sharp_edges: of(FeatureKind::Sharp),
             boundary_edges: of(FeatureKind::Boundary),
             junction_edges: of(FeatureKind::Junction),
+            marked_edges: of(FeatureKind::Marked),
             curves: self.n_curves(),
             closed_curves: self.curve_closed.iter().filter(|&&c| c).count(),
             corners: self.corners.len(),
@@ -249,13 +259,29 @@ fn self_edge_index(edges: &[(u32, FeatureKind)], e: u32) -> Option<usize> {
     edges.binary_search_by_key(&e, |x| x.0).ok()
 }
 
+/// The edges of `topo` that `mesh` marks ([`Mesh::marked_edges`]), ascending, each once;
+/// marked pairs that are no edge of `topo` are left out.
+fn marked_edges(mesh: &Mesh, topo: &Topology) -> Vec<u32> {
+    let mut marked: Vec<u32> = mesh
+        .marked_edges
+        .iter()
+        .filter_map(|&[a, b]| topo.find_edge(a, b))
+        .collect();
+    marked.sort_unstable();
+    marked.dedup();
+    marked
+}
+
 /// Every feature edge of `topo`, ascending, with its kind.
 fn feature_edges(mesh: &Mesh, topo: &Topology, opts: &FeatureOptions) -> Vec<(u32, FeatureKind)> {
     let sharp = sharp_edges(mesh, topo, opts.angle_deg);
-    let mut out: Vec<(u32, FeatureKind)> = Vec::with_capacity(sharp.len());
+    let marked = marked_edges(mesh, topo);
+    let mut out: Vec<(u32, FeatureKind)> = Vec::with_capacity(sharp.len() + marked.len());
     let mut s = sharp.iter().peekable();
+    let mut m = marked.iter().peekable();
     for e in 0..topo.n_edges() as u32 {
         let kind = match topo.edge_faces(e).len() {
+            _ if m.peek() == Some(&&e) => Some(FeatureKind::Marked),
             1 if opts.boundary => Some(FeatureKind::Boundary),
             n if n >= 3 => Some(FeatureKind::Junction),
             _ if s.peek() == Some(&&e) => Some(FeatureKind::Sharp),
@@ -263,6 +289,9 @@ fn feature_edges(mesh: &Mesh, topo: &Topology, opts: &FeatureOptions) -> Vec<(u3
         };
         if s.peek() == Some(&&e) {
             s.next();
+        }
+        if m.peek() == Some(&&e) {
+            m.next();
         }
         if let Some(k) = kind {
             out.push((e, k));

@@ -200,3 +200,128 @@ fn the_fandisk_has_its_creases_chained_into_curves() {
         "{c:?}"
     );
 }
+
+/// A flat grid of `nx × ny` unit squares in z = 0, vertex `(i, j)` numbered
+/// `i + (nx + 1) j`, each square cut along its diagonal from `(i, j)` to `(i + 1, j + 1)`.
+fn flat_grid(nx: u32, ny: u32) -> Mesh {
+    let id = |i: u32, j: u32| i + (nx + 1) * j;
+    let positions = (0..=ny)
+        .flat_map(|j| (0..=nx).map(move |i| DVec3::new(f64::from(i), f64::from(j), 0.0)))
+        .collect();
+    let mut faces = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    Mesh::new(positions, faces)
+}
+
+#[test]
+fn a_marked_zig_zag_on_a_flat_grid_is_a_chain_of_curves_with_corners_where_it_turns() {
+    //   . . . . . . . .
+    //   . . . o-o-o . .      the marked line, from (1, 1) to (5, 1):
+    //   . . . | . | . .      straight on through (2, 1), (3, 2), (4, 3) and (5, 2),
+    //   . o-o-o . o . .      turning by 90° at (3, 1), (3, 3) and (5, 3)
+    //   . . . . . . . .
+    let mut m = flat_grid(7, 4);
+    let id = |i: u32, j: u32| i + 8 * j;
+    let path = [
+        (1, 1),
+        (2, 1),
+        (3, 1),
+        (3, 2),
+        (3, 3),
+        (4, 3),
+        (5, 3),
+        (5, 2),
+        (5, 1),
+    ];
+    // Marked in the file's order and direction, one edge twice.
+    m.marked_edges = path
+        .windows(2)
+        .map(|w| [id(w[0].0, w[0].1), id(w[1].0, w[1].1)])
+        .collect();
+    m.marked_edges.push([id(2, 1), id(1, 1)]);
+    let inner = FeatureOptions {
+        boundary: false,
+        ..Default::default()
+    };
+    let f = detect(&m, &inner);
+    let c = f.counts();
+    assert_eq!((c.marked_edges, c.sharp_edges, c.boundary_edges), (8, 0, 0));
+    assert!(f.edges.iter().all(|e| e.1 == FeatureKind::Marked));
+    let corners = [(1, 1), (3, 1), (5, 1), (3, 3), (5, 3)].map(|(i, j)| id(i, j));
+    assert_eq!(f.corners, corners);
+    let curves: Vec<Vec<u32>> = (0..f.n_curves()).map(|c| f.curve(c).to_vec()).collect();
+    let along = |k: usize| -> Vec<u32> { path[k..=k + 2].iter().map(|&(i, j)| id(i, j)).collect() };
+    // Walked from the corners in index order: the last leg from its far end.
+    assert_eq!(
+        curves,
+        vec![
+            along(0),
+            along(2),
+            along(6).into_iter().rev().collect(),
+            along(4),
+        ]
+    );
+    assert_eq!(c.closed_curves, 0);
+    check_curves(&m, &f);
+    // With the boundary: its loop of 22 edges beside the marked line, which it does not
+    // touch.
+    let f = detect(&m, &FeatureOptions::default());
+    let c = f.counts();
+    assert_eq!((c.marked_edges, c.boundary_edges), (8, 22));
+    assert_eq!((c.curves, c.corners), (8, 9));
+    check_curves(&m, &f);
+}
+
+#[test]
+fn a_marked_pair_that_is_no_edge_of_the_mesh_is_ignored() {
+    let mut m = flat_grid(3, 3);
+    let plain = detect(&m, &FeatureOptions::default());
+    // The other diagonal of a square, two vertices far apart, a vertex with itself, and a
+    // vertex that does not exist.
+    m.marked_edges = vec![[1, 4], [0, 15], [5, 5], [2, 99]];
+    assert_eq!(detect(&m, &FeatureOptions::default()), plain);
+}
+
+#[test]
+fn a_marked_edge_that_is_sharp_or_boundary_is_of_the_marked_kind() {
+    // A cube edge, marked: one marked edge instead of a sharp one, the same curves.
+    let mut m = cube();
+    let plain = detect(&m, &FeatureOptions::default());
+    let [a, b, _] = m.faces[0];
+    m.marked_edges = vec![[b, a]];
+    let f = detect(&m, &FeatureOptions::default());
+    let topo = Topology::build(&m);
+    let e = topo.find_edge(a, b).unwrap();
+    let kind = f.edges[self_edge_index(&f.edges, e).unwrap()].1;
+    let sharp = plain.edges[self_edge_index(&plain.edges, e).unwrap()].1;
+    assert_eq!((sharp, kind), (FeatureKind::Sharp, FeatureKind::Marked));
+    let c = f.counts();
+    assert_eq!((c.sharp_edges, c.marked_edges), (11, 1));
+    assert_eq!(
+        (f.corners.clone(), f.curve_vertices.clone()),
+        (plain.corners, plain.curve_vertices)
+    );
+    // A boundary edge of a plate, marked: the rim's curves as they were.
+    let mut m = flat_grid(3, 3);
+    let plain = detect(&m, &FeatureOptions::default());
+    m.marked_edges = vec![[0, 1]];
+    let f = detect(&m, &FeatureOptions::default());
+    let c = f.counts();
+    assert_eq!((c.boundary_edges, c.marked_edges), (11, 1));
+    assert_eq!(
+        (f.corners, f.curve_vertices),
+        (plain.corners, plain.curve_vertices)
+    );
+    // Marked edges count whatever the options leave out.
+    let none = FeatureOptions {
+        angle_deg: 100.0,
+        boundary: false,
+        ..Default::default()
+    };
+    assert_eq!(detect(&m, &none).counts().marked_edges, 1);
+}

@@ -103,7 +103,8 @@ pub struct RenderOptions {
     /// Samples per pixel along each axis (1 = none, up to 4).
     pub supersample: u32,
     /// Draw each mesh's sharp features over it (`coarsen-features` at its defaults): sharp
-    /// edges red, boundary edges blue, edges of three or more faces purple, corners yellow.
+    /// edges and those the input marks red, boundary edges blue, edges of three or more
+    /// faces purple, corners yellow.
     pub features: bool,
 }
 
@@ -439,7 +440,7 @@ fn features_overlay(mesh: &Mesh) -> raster::Overlay {
             .map(|&(e, kind)| {
                 let [a, b] = topo.edge(e);
                 let rgb = match kind {
-                    FeatureKind::Sharp => FEATURE_SHARP,
+                    FeatureKind::Sharp | FeatureKind::Marked => FEATURE_SHARP,
                     FeatureKind::Boundary => FEATURE_BOUNDARY,
                     FeatureKind::Junction => FEATURE_JUNCTION,
                 };
@@ -450,7 +451,7 @@ fn features_overlay(mesh: &Mesh) -> raster::Overlay {
     }
 }
 
-/// Colour of sharp feature edges.
+/// Colour of sharp feature edges, and of those the input marks.
 pub const FEATURE_SHARP: [f32; 3] = [0.85, 0.1, 0.1];
 /// Colour of boundary edges.
 pub const FEATURE_BOUNDARY: [f32; 3] = [0.1, 0.35, 0.9];
