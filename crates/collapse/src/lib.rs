@@ -35,7 +35,8 @@
 //!    form one closed fan (*interior*) or one open fan (*boundary*). Anything else — a
 //!    bow-tie, an edge with three faces, two faces using an edge in the same direction, a
 //!    face that repeats a vertex — makes the vertex *locked*: it never moves and no
-//!    collapse touches it. Non-manifold input is therefore accepted, and left alone where
+//!    collapse touches it. A caller may lock more before collapsing ([`LiveMesh::lock`]:
+//!    the collapse stages' `features` lock the input's sharp corners). Non-manifold input is therefore accepted, and left alone where
 //!    it is non-manifold, instead of refused. Vertices that no face uses are dropped from
 //!    the output (and counted by [`LiveMesh::summary`]).
 //! 2. **Rank candidates**: every edge (or triangle) whose vertex kinds allow a collapse

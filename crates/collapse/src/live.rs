@@ -391,6 +391,34 @@ impl LiveMesh {
         self.original(v)
     }
 
+    /// Locks the vertices of the input (its indices) listed in `input`, before any
+    /// collapse: like a non-manifold vertex, a locked vertex never moves and no collapse
+    /// merges it (a sharp corner to keep). Returns how many were newly locked (indices out
+    /// of range, vertices no face uses and those locked already are skipped).
+    pub fn lock(&mut self, input: &[Index]) -> usize {
+        let mut internal = vec![NONE; self.input_vertices];
+        for v in 0..self.pos.len() as Index {
+            if let Some(slot) = internal.get_mut(self.original(v) as usize) {
+                *slot = v;
+            }
+        }
+        let mut n = 0;
+        for &w in input {
+            let Some(&v) = internal
+                .get(w as usize)
+                .filter(|&&v| v != NONE && self.alive[v as usize])
+            else {
+                continue;
+            };
+            let kind = &mut self.kind[v as usize];
+            if matches!(kind, VertexKind::Interior | VertexKind::Boundary) {
+                *kind = VertexKind::Locked;
+                n += 1;
+            }
+        }
+        n
+    }
+
     /// The input's index of internal vertex `v` (see [`LiveMesh::new_renumbered`]).
     #[inline]
     fn original(&self, v: Index) -> Index {
@@ -1865,6 +1893,39 @@ mod tests {
 
     fn bump(x: f64, y: f64) -> f64 {
         0.2 * (std::f64::consts::PI * x).sin() * (std::f64::consts::PI * y).sin()
+    }
+
+    /// Locked vertices (as a stage keeps sharp corners) survive a collapse to a few
+    /// vertices where they are, renumbered or not; without the lock the same run merges
+    /// some of them away.
+    #[test]
+    fn locked_vertices_stay_where_they_are() {
+        let mesh = grid(12, 12, bump);
+        // A few interior vertices and a boundary one, in the input's numbering.
+        let keep: Vec<Index> = vec![14, 40, 84, 90, 6];
+        let kept = |out: &Mesh| {
+            keep.iter()
+                .filter(|&&v| out.positions.contains(&mesh.positions[v as usize]))
+                .count()
+        };
+        for renumbered in [false, true] {
+            let mut live = match renumbered {
+                false => LiveMesh::new(&mesh),
+                true => LiveMesh::new_renumbered(&mesh),
+            }
+            .unwrap();
+            assert_eq!(live.lock(&keep), keep.len());
+            // Locking again, out of range: nothing new.
+            assert_eq!(live.lock(&[14, 1_000_000]), 0);
+            let mut model = QuadricModel::new(&live, &QemOptions::default());
+            live.collapse(&mut model, &Options::new(Goal::Vertices(20)), &mut |_| {});
+            live.check_invariants().unwrap();
+            let (out, _) = live.to_mesh(&mesh).unwrap();
+            assert_eq!(out.n_vertices(), 20);
+            assert_eq!(kept(&out), keep.len(), "renumbered {renumbered}");
+        }
+        let (free, _) = qem(&mesh, Goal::Vertices(20));
+        assert!(kept(&free) < keep.len());
     }
 
     #[test]

@@ -46,6 +46,11 @@ pub trait Simplifier {
     fn weighted_sve(&self) -> bool {
         false
     }
+    /// The feature angle (degrees) when the stage keeps the corners of its input's sharp
+    /// features as they are (locked: [`LiveMesh::lock`]), else `None`. Default `None`.
+    fn kept_corners(&self) -> Option<f64> {
+        None
+    }
     /// The target in words, for the warning when it is not reached.
     fn target_words(&self, target: &Target) -> String {
         target.to_string()
@@ -171,6 +176,10 @@ pub fn run(
     let goal = stage.goal(count);
     let mut live =
         LiveMesh::new_renumbered(&mesh).map_err(|e| StageError::Input(format!("`{kind}`: {e}")))?;
+    let corners = stage.kept_corners().map(|angle| {
+        let corners = corners_of(&mesh, angle);
+        (corners.len(), live.lock(&corners))
+    });
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
     if cx.progressive.is_some() {
@@ -186,6 +195,10 @@ pub fn run(
         **slot = live.take_progressive(&out).map(|p| Box::new(p) as Handback);
     }
     report(cx.report, stage, &target, &done, &before, &after);
+    if let Some((found, locked)) = corners {
+        cx.report.figure("corners", found);
+        cx.report.figure("corners_locked", locked);
+    }
     if let Some(w) = done.outcome.below_face_goal(goal, &after) {
         cx.report.warn(w);
     }
@@ -193,6 +206,19 @@ pub fn run(
         cx.report.warn(w);
     }
     Ok(out)
+}
+
+/// The corners of `mesh`'s sharp features at `angle_deg` (`coarsen_features`, boundary
+/// edges included); none when its adjacency cannot be built.
+fn corners_of(mesh: &Mesh, angle_deg: f64) -> Vec<u32> {
+    let Ok(topo) = coarsen_mesh::Topology::try_build(mesh) else {
+        return Vec::new();
+    };
+    let opts = coarsen_features::FeatureOptions {
+        angle_deg,
+        ..Default::default()
+    };
+    coarsen_features::Features::detect(mesh, &topo, &opts).corners
 }
 
 /// `stage`'s collapses, behind the facing guard when it asks for one, told to the run's

@@ -9,6 +9,10 @@
 //! exactly (a spatial index over the output's faces). A vertex shared by several feature
 //! edges is measured once per edge: the mean weights each edge by its samples.
 //!
+//! The **corners** of those edges (where one, or three or more, meet, or two meet at a
+//! turn above 45°: `coarsen_features`' corners of the sharp edges alone) are counted, and
+//! those the output keeps: an output vertex within [`CORNER_TOLERANCE`] × the diagonal.
+//!
 //! Figures are percents of the input's bounding-box diagonal, as for [`Fidelity`](crate::Fidelity).
 
 use crate::error::{MetricsError, Role};
@@ -23,6 +27,10 @@ const CHUNK: usize = 1024;
 
 /// Most samples on one edge (a guard against a tiny `spacing`).
 const MAX_SAMPLES_PER_EDGE: usize = 1 << 12;
+
+/// An input corner is kept when an output vertex lies this close to it (fraction of the
+/// input's bounding-box diagonal).
+pub const CORNER_TOLERANCE: f64 = 1e-6;
 
 /// Settings of [`feature_edges`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -56,6 +64,10 @@ pub struct FeatureEdges {
     pub max_pct: f64,
     /// Mean distance from a sample to the output, % of the diagonal (0 without features).
     pub mean_pct: f64,
+    /// Corners of the feature edges in the input.
+    pub n_corners: usize,
+    /// Those with an output vertex on them (within [`CORNER_TOLERANCE`]).
+    pub corners_kept: usize,
 }
 
 /// The input's edges whose two faces turn by more than `angle_deg`, as vertex pairs in the
@@ -129,8 +141,34 @@ pub(crate) fn edges_to(
         (0u64, 0.0f64, 0.0f64, 0.0f64),
         |(n, s, m, l), (n2, s2, m2, l2)| (n + n2, s + s2, m.max(m2), l + l2),
     );
+    let features = coarsen_features::Features::detect(
+        input,
+        topo,
+        &coarsen_features::FeatureOptions {
+            angle_deg: opts.angle_deg,
+            boundary: false,
+            ..Default::default()
+        },
+    );
+    let near = CORNER_TOLERANCE * diagonal;
+    let corners_kept = features
+        .corners
+        .iter()
+        .filter(|&&c| {
+            let p = input.positions[c as usize];
+            // A vertex on the corner is the nearest point of the output to it, and a
+            // corner of the face that point is on.
+            bvh.closest_point(p).is_some_and(|hit| {
+                output.faces[hit.face as usize]
+                    .iter()
+                    .any(|&w| output.positions[w as usize].distance(p) <= near)
+            })
+        })
+        .count();
     let pct = |x: f64| 100.0 * x / diagonal;
     FeatureEdges {
+        n_corners: features.corners.len(),
+        corners_kept,
         n_edges: edges.len(),
         length_pct: pct(length),
         n_samples: n,
@@ -210,6 +248,7 @@ mod tests {
         assert!((m.length_pct - 100.0 * 24.0 / (2.0 * 3f64.sqrt())).abs() < 1e-9);
         let pieces = (2.0 / (1e-3 * 2.0 * 3f64.sqrt())).ceil() as u64;
         assert_eq!(m.n_samples, 12 * (pieces + 1));
+        assert_eq!((m.corners_kept, m.n_corners), (8, 8));
     }
 
     #[test]
@@ -226,12 +265,14 @@ mod tests {
         assert!(m.mean_pct < m.max_pct);
         // No sample is farther from the surface than the old corner is from the new one.
         assert!(m.max_pct <= 100.0 * (0.5 * diagonal) / diagonal + 1e-9);
+        assert_eq!((m.corners_kept, m.n_corners), (7, 8));
         let fewer = FeatureOptions {
             angle_deg: 100.0,
             ..FeatureOptions::default()
         };
         let none = feature_edges(&input, &cut, &fewer).unwrap();
         assert_eq!(none.n_edges, 0, "a cube's edges turn by exactly 90°");
+        assert_eq!(none.n_corners, 0);
     }
 
     #[test]

@@ -111,6 +111,13 @@ params! {
         /// Also report `sve_weighted`: each collapse's squared volume weighted as paper 2's
         /// Eq. (4) quadrics (Wᵢ·Nᵢ per face), to compare with `simplify.svec` runs.
         pub sve_weighted: bool = false,
+        /// Keep the corners of the input's sharp features (where three or more sharp or
+        /// boundary curves meet or one turns sharply, `coarsen-features`) as they are: no
+        /// collapse merges or moves them.
+        pub features: bool = false,
+        /// An input edge is sharp when its two faces' normals differ by more than this
+        /// (degrees), for `features`.
+        pub feature_angle_deg: f64 = 40.0,
     }
 }
 
@@ -129,6 +136,7 @@ impl Params for QemParams {
         check_finite_min(&mut issues, "max_error", self.max_error, 0.0);
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
+        check_range(&mut issues, "feature_angle_deg", self.feature_angle_deg, 0.0, 180.0);
         if unit_named(&self.unit).is_none() {
             issues.push(ParamIssue {
                 field: "unit",
@@ -187,6 +195,10 @@ impl Simplifier for Qem<'_> {
 
     fn facing_guard(&self) -> bool {
         self.0.facing_guard
+    }
+
+    fn kept_corners(&self) -> Option<f64> {
+        self.0.features.then_some(self.0.feature_angle_deg)
     }
 
     fn max_error(&self) -> f64 {
@@ -303,11 +315,19 @@ mod tests {
             parallel: true,
             unit: "vertex".into(),
             sve_weighted: false,
+            features: true,
+            feature_angle_deg: 200.0,
         };
         let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
         assert_eq!(
             fields,
-            ["max_error", "boundary_weight", "min_quality", "unit"]
+            [
+                "max_error",
+                "boundary_weight",
+                "min_quality",
+                "feature_angle_deg",
+                "unit"
+            ]
         );
         assert!(QemParams::default().validate().is_empty());
     }

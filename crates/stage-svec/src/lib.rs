@@ -255,6 +255,13 @@ params! {
         /// Also report `sve_weighted`: each collapse's squared volume weighted as Eq. (4)
         /// quadrics (Wᵢ·Nᵢ per face), to compare with `simplify.qem` runs.
         pub sve_weighted: bool = false,
+        /// Keep the corners of the input's sharp features (where three or more sharp or
+        /// boundary curves meet or one turns sharply, `coarsen-features`) as they are: no
+        /// collapse merges or moves them.
+        pub features: bool = false,
+        /// An input edge is sharp when its two faces' normals differ by more than this
+        /// (degrees), for `features`.
+        pub feature_angle_deg: f64 = 40.0,
     }
 }
 
@@ -282,6 +289,7 @@ impl Params for SvecParams {
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         check_range(&mut issues, "target_scale", self.target_scale, 1.0, 1e6);
+        check_range(&mut issues, "feature_angle_deg", self.feature_angle_deg, 0.0, 180.0);
         check_choice(&mut issues, "factors", &self.factors, &["face", "triangle"]);
         check_choice(
             &mut issues,
@@ -365,6 +373,10 @@ impl Simplifier for Svec<'_> {
 
     fn facing_guard(&self) -> bool {
         self.p.facing_guard
+    }
+
+    fn kept_corners(&self) -> Option<f64> {
+        self.p.features.then_some(self.p.feature_angle_deg)
     }
 
     fn max_error(&self) -> f64 {

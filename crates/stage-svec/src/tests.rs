@@ -98,6 +98,8 @@ fn needs_a_target_and_checks_its_parameters() {
         feature_rule: "later".into(),
         reach: "one_ring".into(),
         sve_weighted: false,
+        features: true,
+        feature_angle_deg: -1.0,
     };
     let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
     assert_eq!(
@@ -109,6 +111,7 @@ fn needs_a_target_and_checks_its_parameters() {
             "boundary_weight",
             "min_quality",
             "target_scale",
+            "feature_angle_deg",
             "factors",
             "feature_rule",
             "reach"
