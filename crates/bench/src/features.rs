@@ -6,7 +6,7 @@
 
 use anyhow::Result;
 use coarsen_mesh::Mesh;
-use coarsen_metrics::{FeatureOptions, feature_edges, fidelity, quality};
+use coarsen_metrics::{FeatureOptions, feature_edges, fidelity, quality, validity};
 use coarsen_stage::{Registry, Target};
 use std::fmt::Write as _;
 
@@ -20,6 +20,8 @@ const RATIO: f64 = 0.7;
 const ROWS: &[(&str, &[&str])] = &[
     ("qem", &[]),
     ("svec", &[]),
+    ("qem", &["simplify.qem.features=true"]),
+    ("svec", &["simplify.svec.features=true"]),
     ("uniform-cvt", &[]),
     ("adaptive-cvt", &[]),
     (
@@ -65,13 +67,13 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
             Err(e) => {
                 let _ = writeln!(
                     rows,
-                    "| {label} | failed: {} | | | | | |",
+                    "| {label} | failed: {} | | | | | | |",
                     e.to_string().replace('|', "/")
                 );
                 continue;
             }
         };
-        if pipeline == "qem" {
+        if pipeline == "qem" && vertices.is_none() {
             vertices = Some(out.n_vertices() as u64);
         }
         let f = feature_edges(input, &out, &opts)?;
@@ -80,11 +82,13 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
         edges = Some((f.n_edges, f.length_pct, f.n_samples));
         let _ = writeln!(
             rows,
-            "| {label} | {} | {} | {:.4} | {:.4} | {:.4} | {:.2} | {:.3} |",
+            "| {label} | {} | {} | {:.4} | {:.4} | {} of {} | {:.4} | {:.2} | {:.3} |",
             out.n_vertices(),
             out.n_faces(),
             f.max_pct,
             f.mean_pct,
+            f.corners_kept,
+            f.n_corners,
             h.hausdorff_pct,
             q.alpha_min_deg,
             q.q_avg
@@ -96,17 +100,95 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
         "The input's feature edges are those whose two faces' normals differ by more than {}° \
          ({n} edges, {length:.0} % of the diagonal long in all); points along them, at most {} × \
          the diagonal apart ({samples} in all), are measured to the nearest point of the output \
-         (`coarsen_metrics::feature_edges`). The CVT pipelines run to `qem`'s vertex count. \
-         Distances in % of the bounding-box diagonal; *Hausdorff* is the whole surface's, as in \
-         the tables above. `features=true` (off by default) captures the input's corners and \
-         sharp curves in `relax` (see its docs).\n",
+         (`coarsen_metrics::feature_edges`); *corners* counts the input's corners of those edges \
+         (`coarsen-features`) that have an output vertex on them. The CVT pipelines run to \
+         `qem`'s vertex count. Distances in % of the bounding-box diagonal; *Hausdorff* is the \
+         whole surface's, as in the tables above. `features=true` (off by default) captures the \
+         input's corners and sharp curves in `relax` (see its docs), and locks the corners in \
+         `simplify.qem` and `simplify.svec`.\n",
         opts.angle_deg, opts.spacing
     );
     s.push_str(
-        "| pipeline | V | F | feature max % | feature mean % | Hausdorff % | α_min ° | Q_avg |\n",
+        "| pipeline | V | F | feature max % | feature mean % | corners | Hausdorff % | α_min ° | Q_avg |\n",
     );
-    s.push_str("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+    s.push_str("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
     s.push_str(&rows);
+    s.push('\n');
+    Ok(s)
+}
+
+/// The vertex count of the CAD parts' rows.
+const CAD_VERTICES: u64 = 1500;
+
+/// The CAD parts' rows: shipped pipeline and `--set` overrides.
+const CAD_ROWS: &[(&str, &[&str])] = &[
+    ("qem", &[]),
+    ("qem", &["simplify.qem.features=true"]),
+    ("uniform-cvt", &[]),
+    ("uniform-cvt", &["relax.features=true"]),
+    ("adaptive-cvt", &["relax.features=true"]),
+    ("goal", &["shape.features=true", "fit.features=true"]),
+];
+
+/// The CAD parts of `coarsen_shapes::cad` (issue #52's fixtures), each coarsened to
+/// [`CAD_VERTICES`] by `qem` and the CVT pipelines with and without `features`: the
+/// feature-edge distance, the corners kept, the whole surface's Hausdorff distance, the
+/// angles and the flipped faces.
+pub fn cad_section(registry: &Registry) -> Result<String> {
+    let opts = FeatureOptions::default();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "### CAD parts made in code — {CAD_VERTICES} vertices\n\n\
+         The parts of `coarsen_shapes::cad` (a plate with two holes and a slot, a block with a \
+         pocket and a bored boss, a stepped shaft: flat faces triangulated from their outlines \
+         alone, as a CAD program's STL export is, so all slivers; 512 segments per circle), \
+         coarsened to {CAD_VERTICES} vertices; columns as above, and *flipped* the output faces \
+         facing away from the input nearest them.\n"
+    );
+    s.push_str(
+        "| part | pipeline | V | F | feature max % | feature mean % | corners | Hausdorff % | α_min ° | Q_avg | flipped |\n",
+    );
+    s.push_str("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+    for (name, input) in coarsen_shapes::cad::parts()? {
+        for &(pipeline, sets) in CAD_ROWS {
+            let label = match sets {
+                [] => format!("`{pipeline}`"),
+                _ => format!("`{pipeline}` {}", sets.join(" ").replace('"', "")),
+            };
+            eprintln!("features · {name} · {label}");
+            let target = Target::Vertices(CAD_VERTICES);
+            let out = match crate::run_shipped(registry, pipeline, sets, &input, target) {
+                Ok((out, _)) => out,
+                Err(e) => {
+                    let _ = writeln!(
+                        s,
+                        "| {name} | {label} | failed: {} | | | | | | | | |",
+                        e.to_string().replace('|', "/")
+                    );
+                    continue;
+                }
+            };
+            let f = feature_edges(&input, &out, &opts)?;
+            let h = fidelity(&input, &out, &Default::default())?;
+            let q = quality(&out)?;
+            let v = validity(Some(&input), &out)?;
+            let _ = writeln!(
+                s,
+                "| {name} | {label} | {} | {} | {:.4} | {:.4} | {} of {} | {:.4} | {:.2} | {:.3} | {} |",
+                out.n_vertices(),
+                out.n_faces(),
+                f.max_pct,
+                f.mean_pct,
+                f.corners_kept,
+                f.n_corners,
+                h.hausdorff_pct,
+                q.alpha_min_deg,
+                q.q_avg,
+                v.n_flipped.unwrap_or(0)
+            );
+        }
+    }
     s.push('\n');
     Ok(s)
 }

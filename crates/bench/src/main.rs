@@ -286,6 +286,7 @@ fn tables(data: &Path, out: &Path, with: Sections) -> Result<()> {
         text = readings::splice(&text, &section, "## Other tools");
     }
     text.push_str(&features::section(&registry, &loaded(features::MESH)?)?);
+    text.push_str(&features::cad_section(&registry)?);
     text.push_str(&levers::section(&registry, &loaded(levers::MESH)?)?);
     if with.speed {
         text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
@@ -336,7 +337,7 @@ fn readings_section(data: &Path, out: &Path) -> Result<()> {
 fn feature_section(data: &Path) -> Result<String> {
     let registry = coarsen_builtin::registry();
     let input = load(&data.join(features::MESH))?;
-    features::section(&registry, &input)
+    Ok(features::section(&registry, &input)? + &features::cad_section(&registry)?)
 }
 
 /// Runs the shipped `pipeline` on `input` to `target` with `--set`-style overrides `sets`
