@@ -4,7 +4,8 @@
 //! * The input's features ([`InputFeatures`], found once per run by `coarsen-features`)
 //!   are read at the scale of the mesh being relaxed (`h`, its mean edge length): a sharp
 //!   curve shorter than `h`, or no longer sharp when each side's normal is averaged over
-//!   the input within `h` (a scan's noise), is dropped; the remaining curves are chained
+//!   the input within `h` (a scan's noise), is dropped (not a curve with an edge the input
+//!   marks, `FeatureKind::Marked`: kept whatever its length and angle); the remaining curves are chained
 //!   through the corners where exactly two of them meet, and the chains cut at the points
 //!   where they turn by more than [`CORNER_TURN_DEG`] over `h` on each side, at least
 //!   [`CONCENTRATED`] of it within `h / 2` (neither a ragged hole's boundary nor a small
@@ -60,6 +61,9 @@ struct InputCurve {
     ends: Option<[u32; 2]>,
     /// Whether it runs along the input's boundary.
     boundary: bool,
+    /// Whether the input marks one of its edges (`FeatureKind::Marked`): kept whatever
+    /// its sharpness at scale.
+    marked: bool,
     /// A few of its edges, evenly spread: midpoint, direction and the unit normals of
     /// the two faces, for its sharpness at a coarser scale ([`sharp_at_scale`]).
     samples: Vec<[DVec3; 4]>,
@@ -92,13 +96,18 @@ impl InputFeatures {
             .filter_map(|c| {
                 let vs = f.curve(c);
                 let (&first, &last) = (vs.first()?, vs.last()?);
+                // A marked boundary edge is of kind `Marked`: its face count tells.
                 let boundary = vs.len() >= 2
                     && topo
                         .find_edge(vs[0], vs[1])
-                        .is_some_and(|e| kind.get(&e) == Some(&FeatureKind::Boundary));
+                        .is_some_and(|e| topo.edge_faces(e).len() == 1);
                 let n_edges = vs.len() - 1 + usize::from(f.curve_closed[c]);
+                let marked = (0..n_edges).any(|i| {
+                    topo.find_edge(vs[i], vs[(i + 1) % vs.len()])
+                        .is_some_and(|e| kind.get(&e) == Some(&FeatureKind::Marked))
+                });
                 let samples = (0..n_edges.min(SCALE_SAMPLES))
-                    .filter(|_| !boundary)
+                    .filter(|_| !boundary && !marked)
                     .filter_map(|k| {
                         let i = k * n_edges / n_edges.min(SCALE_SAMPLES);
                         let (a, b) = (vs[i], vs[(i + 1) % vs.len()]);
@@ -125,6 +134,7 @@ impl InputFeatures {
                     pts: vs.iter().map(|&v| mesh.positions[v as usize]).collect(),
                     ends: (!f.curve_closed[c]).then_some([first, last]),
                     boundary,
+                    marked,
                 })
             })
             .filter(|c| c.pts.len() >= 2)
@@ -466,7 +476,7 @@ fn chain_rails(input: &InputFeatures, surface: &Mesh, h: f64) -> (Vec<Rail>, Vec
     let curves = &input.curves;
     let long: Vec<bool> = curves
         .iter()
-        .map(|c| c.boundary || c.length() >= MIN_CURVE * h)
+        .map(|c| c.boundary || c.marked || c.length() >= MIN_CURVE * h)
         .collect();
     let kept = sharp_at_scale(surface, curves, &long, h, input.angle_deg);
     // The kept curves' ends at each corner: (curve, whether it starts there).
@@ -522,10 +532,12 @@ fn sharp_at_scale(
     angle_deg: f64,
 ) -> Vec<bool> {
     let sharp: Vec<usize> = (0..curves.len())
-        .filter(|&i| long[i] && !curves[i].boundary && !curves[i].samples.is_empty())
+        .filter(|&i| {
+            long[i] && !curves[i].boundary && !curves[i].marked && !curves[i].samples.is_empty()
+        })
         .collect();
     let mut kept: Vec<bool> = (0..curves.len())
-        .map(|i| long[i] && curves[i].boundary)
+        .map(|i| long[i] && (curves[i].boundary || curves[i].marked))
         .collect();
     if sharp.is_empty() || r <= 0.0 {
         return kept;
@@ -1100,6 +1112,43 @@ mod tests {
         let r = relax(&mut m, Some(&Surface::new(&input)), &RelaxParams::default());
         assert!(r.features.is_none());
         assert!(farthest_cube_edge(&m) > 0.01);
+    }
+
+    /// A latitude ring the input marks on a smooth sphere is a rail at any scale; unmarked,
+    /// the sphere has none.
+    #[test]
+    fn a_marked_ring_on_a_sphere_is_a_rail() {
+        let mut input = coarsen_shapes::uv_sphere(1.0, 12, 24).unwrap();
+        let z0 = input
+            .positions
+            .iter()
+            .map(|p| p.z)
+            .filter(|&z| z > 0.3)
+            .fold(1.0, f64::min);
+        let mut ring: Vec<u32> = (0..input.n_vertices() as u32)
+            .filter(|&v| (input.positions[v as usize].z - z0).abs() < 1e-12)
+            .collect();
+        let angle = |v: u32| {
+            let p = input.positions[v as usize];
+            p.y.atan2(p.x)
+        };
+        ring.sort_by(|&a, &b| angle(a).total_cmp(&angle(b)));
+        assert_eq!(ring.len(), 24);
+        let topo = Topology::build(&input);
+        let rails = |input: &Mesh| {
+            let features = InputFeatures::detect(input, &topo, 40.0);
+            chain_rails(&features, input, 0.5).0
+        };
+        assert!(rails(&input).is_empty());
+        input.marked_edges = (0..ring.len())
+            .map(|i| {
+                let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+                [a.min(b), a.max(b)]
+            })
+            .collect();
+        let marked = rails(&input);
+        assert_eq!(marked.len(), 1);
+        assert!(!marked[0].boundary && marked[0].ends.is_none());
     }
 
     #[test]
