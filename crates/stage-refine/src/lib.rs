@@ -461,6 +461,38 @@ pub fn split_once_with(
     Ok((out, plan.counts, carry))
 }
 
+/// One split of `mesh`'s edges longer than `max_len` at their midpoints, closed as a
+/// red-green pass is (a face splits by how many of its edges are split; no T-junction),
+/// and guarded the same way: the edges of a face too small to split stay whole (counted
+/// as `refused`). Attributes are carried through `Mesh::rebuilt`.
+pub fn split_long_edges(
+    mesh: &Mesh,
+    max_len: f64,
+) -> Result<(Mesh, SplitCounts, CarryReport), RefineError> {
+    check_mesh(mesh)?;
+    let threshold = min_split_area(mesh);
+    let splittable: Vec<bool> = (0..mesh.n_faces())
+        .map(|f| mesh.face_area(f) >= threshold)
+        .collect();
+    let table = EdgeTable::build(mesh.n_vertices(), &mesh.faces);
+    let marked: Vec<bool> = table
+        .ends
+        .iter()
+        .map(|&[a, b]| mesh.positions[a as usize].distance(mesh.positions[b as usize]) > max_len)
+        .collect();
+    let plan = Plan::of_edges(&table, mesh.n_vertices(), marked, &splittable);
+    let c = plan.counts;
+    if c.faces > MAX_FACES || c.vertices >= u32::MAX as usize {
+        return Err(RefineError::TooLarge {
+            faces: c.faces,
+            vertices: c.vertices,
+        });
+    }
+    let s = split::split(mesh, &table, &plan);
+    let (out, carry) = mesh.rebuilt(s.positions, s.faces, &s.vertex_origins, &s.face_origins);
+    Ok((out, plan.counts, carry))
+}
+
 /// Refines `mesh` by red-green passes driven by the vertex scalar `params.field` until the
 /// stopping rule holds (see the crate docs). Returns the refined mesh and what was done.
 pub fn refine(mesh: Mesh, params: &RefineParams) -> Result<(Mesh, Outcome), RefineError> {

@@ -200,6 +200,40 @@ impl Plan {
                     .for_each(|&e| marked[e as usize] = true);
             }
         }
+        Plan::closed(table, n_vertices, marked, red, refused)
+    }
+
+    /// Marks the `marked` edges (one flag per edge of `table`) but those of a face that
+    /// is not `splittable` (see [`Plan::new`]), and closes the marking: a face with all
+    /// three edges marked counts as red, the others are split by their marked edges.
+    pub(crate) fn of_edges(
+        table: &EdgeTable,
+        n_vertices: usize,
+        mut marked: Vec<bool>,
+        splittable: &[bool],
+    ) -> Plan {
+        let nf = splittable.len();
+        let mut refused = 0;
+        for f in (0..nf).filter(|&f| !splittable[f]) {
+            for e in table.of_face(f) {
+                refused += usize::from(std::mem::take(&mut marked[e as usize]));
+            }
+        }
+        let red: Vec<bool> = (0..nf)
+            .map(|f| table.of_face(f).iter().all(|&e| marked[e as usize]))
+            .collect();
+        Plan::closed(table, n_vertices, marked, red, refused)
+    }
+
+    /// The plan of the `marked` edges, with the `red` faces and the `refused` count.
+    fn closed(
+        table: &EdgeTable,
+        n_vertices: usize,
+        marked: Vec<bool>,
+        red: Vec<bool>,
+        refused: usize,
+    ) -> Plan {
+        let nf = red.len();
         let mut counts = SplitCounts {
             refused,
             faces: nf,
