@@ -399,12 +399,26 @@ impl Trial {
         let mut corner_at: HashMap<u32, u32> = HashMap::new();
         out.corners = fixed.len();
         for &(c, p, on_boundary) in fixed {
+            // A corner at the place of one kept already (an input cut apart along an edge
+            // of three faces has two there) is that corner's vertex: two vertices on one
+            // point would leave a face without area.
+            if let Some(v) = corner_at
+                .values()
+                .copied()
+                .find(|&v| positions[v as usize] == p)
+            {
+                corner_at.insert(c, v);
+                out.corners_kept += 1;
+                continue;
+            }
             let free = |v: u32| {
                 rails.role[v as usize] == Role::Free
                     && topo.is_boundary_vertex(v) == on_boundary
                     && topo.n_vertex_fans(v) == 1
             };
-            if let Some(v) = grid.nearest(&positions, p, TUBE * h, free) {
+            if let Some(v) = grid.nearest(&positions, p, TUBE * h, free)
+                && !crowded(&positions, topo, v, p, h)
+            {
                 rails.role[v as usize] = Role::Fixed;
                 positions[v as usize] = p;
                 corner_at.insert(c, v);
@@ -432,7 +446,7 @@ impl Trial {
                 continue;
             };
             for (i, &v) in chain.iter().enumerate() {
-                if let Some(q) = at[i] {
+                if let Some(q) = at[i].filter(|&q| !crowded(&positions, topo, v, q, h)) {
                     rails.role[v as usize] = Role::On(r);
                     positions[v as usize] = q;
                     let (prev, next) = match i {
@@ -456,6 +470,15 @@ impl Trial {
             missed,
         }
     }
+}
+
+/// True when a neighbour of `v` lies on `p` (within 10⁻⁹ of the mean edge `h`): moving
+/// `v` there would leave their faces without area (an output vertex the dual put on an
+/// input corner, of the other kind than the corner's).
+fn crowded(positions: &[DVec3], topo: &Topology, v: u32, p: DVec3, h: f64) -> bool {
+    topo.vertex_neighbors(v)
+        .iter()
+        .any(|&w| positions[w as usize].distance(p) <= 1e-9 * h)
 }
 
 /// A kept corner: its input vertex, position and whether it is on the input's boundary.
