@@ -150,3 +150,31 @@ fn the_shaft_has_nine_closed_circles_and_no_corner() {
         "{rims:?}"
     );
 }
+
+/// The shipped `cad` pipeline on the block at 1500 vertices (issue #52): every corner of
+/// its sharp edges kept as a vertex, the edges near, well-shaped triangles and no face
+/// turned over, where `uniform-cvt` as shipped loses every corner and turns faces over.
+#[test]
+fn the_cad_pipeline_keeps_the_blocks_corners_and_shapes_its_triangles() {
+    let block = cad::block(cad::SEGMENTS).unwrap();
+    let run = |pipeline: &str| {
+        let (out, _) = coarsen::Remesher::new()
+            .pipeline(pipeline)
+            .target(coarsen::Target::Vertices(1500))
+            .run(&block)
+            .unwrap_or_else(|e| panic!("{pipeline}: {e}"));
+        let r = coarsen_metrics::measure(Some(&block), &out, &Default::default()).unwrap();
+        let f = r.features.clone().unwrap();
+        (out.n_vertices(), r, f)
+    };
+    let (n, r, f) = run("cad");
+    assert_eq!(n, 1500);
+    assert_eq!((f.corners_kept, f.n_corners), (8, 8), "{f:?}");
+    assert!(f.max_pct < 0.6, "{f:?}");
+    assert!(r.quality.alpha_min_deg > 25.0, "{:?}", r.quality);
+    assert!(r.fidelity.as_ref().unwrap().hausdorff_pct < 0.6);
+    assert_eq!(r.validity.n_flipped, Some(0));
+    let (_, r, f) = run("uniform-cvt");
+    assert_eq!(f.corners_kept, 0, "{f:?}");
+    assert!(r.validity.n_flipped.unwrap() > 0);
+}

@@ -51,6 +51,7 @@ pub const PIPELINES: &[(&str, &str)] = &[
         "adaptive-cvt-r05",
         include_str!("../pipelines/adaptive-cvt-r05.toml"),
     ),
+    ("cad", include_str!("../pipelines/cad.toml")),
     ("curvature", include_str!("../pipelines/curvature.toml")),
     ("demo", include_str!("../pipelines/demo.toml")),
     ("goal", include_str!("../pipelines/goal.toml")),
