@@ -35,6 +35,7 @@ const ROWS: &[(&str, &[&str])] = &[
     ("uniform-cvt", &["relax.features=true"]),
     ("adaptive-cvt", &["relax.features=true"]),
     ("goal", &["shape.features=true", "fit.features=true"]),
+    ("cad", &[]),
 ];
 
 /// The section: `qem` and `svec` at 70 % removed, then the CVT pipelines (paper 1's also
@@ -105,7 +106,8 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
          `qem`'s vertex count. Distances in % of the bounding-box diagonal; *Hausdorff* is the \
          whole surface's, as in the tables above. `features=true` (off by default) captures the \
          input's corners and sharp curves in `relax` (see its docs), and locks the corners in \
-         `simplify.qem` and `simplify.svec`.\n",
+         `simplify.qem` and `simplify.svec`; the `cad` pipeline is `uniform-cvt` with it and \
+         `subdivide.max_edge=1`.\n",
         opts.angle_deg, opts.spacing
     );
     s.push_str(
@@ -128,6 +130,8 @@ const CAD_ROWS: &[(&str, &[&str])] = &[
     ("uniform-cvt", &["relax.features=true"]),
     ("adaptive-cvt", &["relax.features=true"]),
     ("goal", &["shape.features=true", "fit.features=true"]),
+    ("uniform-cvt", &["subdivide.max_edge=1"]),
+    ("cad", &[]),
 ];
 
 /// The CAD parts of `coarsen_shapes::cad` (issue #52's fixtures), each coarsened to
@@ -144,7 +148,13 @@ pub fn cad_section(registry: &Registry) -> Result<String> {
          pocket and a bored boss, a stepped shaft: flat faces triangulated from their outlines \
          alone, as a CAD program's STL export is, so all slivers; 512 segments per circle), \
          coarsened to {CAD_VERTICES} vertices; columns as above, and *flipped* the output faces \
-         facing away from the input nearest them.\n"
+         facing away from the input nearest them. As shipped, the CVT pipelines fail on such \
+         input (clusters of slivers that span a whole face: Hausdorff distances of whole \
+         percents, faces turned over); `subdivide.max_edge=1` (long edges split to a target \
+         edge, flat slivers flipped to Delaunay) repairs `uniform-cvt`, and with `relax`'s \
+         `features` too (the `cad` pipeline) it keeps every corner. `adaptive-cvt` and \
+         `goal` are not repaired by it: their curvature density is extreme along the sharp \
+         edges.\n"
     );
     s.push_str(
         "| part | pipeline | V | F | feature max % | feature mean % | corners | Hausdorff % | α_min ° | Q_avg | flipped |\n",
