@@ -388,7 +388,8 @@ def metrics(*meshes, samples_per_face=None):
 
     Returns the report as a dict: ``quality`` (angles, shape quality), ``fidelity``
     (Hausdorff and mean distances, in % of the input's bounding-box diagonal), ``validity``,
-    ``features`` (how far the input's sharp edges lie from the output).
+    ``features`` (how far the input's sharp edges lie from the output, and how many of their
+    corners it keeps as vertices).
     ``samples_per_face``: fidelity samples per face (default 10, the command's).
     """
     if len(meshes) == 4:

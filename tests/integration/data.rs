@@ -549,17 +549,7 @@ fn the_cvt_pipelines_meet_issue_5s_quality_bars() {
             return;
         };
         let what = format!("{pipeline} on {mesh} at {n}");
-        let out = tmp.path().join(format!("{mesh}-{pipeline}-{n}.ply"));
-        let o = run_pipeline(
-            EXE,
-            pipeline,
-            &dir.join(&name),
-            &out,
-            &["--vertices", &n.to_string()],
-        );
-        assert!(o.status.success(), "{what}: {}", stderr(&o));
-        let m = read_mesh(&out);
-        let r = coarsen_metrics::measure(Some(&input), &m, &Default::default()).unwrap();
+        let r = run_and_measure(tmp.path(), &dir.join(&name), &input, pipeline, n);
         let kept = coarsen_metrics::validity(None, &input).unwrap();
         let v = &r.validity;
         assert_eq!(v.n_vertices, n, "{what}");
@@ -610,19 +600,7 @@ fn thin_parts_turn_no_face_over() {
         };
         for pipeline in pipelines {
             let what = format!("{pipeline} on {mesh} at {n}");
-            let out = tmp.path().join(format!("{mesh}-{pipeline}.ply"));
-            let o = run_pipeline(
-                EXE,
-                pipeline,
-                &dir.join(&name),
-                &out,
-                &["--vertices", &n.to_string()],
-            );
-            assert!(o.status.success(), "{what}: {}", stderr(&o));
-            let m = read_mesh(&out);
-            let v = coarsen_metrics::measure(Some(&input), &m, &Default::default())
-                .unwrap()
-                .validity;
+            let v = run_and_measure(tmp.path(), &dir.join(&name), &input, pipeline, n).validity;
             assert_eq!(v.n_vertices, n, "{what}");
             assert_eq!((v.n_degenerate, v.n_flipped), (0, Some(0)), "{what}");
         }
@@ -658,4 +636,24 @@ fn collapse_stages_keep_the_fandisks_corners_with_features() {
         assert_eq!((f.corners_kept, f.n_corners), (25, 25), "{pipeline}: {f:?}");
         assert!(f.max_pct < 0.1, "{pipeline}: {f:?}");
     }
+}
+
+/// Runs the CLI's `pipeline` on the file `path` (cleaned: `input`) to `n` vertices, the
+/// output in `dir`, and measures it against `input`.
+fn run_and_measure(
+    dir: &std::path::Path,
+    path: &std::path::Path,
+    input: &coarsen_mesh::Mesh,
+    pipeline: &str,
+    n: usize,
+) -> coarsen_metrics::MetricsReport {
+    let out = dir.join(format!("{pipeline}-{n}.ply"));
+    let o = run_pipeline(EXE, pipeline, path, &out, &["--vertices", &n.to_string()]);
+    assert!(
+        o.status.success(),
+        "{pipeline} on {} at {n}: {}",
+        path.display(),
+        stderr(&o)
+    );
+    coarsen_metrics::measure(Some(input), &read_mesh(&out), &Default::default()).unwrap()
 }

@@ -1073,20 +1073,26 @@ mod tests {
         );
     }
 
-    #[test]
-    fn degenerate_and_duplicate_faces_are_dropped_and_counted_separately() {
-        // 3---2
-        // | / |      faces: 0-1-2, 0-2-3, then 1-2-0 (rotation of face 0: dropped),
-        // 0---1      2-1-0 (opposite of face 0: kept), 1-1-3 (repeated), 0-1-4 (flat),
-        //            and vertex 5 unused.
-        let positions = vec![
+    /// The unit square's corners (0–3), a point beyond corner 1 on its line (4) and one
+    /// above the square (5).
+    fn square_and_two() -> Vec<DVec3> {
+        vec![
             DVec3::ZERO,
             DVec3::X,
             DVec3::new(1.0, 1.0, 0.0),
             DVec3::Y,
             DVec3::X * 2.0,
             DVec3::Z,
-        ];
+        ]
+    }
+
+    #[test]
+    fn degenerate_and_duplicate_faces_are_dropped_and_counted_separately() {
+        // 3---2
+        // | / |      faces: 0-1-2, 0-2-3, then 1-2-0 (rotation of face 0: dropped),
+        // 0---1      2-1-0 (opposite of face 0: kept), 1-1-3 (repeated), 0-1-4 (flat),
+        //            and vertex 5 unused.
+        let positions = square_and_two();
         let faces = vec![
             [0, 1, 2],
             [0, 2, 3],
@@ -1115,14 +1121,7 @@ mod tests {
     #[test]
     fn marked_edges_follow_the_clean_up_and_the_dropped_ones_are_counted() {
         // The mesh of the test above: vertex 4 only on the flat face, vertex 5 unused.
-        let positions = vec![
-            DVec3::ZERO,
-            DVec3::X,
-            DVec3::new(1.0, 1.0, 0.0),
-            DVec3::Y,
-            DVec3::X * 2.0,
-            DVec3::Z,
-        ];
+        let positions = square_and_two();
         let faces = vec![[0, 1, 2], [0, 2, 3], [1, 1, 3], [0, 1, 4]];
         let mut m = Mesh::new(positions, faces);
         // 1-0 kept (as 0-1), 0-1 repeats it, 3-3 is one vertex, 1-3 was only on the face

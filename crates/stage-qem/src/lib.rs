@@ -136,7 +136,13 @@ impl Params for QemParams {
         check_finite_min(&mut issues, "max_error", self.max_error, 0.0);
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
-        check_range(&mut issues, "feature_angle_deg", self.feature_angle_deg, 0.0, 180.0);
+        check_range(
+            &mut issues,
+            "feature_angle_deg",
+            self.feature_angle_deg,
+            0.0,
+            180.0,
+        );
         if unit_named(&self.unit).is_none() {
             issues.push(ParamIssue {
                 field: "unit",

@@ -440,15 +440,30 @@ pub fn split_once_with(
         });
     }
     check_mesh(mesh)?;
-    let threshold = min_split_area(mesh);
-    let splittable: Vec<bool> = (0..mesh.n_faces())
-        .map(|f| mesh.face_area(f) >= threshold)
-        .collect();
+    let splittable = splittable(mesh);
     let table = match topo.and_then(|t| EdgeTable::from_topology(mesh, t)) {
         Some(t) => t,
         None => EdgeTable::build(mesh.n_vertices(), &mesh.faces),
     };
     let plan = Plan::new(&table, mesh.n_vertices(), red, &splittable);
+    apply(mesh, &table, &plan)
+}
+
+/// Per face of `mesh`, whether it may be split (see [`min_split_area`]).
+fn splittable(mesh: &Mesh) -> Vec<bool> {
+    let threshold = min_split_area(mesh);
+    (0..mesh.n_faces())
+        .map(|f| mesh.face_area(f) >= threshold)
+        .collect()
+}
+
+/// Splits `mesh` as `plan` (over the edges of `table`) says, unless the result would be
+/// too large for 32-bit indices; attributes carried through `Mesh::rebuilt`.
+fn apply(
+    mesh: &Mesh,
+    table: &EdgeTable<'_>,
+    plan: &Plan,
+) -> Result<(Mesh, SplitCounts, CarryReport), RefineError> {
     let c = plan.counts;
     if c.faces > MAX_FACES || c.vertices >= u32::MAX as usize {
         return Err(RefineError::TooLarge {
@@ -456,9 +471,9 @@ pub fn split_once_with(
             vertices: c.vertices,
         });
     }
-    let s = split::split(mesh, &table, &plan);
+    let s = split::split(mesh, table, plan);
     let (out, carry) = mesh.rebuilt(s.positions, s.faces, &s.vertex_origins, &s.face_origins);
-    Ok((out, plan.counts, carry))
+    Ok((out, c, carry))
 }
 
 /// One split of `mesh`'s edges longer than `max_len` at their midpoints, closed as a
@@ -470,10 +485,7 @@ pub fn split_long_edges(
     max_len: f64,
 ) -> Result<(Mesh, SplitCounts, CarryReport), RefineError> {
     check_mesh(mesh)?;
-    let threshold = min_split_area(mesh);
-    let splittable: Vec<bool> = (0..mesh.n_faces())
-        .map(|f| mesh.face_area(f) >= threshold)
-        .collect();
+    let splittable = splittable(mesh);
     let table = EdgeTable::build(mesh.n_vertices(), &mesh.faces);
     let marked: Vec<bool> = table
         .ends
@@ -481,16 +493,7 @@ pub fn split_long_edges(
         .map(|&[a, b]| mesh.positions[a as usize].distance(mesh.positions[b as usize]) > max_len)
         .collect();
     let plan = Plan::of_edges(&table, mesh.n_vertices(), marked, &splittable);
-    let c = plan.counts;
-    if c.faces > MAX_FACES || c.vertices >= u32::MAX as usize {
-        return Err(RefineError::TooLarge {
-            faces: c.faces,
-            vertices: c.vertices,
-        });
-    }
-    let s = split::split(mesh, &table, &plan);
-    let (out, carry) = mesh.rebuilt(s.positions, s.faces, &s.vertex_origins, &s.face_origins);
-    Ok((out, plan.counts, carry))
+    apply(mesh, &table, &plan)
 }
 
 /// Refines `mesh` by red-green passes driven by the vertex scalar `params.field` until the

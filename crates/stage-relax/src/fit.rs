@@ -345,43 +345,16 @@ pub(crate) fn fit(
     tol: f64,
     samples: &[(DVec3, bool)],
 ) -> (usize, usize) {
-    let origins = Origins::start(mesh);
-    let guard = fit_guard(mesh, floor);
-    let mut run = Fitting {
-        mesh,
-        surface,
-        samples,
-        limits: Limits {
-            max_pairs: max_pairs as usize,
-            cos_turn,
-            floor,
-            tol,
-            guard,
-        },
-        carry: origins.before.is_some(),
-        v_from: origins.v_from,
-        f_from: origins.f_from,
-        rails,
-        given_up: vec![false; samples.len()],
-        active: (0..samples.len() as u32).collect(),
-        first: true,
-        tris: Vec::new(),
-        done: 0,
-        fails: 0,
+    let limits = Limits {
+        max_pairs: max_pairs as usize,
+        cos_turn,
+        floor,
+        tol,
+        guard: fit_guard(mesh, floor),
     };
+    let (mut run, before) = Fitting::begin(mesh, surface, rails, samples, limits);
     while run.done < run.limits.max_pairs && run.round() {}
-    let Fitting {
-        mesh,
-        done,
-        given_up,
-        v_from,
-        f_from,
-        ..
-    } = run;
-    if let Some(before) = origins.before.filter(|_| done > 0) {
-        carry_attributes(mesh, &before, v_from, f_from);
-    }
-    (done, given_up.iter().filter(|&&g| g).count())
+    run.end(before)
 }
 
 /// Up to `max_pairs` times, in rounds, for the faces of `mesh` facing away from `surface`
@@ -398,42 +371,16 @@ pub(crate) fn unfold(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let origins = Origins::start(mesh);
-    let guard = fit_guard(mesh, floor);
-    let mut run = Fitting {
-        mesh,
-        surface,
-        samples: &[],
-        limits: Limits {
-            max_pairs: max_pairs as usize,
-            cos_turn,
-            floor,
-            tol: 0.0,
-            guard,
-        },
-        carry: origins.before.is_some(),
-        v_from: origins.v_from,
-        f_from: origins.f_from,
-        rails,
-        given_up: Vec::new(),
-        active: Vec::new(),
-        first: false,
-        tris: Vec::new(),
-        done: 0,
-        fails: 0,
+    let limits = Limits {
+        max_pairs: max_pairs as usize,
+        cos_turn,
+        floor,
+        tol: 0.0,
+        guard: fit_guard(mesh, floor),
     };
+    let (mut run, before) = Fitting::begin(mesh, surface, rails, &[], limits);
     while run.done < run.limits.max_pairs && run.unfold_round() {}
-    let Fitting {
-        mesh,
-        done,
-        v_from,
-        f_from,
-        ..
-    } = run;
-    if let Some(before) = origins.before.filter(|_| done > 0) {
-        carry_attributes(mesh, &before, v_from, f_from);
-    }
-    done
+    run.end(before).0
 }
 
 /// The smallest angle [`fit`] lets a new face have: [`FIT_GUARD`] of `floor` or of the
@@ -555,7 +502,53 @@ enum Visited {
     Reindexed,
 }
 
-impl Fitting<'_, '_> {
+impl<'m, 's> Fitting<'m, 's> {
+    /// A run of edits on `mesh` watching the input points `samples` (all active, the
+    /// first round to come), with the mesh as it was when it has attributes to carry.
+    fn begin(
+        mesh: &'m mut Mesh,
+        surface: &'m Surface<'s>,
+        rails: &'m mut Rails,
+        samples: &'m [(DVec3, bool)],
+        limits: Limits,
+    ) -> (Fitting<'m, 's>, Option<Mesh>) {
+        let origins = Origins::start(mesh);
+        let run = Fitting {
+            mesh,
+            surface,
+            samples,
+            limits,
+            carry: origins.before.is_some(),
+            v_from: origins.v_from,
+            f_from: origins.f_from,
+            rails,
+            given_up: vec![false; samples.len()],
+            active: (0..samples.len() as u32).collect(),
+            first: true,
+            tris: Vec::new(),
+            done: 0,
+            fails: 0,
+        };
+        (run, origins.before)
+    }
+
+    /// Ends the run: the attributes of `before` carried onto the edited mesh; the edits
+    /// made and the points given up.
+    fn end(self, before: Option<Mesh>) -> (usize, usize) {
+        let Fitting {
+            mesh,
+            done,
+            given_up,
+            v_from,
+            f_from,
+            ..
+        } = self;
+        if let Some(before) = before.filter(|_| done > 0) {
+            carry_attributes(mesh, &before, v_from, f_from);
+        }
+        (done, given_up.iter().filter(|&&g| g).count())
+    }
+
     /// One round: the far points, then an edit at each in turn. False when [`fit`] ends.
     fn round(&mut self) -> bool {
         let Ok(topo) = Topology::try_build(self.mesh) else {

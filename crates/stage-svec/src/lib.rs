@@ -289,7 +289,13 @@ impl Params for SvecParams {
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         check_range(&mut issues, "target_scale", self.target_scale, 1.0, 1e6);
-        check_range(&mut issues, "feature_angle_deg", self.feature_angle_deg, 0.0, 180.0);
+        check_range(
+            &mut issues,
+            "feature_angle_deg",
+            self.feature_angle_deg,
+            0.0,
+            180.0,
+        );
         check_choice(&mut issues, "factors", &self.factors, &["face", "triangle"]);
         check_choice(
             &mut issues,

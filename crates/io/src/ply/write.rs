@@ -291,14 +291,17 @@ mod tests {
         read(&bytes, "t.ply", &ReadOptions::default()).unwrap()
     }
 
+    /// The three PLY encodings.
+    const ENCODINGS: [PlyEncoding; 3] = [
+        PlyEncoding::Ascii,
+        PlyEncoding::BinaryLittleEndian,
+        PlyEncoding::BinaryBigEndian,
+    ];
+
     #[test]
     fn every_encoding_round_trips_positions_faces_and_all_attribute_kinds() {
         let m = decorated();
-        for encoding in [
-            PlyEncoding::Ascii,
-            PlyEncoding::BinaryLittleEndian,
-            PlyEncoding::BinaryBigEndian,
-        ] {
+        for encoding in ENCODINGS {
             let (back, notes) = round_trip(&m, encoding);
             assert!(notes.is_empty(), "{encoding:?}: {notes:?}");
             let bits = |m: &Mesh| {
@@ -316,11 +319,7 @@ mod tests {
     fn marked_edges_round_trip_as_an_edge_element_in_every_encoding() {
         let mut m = decorated();
         m.marked_edges = vec![[2, 0], [0, 1], [3, 2]];
-        for encoding in [
-            PlyEncoding::Ascii,
-            PlyEncoding::BinaryLittleEndian,
-            PlyEncoding::BinaryBigEndian,
-        ] {
+        for encoding in ENCODINGS {
             let (back, notes) = round_trip(&m, encoding);
             assert!(notes.is_empty(), "{encoding:?}: {notes:?}");
             assert_eq!(back, m, "{encoding:?}");
