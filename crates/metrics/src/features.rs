@@ -3,7 +3,8 @@
 //!
 //! A **feature edge** of the input is an edge with exactly two faces whose normals differ
 //! by more than [`FeatureOptions::angle_deg`] (the dihedral angle's supplement: 0° on a
-//! flat region, 90° on a cube's edge). Each feature edge is sampled at both ends and at
+//! flat region, 90° on a cube's edge), or an edge the input marks (`Mesh::marked_edges`:
+//! an OBJ `l`, a PLY `edge` element), whatever its angle. Each feature edge is sampled at both ends and at
 //! evenly spaced points at most [`FeatureOptions::spacing`] × the input's bounding-box
 //! diagonal apart; every sample's distance to the nearest point of the output is measured
 //! exactly (a spatial index over the output's faces). A vertex shared by several feature
@@ -18,6 +19,7 @@
 use crate::error::{MetricsError, Role};
 use crate::prepare::{Prepared, map_chunks};
 use crate::validity::topology;
+use coarsen_features::FeatureKind;
 use coarsen_mesh::{Mesh, Topology};
 use coarsen_spatial::Bvh;
 use serde::{Deserialize, Serialize};
@@ -113,9 +115,20 @@ pub(crate) fn edges_to(
     diagonal: f64,
     opts: &FeatureOptions,
 ) -> FeatureEdges {
-    let edges: Vec<[u32; 2]> = coarsen_features::sharp_edges(input, topo, opts.angle_deg)
-        .into_iter()
-        .map(|e| topo.edge(e))
+    let features = coarsen_features::Features::detect(
+        input,
+        topo,
+        &coarsen_features::FeatureOptions {
+            angle_deg: opts.angle_deg,
+            boundary: false,
+            ..Default::default()
+        },
+    );
+    let edges: Vec<[u32; 2]> = features
+        .edges
+        .iter()
+        .filter(|(_, kind)| matches!(kind, FeatureKind::Sharp | FeatureKind::Marked))
+        .map(|&(e, _)| topo.edge(e))
         .collect();
     let bvh = Bvh::build(&output.positions, &output.faces);
     let step = (opts.spacing * diagonal).max(f64::MIN_POSITIVE);
@@ -140,15 +153,6 @@ pub(crate) fn edges_to(
     let (n, sum, max, length) = parts.into_iter().fold(
         (0u64, 0.0f64, 0.0f64, 0.0f64),
         |(n, s, m, l), (n2, s2, m2, l2)| (n + n2, s + s2, m.max(m2), l + l2),
-    );
-    let features = coarsen_features::Features::detect(
-        input,
-        topo,
-        &coarsen_features::FeatureOptions {
-            angle_deg: opts.angle_deg,
-            boundary: false,
-            ..Default::default()
-        },
     );
     let near = CORNER_TOLERANCE * diagonal;
     let corners_kept = features
@@ -249,6 +253,27 @@ mod tests {
         let pieces = (2.0 / (1e-3 * 2.0 * 3f64.sqrt())).ceil() as u64;
         assert_eq!(m.n_samples, 12 * (pieces + 1));
         assert_eq!((m.corners_kept, m.n_corners), (8, 8));
+    }
+
+    /// An edge the input marks is measured whatever its angle: a diagonal of a cube's
+    /// face joins the twelve edges (at distance 0 from the cube itself); the same output
+    /// against the unmarked cube measures twelve.
+    #[test]
+    fn marked_edges_are_measured_too() {
+        let mut c = cube(1.0);
+        let topo = Topology::build(&c);
+        // The edges of the cube's triangulation that are no cube edge: face diagonals.
+        let sharp = sharp_edges(&c, 40.0).unwrap();
+        let diagonal = (0..topo.n_edges() as u32)
+            .map(|e| topo.edge(e))
+            .find(|e| !sharp.contains(e))
+            .unwrap();
+        c.marked_edges = vec![diagonal];
+        let m = feature_edges(&c, &c, &FeatureOptions::default()).unwrap();
+        assert_eq!(m.n_edges, 13);
+        assert_eq!(m.max_pct, 0.0);
+        let unmarked = feature_edges(&cube(1.0), &c, &FeatureOptions::default()).unwrap();
+        assert_eq!(unmarked.n_edges, 12);
     }
 
     #[test]

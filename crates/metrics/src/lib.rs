@@ -207,7 +207,7 @@ impl MetricsReport {
                 rows.push((
                     "sharp edges → output",
                     format!(
-                        "max {:.3} %, mean {:.4} % ({} input edges over 40°); corners kept {} of {}",
+                        "max {:.3} %, mean {:.4} % ({} input edges over 40° or marked); corners kept {} of {}",
                         e.max_pct, e.mean_pct, e.n_edges, e.corners_kept, e.n_corners
                     ),
                 ));
