@@ -83,25 +83,26 @@ def _positions(V, name="V"):
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-def _faces(F, name="F"):
-    """``F`` as a C-contiguous uint32 (m, 3) array, or a ValueError naming it. Indices
-    beyond the vertices are refused later, by the mesh's own check."""
+def _faces(F, name="F", width=3, what="face"):
+    """``F`` as a C-contiguous uint32 (m, ``width``) array of vertex indices (faces, or
+    edges with ``width=2``), or a ValueError naming it. Indices beyond the vertices are
+    refused later, by the mesh's own check."""
     try:
         a = np.asarray(F)
     except (ValueError, TypeError) as e:
-        raise ValueError(f"{name}: not an array of shape (m, 3): {e}") from None
+        raise ValueError(f"{name}: not an array of shape (m, {width}): {e}") from None
     if a.dtype.kind not in "iu":
         raise ValueError(f"{name}: expected integer vertex indices, got dtype {a.dtype}")
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"{name}: expected shape (m, 3), got {a.shape}")
+    if a.ndim != 2 or a.shape[1] != width:
+        raise ValueError(f"{name}: expected shape (m, {width}), got {a.shape}")
     if a.size and a.dtype != np.uint32:
         if a.dtype.kind == "i" and a.min() < 0:
             f = int(np.flatnonzero((a < 0).any(axis=1))[0])
-            raise ValueError(f"{name}: face {f} is {a[f].tolist()}: a negative vertex index")
+            raise ValueError(f"{name}: {what} {f} is {a[f].tolist()}: a negative vertex index")
         if a.max() > _U32_MAX:
             f = int(np.flatnonzero((a > _U32_MAX).any(axis=1))[0])
             raise ValueError(
-                f"{name}: face {f} is {a[f].tolist()}: an index beyond 32 bits "
+                f"{name}: {what} {f} is {a[f].tolist()}: an index beyond 32 bits "
                 f"(coarsen meshes have at most {_U32_MAX} vertices)"
             )
     return np.ascontiguousarray(a, dtype=np.uint32)
@@ -299,6 +300,7 @@ def remesh(
     weld=False,
     sanity=None,
     name="mesh",
+    feature_edges=None,
 ):
     """Runs a pipeline on a mesh: the same clean-up, stages and output as ``coarsen run``.
 
@@ -313,7 +315,10 @@ def remesh(
     the command carries a file's. ``attributes=True`` also returns the output's columns.
     ``weld``: weld vertices at bit-identical positions first (``--weld``). ``sanity``:
     check the mesh after every stage (default: only in debug builds). ``name``: the input's
-    name in the report and in errors.
+    name in the report and in errors. ``feature_edges``: (k, 2) vertex pairs the input
+    marks as feature edges, whatever their angle (an OBJ file's ``l`` lines do the same):
+    the stages that keep features (``pipeline="cad"``, ``params={"relax.features": True}``,
+    ``simplify.qem.features``) keep them.
 
     Returns ``(V2, F2, report)`` (``(mesh2, report)`` for a trimesh or pyvista mesh), with
     the output's attribute dict appended when ``attributes=True``. ``report`` is the
@@ -331,6 +336,9 @@ def remesh(
     if pipeline is not None and not isinstance(pipeline, (str, os.PathLike)):
         raise ValueError(f"pipeline: expected a name or a path, got {pipeline!r}")
     vertex_columns, face_columns = _columns(attrs, len(P), len(T))
+    edges = None
+    if feature_edges is not None:
+        edges = _faces(feature_edges, "feature_edges", width=2, what="edge")
     (positions, triangles, vc, fc), report = _coarsen.remesh(
         P,
         T,
@@ -345,6 +353,7 @@ def remesh(
         weld=bool(weld),
         sanity=None if sanity is None else bool(sanity),
         attributes=bool(attributes),
+        feature_edges=edges,
     )
     V2, F2 = _arrays(positions, triangles)
     out = (V2, F2) if wrap is None else (wrap(V2, F2),)

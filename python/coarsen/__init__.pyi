@@ -54,6 +54,7 @@ def remesh(
     weld: bool = ...,
     sanity: Optional[bool] = ...,
     name: str = ...,
+    feature_edges: Optional[npt.ArrayLike] = ...,
 ) -> Tuple[Positions, Faces, Report]: ...
 @overload
 def remesh(
@@ -70,6 +71,7 @@ def remesh(
     weld: bool = ...,
     sanity: Optional[bool] = ...,
     name: str = ...,
+    feature_edges: Optional[npt.ArrayLike] = ...,
 ) -> Tuple[Positions, Faces, Report, Attrs]: ...
 @overload
 def remesh(
@@ -86,6 +88,7 @@ def remesh(
     weld: bool = ...,
     sanity: Optional[bool] = ...,
     name: str = ...,
+    feature_edges: Optional[npt.ArrayLike] = ...,
 ) -> Tuple[MeshT, Report]: ...
 @overload
 def remesh(
@@ -102,6 +105,7 @@ def remesh(
     weld: bool = ...,
     sanity: Optional[bool] = ...,
     name: str = ...,
+    feature_edges: Optional[npt.ArrayLike] = ...,
 ) -> Tuple[MeshT, Report, Attrs]: ...
 @overload
 def read(path: PathLike, attributes: Literal[False] = ...) -> Tuple[Positions, Faces]: ...

@@ -46,19 +46,22 @@ fn py_err(e: Error, arrays: bool) -> PyErr {
 }
 
 /// The rows of a C-contiguous `(n, 3)` array.
-fn rows<T: numpy::Element + Copy>(
+fn rows<T: numpy::Element + Copy, const N: usize>(
     a: &PyReadonlyArray2<'_, T>,
     what: &str,
-) -> PyResult<Vec<[T; 3]>> {
+) -> PyResult<Vec<[T; N]>> {
     let flat = a
         .as_slice()
         .map_err(|_| PyValueError::new_err(format!("{what}: not a C-contiguous array")))?;
-    if a.shape()[1] != 3 {
+    if a.shape()[1] != N {
         return Err(PyValueError::new_err(format!(
-            "{what}: not of shape (n, 3)"
+            "{what}: not of shape (n, {N})"
         )));
     }
-    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+    Ok(flat
+        .chunks_exact(N)
+        .map(|c| std::array::from_fn(|i| c[i]))
+        .collect())
 }
 
 /// A flat numpy array that takes `values` over (no copy).
@@ -280,7 +283,7 @@ type Remeshed<'py> = (MeshArrays<'py>, String);
 
 /// Runs a pipeline on a mesh given as arrays (see `coarsen.remesh`).
 #[pyfunction]
-#[pyo3(signature = (positions, faces, *, vertex_attrs, face_attrs, name, pipeline, vertices, faces_target, ratio, sets, weld, sanity, attributes))]
+#[pyo3(signature = (positions, faces, *, vertex_attrs, face_attrs, name, pipeline, vertices, faces_target, ratio, sets, weld, sanity, attributes, feature_edges=None))]
 #[allow(clippy::too_many_arguments)]
 fn remesh<'py>(
     py: Python<'py>,
@@ -297,6 +300,7 @@ fn remesh<'py>(
     weld: bool,
     sanity: Option<bool>,
     attributes: bool,
+    feature_edges: Option<Faces<'py>>,
 ) -> PyResult<Remeshed<'py>> {
     let target = match (vertices, faces_target, ratio) {
         (None, None, None) => None,
@@ -309,7 +313,12 @@ fn remesh<'py>(
             ));
         }
     };
-    let mesh = mesh_from(&positions, &faces, vertex_attrs, face_attrs)?;
+    let mut mesh = mesh_from(&positions, &faces, vertex_attrs, face_attrs)?;
+    if let Some(edges) = &feature_edges {
+        mesh.marked_edges = rows(edges, "feature_edges")?;
+        mesh.validate_indices()
+            .map_err(|e| PyValueError::new_err(format!("feature_edges: {e}")))?;
+    }
     let cancel = AtomicBool::new(false);
     let run = run_interruptible(py, &cancel, || {
         let mut r = coarsen::Remesher::new().weld(weld).cancel(&cancel);

@@ -163,3 +163,19 @@ def test_the_stubs_name_every_public_function():
     for name in coarsen.__all__:
         assert name in stub, name
     assert (here / "py.typed").exists()
+
+
+def test_feature_edges_become_rails_of_the_cad_pipeline():
+    # The torus's outer equator, smooth: a rail only when marked.
+    n, m = 48, 24
+    V, F = torus(n=n, m=m)
+    ring = np.stack([np.arange(n) * m, ((np.arange(n) + 1) % n) * m], axis=-1)
+
+    def rails(**kw):
+        _, _, r = coarsen.remesh(V, F, vertices=400, pipeline="cad", **kw)
+        relax = [s for s in r["stages"] if s["kind"] == "relax"][0]
+        return relax["figures"]["feature_rails"]
+
+    assert rails() == [0, 0]
+    assert rails(feature_edges=ring) == [1, 1]
+    assert rails(feature_edges=ring.tolist()) == [1, 1]

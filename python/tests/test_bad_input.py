@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import coarsen
+from conftest import torus
 
 TRI_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
 TRI_F = np.array([[0, 1, 2]])
@@ -128,3 +129,11 @@ def test_hostile_arrays_never_take_the_interpreter_down():
     o = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert o.returncode == 0, o.stderr[-3000:]
     assert "ValueError" in o.stdout, o.stdout
+
+
+def test_bad_feature_edges_are_named():
+    V, F = torus()
+    raises(ValueError, r"^feature_edges: expected shape \(m, 2\)", V, F, feature_edges=F)
+    raises(ValueError, r"^feature_edges: edge 1 is \[0, -1\]", V, F, feature_edges=[[0, 1], [0, -1]])
+    raises(ValueError, r"^feature_edges: expected integer", V, F, feature_edges=[[0.5, 1.0]])
+    raises(ValueError, r"^feature_edges: marked edge 0 names vertex", V, F, feature_edges=[[0, len(V)]])
