@@ -197,8 +197,8 @@ pub fn maps_of(r: &Recorder, input: &Mesh, output: &Mesh, fields: &coarsen_metri
         Some(1.0),
         false,
     );
-    let title = "sharp features: input and output (edges over 40° red, boundary blue, of three \
-                 or more faces purple, corners yellow)"
+    let title = "sharp features: input and output (edges over 40° or marked red, boundary \
+                 blue, of three or more faces purple, corners yellow)"
         .to_string();
     r.features(title, &[input, output]);
 }

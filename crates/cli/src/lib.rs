@@ -153,8 +153,8 @@ enum Command {
         /// Samples per pixel along each axis, for anti-aliasing (1 for none).
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=4))]
         supersample: u32,
-        /// Draw each mesh's sharp features over it (edges over 40°: red; boundary: blue;
-        /// of three or more faces: purple; corners: yellow dots).
+        /// Draw each mesh's sharp features over it (edges over 40° or marked by the file:
+        /// red; boundary: blue; of three or more faces: purple; corners: yellow dots).
         #[arg(long)]
         features: bool,
     },
