@@ -6,7 +6,7 @@
 
 use anyhow::Result;
 use coarsen_mesh::Mesh;
-use coarsen_metrics::{FeatureOptions, feature_edges, fidelity, quality, validity};
+use coarsen_metrics::{FeatureEdges, FeatureOptions, feature_edges, fidelity, quality, validity};
 use coarsen_stage::{Registry, Target};
 use std::fmt::Write as _;
 
@@ -77,23 +77,9 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
         if pipeline == "qem" && vertices.is_none() {
             vertices = Some(out.n_vertices() as u64);
         }
-        let f = feature_edges(input, &out, &opts)?;
-        let h = fidelity(input, &out, &Default::default())?;
-        let q = quality(&out)?;
+        let (f, cells) = cells(input, &out, &opts)?;
         edges = Some((f.n_edges, f.length_pct, f.n_samples));
-        let _ = writeln!(
-            rows,
-            "| {label} | {} | {} | {:.4} | {:.4} | {} of {} | {:.4} | {:.2} | {:.3} |",
-            out.n_vertices(),
-            out.n_faces(),
-            f.max_pct,
-            f.mean_pct,
-            f.corners_kept,
-            f.n_corners,
-            h.hausdorff_pct,
-            q.alpha_min_deg,
-            q.q_avg
-        );
+        let _ = writeln!(rows, "| {label} | {cells} |");
     }
     let (n, length, samples) = edges.unwrap_or_default();
     let _ = writeln!(
@@ -179,26 +165,33 @@ pub fn cad_section(registry: &Registry) -> Result<String> {
                     continue;
                 }
             };
-            let f = feature_edges(&input, &out, &opts)?;
-            let h = fidelity(&input, &out, &Default::default())?;
-            let q = quality(&out)?;
+            let (_, cells) = cells(&input, &out, &opts)?;
             let v = validity(Some(&input), &out)?;
-            let _ = writeln!(
-                s,
-                "| {name} | {label} | {} | {} | {:.4} | {:.4} | {} of {} | {:.4} | {:.2} | {:.3} | {} |",
-                out.n_vertices(),
-                out.n_faces(),
-                f.max_pct,
-                f.mean_pct,
-                f.corners_kept,
-                f.n_corners,
-                h.hausdorff_pct,
-                q.alpha_min_deg,
-                q.q_avg,
-                v.n_flipped.unwrap_or(0)
-            );
+            let flipped = v.n_flipped.unwrap_or(0);
+            let _ = writeln!(s, "| {name} | {label} | {cells} | {flipped} |");
         }
     }
     s.push('\n');
     Ok(s)
+}
+
+/// The cells both tables share for `out` against `input`: V, F, the feature distance (max,
+/// mean), corners kept, Hausdorff, α_min and Q_avg; with the feature figures.
+fn cells(input: &Mesh, out: &Mesh, opts: &FeatureOptions) -> Result<(FeatureEdges, String)> {
+    let f = feature_edges(input, out, opts)?;
+    let h = fidelity(input, out, &Default::default())?;
+    let q = quality(out)?;
+    let cells = format!(
+        "{} | {} | {:.4} | {:.4} | {} of {} | {:.4} | {:.2} | {:.3}",
+        out.n_vertices(),
+        out.n_faces(),
+        f.max_pct,
+        f.mean_pct,
+        f.corners_kept,
+        f.n_corners,
+        h.hausdorff_pct,
+        q.alpha_min_deg,
+        q.q_avg
+    );
+    Ok((f, cells))
 }
