@@ -302,6 +302,18 @@ impl<'a> Surface<'a> {
     }
 }
 
+/// The two neighbours each vertex slides between: its boundary neighbours (adjacency
+/// `topo`), or its rail neighbours for a vertex on a rail of `rails`.
+fn sliding_ends(topo: &Topology, n_vertices: usize, rails: &Rails) -> Vec<Vec<u32>> {
+    let mut ends = boundary_neighbours(topo, n_vertices);
+    for (v, e) in ends.iter_mut().enumerate() {
+        if let Some(pair) = rails.rail_ends(v as u32) {
+            *e = pair.to_vec();
+        }
+    }
+    ends
+}
+
 /// The boundary neighbours of each of `n_vertices` vertices (two on a boundary loop, none
 /// inside).
 fn boundary_neighbours(topo: &Topology, n_vertices: usize) -> Vec<Vec<u32>> {
@@ -393,14 +405,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
         out.min_angle_after = out.min_angle_before;
         return out;
     };
-    // The two boundary neighbours of each boundary vertex, and the two rail neighbours of
-    // each rail vertex.
-    let mut ends = boundary_neighbours(&topo, mesh.n_vertices());
-    for (v, e) in ends.iter_mut().enumerate() {
-        if let Some(pair) = rails.rail_ends(v as u32) {
-            *e = pair.to_vec();
-        }
-    }
+    let mut ends = sliding_ends(&topo, mesh.n_vertices(), &rails);
     let mut topo = topo;
     if params.mend
         && let Some(sf) = surface_on
@@ -425,12 +430,7 @@ pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParam
                 && let Ok(t) = Topology::try_build(mesh)
             {
                 topo = t;
-                ends = boundary_neighbours(&topo, mesh.n_vertices());
-                for (v, e) in ends.iter_mut().enumerate() {
-                    if let Some(pair) = rails.rail_ends(v as u32) {
-                        *e = pair.to_vec();
-                    }
-                }
+                ends = sliding_ends(&topo, mesh.n_vertices(), &rails);
                 after = mend(mesh, &mut topo, sf, &ends, &rails, floor, smallest).after;
             }
         }
