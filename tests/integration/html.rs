@@ -115,6 +115,22 @@ fn html_report_is_self_contained_and_opens_in_a_headless_browser() {
             "the bunny's report is {} bytes",
             text.len()
         );
+        // The clustering's 5000 clusters carried to the input's faces: nearly every one
+        // holds the centroid of some input face (the bunny has 69451 faces, 14 a cluster).
+        let labels = embedded_varints(&text, "clusters-input");
+        assert_eq!(labels.len(), 69451);
+        let distinct: std::collections::BTreeSet<u32> = labels.iter().copied().collect();
+        assert!(
+            distinct.len() > 4900 && distinct.iter().all(|&l| l < 5000),
+            "{} distinct clusters on the input's faces",
+            distinct.len()
+        );
+        assert_eq!(embedded_varints(&text, "clusters-output").len(), 5000);
+    } else {
+        assert!(
+            !demo_text.contains("id=\"clusters-input\""),
+            "the demo pipeline makes no clusters"
+        );
     }
 
     let Some(browser) = chromium() else {
@@ -153,7 +169,36 @@ fn html_report_is_self_contained_and_opens_in_a_headless_browser() {
         "a near-empty screenshot ({} bytes)",
         png.len()
     );
-    viewer_draws_and_turns(browser, dir.path(), &url);
+    // The clusters' colouring on the bunny (regions without them).
+    let colour = if bunny.is_some() {
+        "clusters"
+    } else {
+        "regions"
+    };
+    viewer_draws_and_turns(browser, dir.path(), &url, colour);
+}
+
+/// The varints of the report's element `id` (base64, as the viewer reads them).
+fn embedded_varints(html: &str, id: &str) -> Vec<u32> {
+    use base64::Engine as _;
+    let start = html
+        .find(&format!("id=\"{id}\""))
+        .unwrap_or_else(|| panic!("no element `{id}` in the report"));
+    let body = &html[start..];
+    let body = &body[body.find('>').unwrap() + 1..];
+    let data = base64::engine::general_purpose::STANDARD
+        .decode(&body[..body.find('<').unwrap()])
+        .unwrap();
+    let (mut out, mut x, mut shift) = (Vec::new(), 0u32, 0);
+    for b in data {
+        x |= u32::from(b & 127) << shift;
+        shift += 7;
+        if b & 128 == 0 {
+            out.push(x);
+            (x, shift) = (0, 0);
+        }
+    }
+    out
 }
 
 /// Chromium with WebGL on SwiftShader, its console on standard error.
@@ -189,11 +234,11 @@ fn pixels(path: &Path) -> (u32, u32, Vec<u8>) {
     (info.width, info.height, rgb)
 }
 
-/// The viewer loads without console errors (its regions and overlay on), WebGL draws, and
+/// The viewer loads without console errors (coloured by `colour`, overlaid), WebGL draws, and
 /// a scripted turn changes a picture that is not blank.
-fn viewer_draws_and_turns(browser: &str, dir: &Path, url: &str) {
+fn viewer_draws_and_turns(browser: &str, dir: &Path, url: &str, colour: &str) {
     let dom = with_webgl(browser, &dir.join("profile3"))
-        .args(["--dump-dom", &format!("{url}#colour=regions&mode=overlay")])
+        .args(["--dump-dom", &format!("{url}#colour={colour}&mode=overlay")])
         .output()
         .unwrap();
     let log = String::from_utf8_lossy(&dom.stderr);

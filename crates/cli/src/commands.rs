@@ -86,8 +86,22 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
     let input = coarsen::clean(input, args.weld).map_err(failure)?;
     let bars = progress::Bars::new(quiet);
     let pictures = args.html.is_some() || args.snapshots.is_some();
+    // The input the report's viewer shows (decimated when big), known before the run so
+    // that the first clustering's clusters can be carried to its faces.
+    let shown = args
+        .html
+        .is_some()
+        .then(|| viewer::ShownInput::of(&input.mesh));
     let recorder = pictures.then(|| {
-        let r = html::Recorder::new(args.snapshots.is_some(), 520, args.view, &input.mesh);
+        let r = html::Recorder::new(
+            args.snapshots.is_some(),
+            520,
+            args.view,
+            &input.mesh,
+            shown
+                .as_ref()
+                .map(|s| s.decimated.as_ref().unwrap_or(&input.mesh)),
+        );
         r.picture("input".into(), &input.mesh, None, false);
         r
     });
@@ -128,7 +142,8 @@ pub fn run(args: RunArgs, quiet: bool) -> CmdResult {
                 coarsen_metrics::measure_with_fields(original, &mesh, &Default::default());
             let viewer = measured.as_ref().ok().map(|(_, fields)| {
                 html::maps_of(r, original, &mesh, fields);
-                viewer::for_report(original, &mesh, fields)
+                let shown = shown.unwrap_or_else(|| viewer::ShownInput::of(original));
+                viewer::for_report(original, shown, &mesh, fields, r.clusters.borrow().as_ref())
             });
             let metrics = measured.map(|(m, _)| m);
             let input_quality = coarsen_metrics::quality(original).ok();

@@ -2,11 +2,12 @@
 
 use crate::maps;
 use base64::Engine as _;
-use coarsen_mesh::Mesh;
+use coarsen_mesh::{DVec3, Mesh};
 use coarsen_metrics::MetricsReport;
 use coarsen_metrics::Quality;
 use coarsen_pipeline::{RunReport, StageRecord};
 use coarsen_render::{RenderOptions, View};
+use rayon::prelude::*;
 use std::cell::RefCell;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -19,10 +20,25 @@ pub struct Picture {
     pub png: Vec<u8>,
 }
 
+/// The clusters of a run's first clustering stage, carried to the faces of the input the
+/// viewer shows: each face takes the cluster of the working-mesh face nearest its centroid.
+pub struct InputClusters {
+    /// The clustering stage, as the report names it (`stage 4 \`cluster.cvt\``).
+    pub stage: String,
+    /// Per face of the shown input, its cluster.
+    pub labels: Vec<u32>,
+}
+
 /// Collects pictures while a pipeline runs: after every stage, one picture per attribute the
-/// stage added (curvature maps, clusters), plus one of the mesh when `every_stage` is set.
+/// stage added (curvature maps, clusters), plus one of the mesh when `every_stage` is set;
+/// and, when given a mesh to carry them to, the first clustering's clusters.
 pub struct Recorder {
     seen: RefCell<Vec<String>>,
+    /// The face centroids of the input the viewer shows and its box's diagonal, when the
+    /// clusters are wanted.
+    centroids: Option<(Vec<DVec3>, f64)>,
+    /// The first clustering's clusters on the shown input, once a stage made them.
+    pub clusters: RefCell<Option<InputClusters>>,
     /// Pictures so far, in order.
     pub pictures: RefCell<Vec<Picture>>,
     /// Errors met while rendering (reported, never fatal).
@@ -33,8 +49,24 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// A recorder whose pictures are `size` pixels square, seen from `view`.
-    pub fn new(every_stage: bool, size: u32, view: View, input: &Mesh) -> Recorder {
+    /// A recorder whose pictures are `size` pixels square, seen from `view`; with `shown`,
+    /// it carries the first clustering's clusters to that mesh's faces.
+    pub fn new(
+        every_stage: bool,
+        size: u32,
+        view: View,
+        input: &Mesh,
+        shown: Option<&Mesh>,
+    ) -> Recorder {
+        let centroids = shown.map(|m| {
+            let c = (0..m.n_faces())
+                .map(|f| {
+                    let [a, b, c] = m.corners(f);
+                    (a + b + c) / 3.0
+                })
+                .collect();
+            (c, m.bbox().diagonal())
+        });
         let seen = input
             .vertex_attrs
             .names()
@@ -43,6 +75,8 @@ impl Recorder {
             .collect();
         Recorder {
             seen: RefCell::new(seen),
+            centroids,
+            clusters: RefCell::new(None),
             pictures: RefCell::new(Vec::new()),
             errors: RefCell::new(Vec::new()),
             every_stage,
@@ -134,6 +168,15 @@ impl Recorder {
             .filter(|n| !self.seen.borrow().contains(n))
             .cloned()
             .collect();
+        if self.clusters.borrow().is_none()
+            && let (Some((centroids, diagonal)), Some(labels)) =
+                (&self.centroids, mesh.face_attrs.label(CLUSTER))
+        {
+            *self.clusters.borrow_mut() = Some(InputClusters {
+                stage: format!("stage {} `{}`", record.index, record.kind),
+                labels: carry_labels(mesh, labels, centroids, *diagonal),
+            });
+        }
         for name in new {
             let title = format!("after stage {} `{}`: {name}", record.index, record.kind);
             self.picture(title, mesh, Some(name), false);
@@ -175,6 +218,29 @@ impl Recorder {
         }
         Ok(written)
     }
+}
+
+/// The name of the face labels a clustering stage writes.
+const CLUSTER: &str = "cluster";
+
+/// The label of the face of `mesh` nearest each of `points`, which lie on a mesh whose box
+/// has diagonal `diagonal`. `mesh` may be that surface in other units by a power of two
+/// (the runner rescales meshes of extreme size), which is undone first.
+fn carry_labels(mesh: &Mesh, labels: &[u32], points: &[DVec3], diagonal: f64) -> Vec<u32> {
+    let ratio = mesh.bbox().diagonal() / diagonal;
+    let scale = if ratio.is_finite() && ratio > 0.0 {
+        2f64.powi(ratio.log2().round() as i32)
+    } else {
+        1.0
+    };
+    let bvh = coarsen_spatial::Bvh::build(&mesh.positions, &mesh.faces);
+    points
+        .par_iter()
+        .map(|&p| {
+            bvh.closest_point(p * scale)
+                .map_or(0, |n| labels[n.face as usize])
+        })
+        .collect()
 }
 
 /// The report's maps of the output against the input: the distance of each to the other

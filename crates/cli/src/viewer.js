@@ -12,6 +12,16 @@
     for (var i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
     return { data: out, el: el };
   }
+  // A list of varints (seven bits a byte, low first), as many as the element says.
+  function varints(id) {
+    var b = bytes(id), d = b.data, n = +b.el.dataset.count, out = new Uint32Array(n), at = 0;
+    for (var i = 0; i < n; i++) {
+      var x = 0, shift = 0, c;
+      do { c = d[at++]; x += (c & 127) * Math.pow(2, shift); shift += 7; } while (c & 128);
+      out[i] = x;
+    }
+    return out;
+  }
   // A mesh: positions as u16 triples over its box, faces as zigzag varint deltas, then one
   // byte per face of distance (0..255 over the map's range).
   function decode(id) {
@@ -113,7 +123,7 @@
     var r = Math.max(Math.abs(q(0.02)), Math.abs(q(0.98))) || 1;
     return [-r, r];
   }
-  // Corner colours for a colouring: plain, distance, min_angle, curvature.
+  // Corner colours for a colouring: plain, distance, min_angle, curvature, regions, clusters.
   function colours(m, mode, curvRange) {
     var out = new Float32Array(9 * m.nf);
     for (var f = 0; f < m.nf; f++) {
@@ -125,6 +135,8 @@
           var t = (m.curvature[m.faces[3 * f + k]] - curvRange[0]) / (curvRange[1] - curvRange[0]);
           col = badness(t);
         } else if (mode === "regions") col = labelColour(m.labels[m.faces[3 * f + k]]);
+        else if (mode === "clusters" && m.faceClusters) col = labelColour(m.faceClusters[f]);
+        else if (mode === "clusters" && m.vertexClusters) col = labelColour(m.vertexClusters[m.faces[3 * f + k]]);
         else col = m.plain;
         out.set(col, 9 * f + 3 * k);
       }
@@ -178,6 +190,12 @@
   var curvRange = robustRange(meshes[1].curvature);
   meshes[0].labels = nearestLabels(meshes[0], meshes[1]);
   meshes[1].labels = new Uint32Array(meshes[1].nv).map(function (_, i) { return i; });
+  // The first clustering's clusters, when the run made some: per input face, and per
+  // output vertex the cluster of the input face nearest it.
+  if (document.getElementById("clusters-input")) {
+    meshes[0].faceClusters = varints("clusters-input");
+    meshes[1].vertexClusters = varints("clusters-output");
+  }
   var lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   meshes.forEach(function (m) { for (var i = 0; i < m.pos.length; i++) { lo[i % 3] = Math.min(lo[i % 3], m.pos[i]); hi[i % 3] = Math.max(hi[i % 3], m.pos[i]); } });
   var centre = [0, 1, 2].map(function (k) { return (lo[k] + hi[k]) / 2; });

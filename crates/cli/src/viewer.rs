@@ -2,14 +2,16 @@
 //! (positions as 16-bit fractions of their box, faces as varint deltas, one byte of
 //! distance per face, all base64) and a small WebGL viewer written for the report
 //! (`viewer.js`: orbit, zoom, side by side or overlaid, wire on/off, colour by distance,
-//! smallest angle, curvature, or regions: each output vertex a hue, each input vertex
-//! that of the output vertex nearest it, which for a CVT output is close to its
-//! clusters). No library is vendored: the viewer needs a few hundred
-//! lines, where three.js would add some 600 kB to every report.
+//! smallest angle, curvature, regions — each output vertex a hue, each input vertex that
+//! of the output vertex nearest it — or the first clustering's clusters, carried to the
+//! input's faces and from there to the output's vertices). No library is vendored: the
+//! viewer needs a few hundred lines, where three.js would add some 600 kB to every report.
 
+use crate::html::InputClusters;
 use base64::Engine as _;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::MeshFields;
+use rayon::prelude::*;
 use std::fmt::Write as _;
 
 /// The viewer's script.
@@ -62,16 +64,7 @@ fn encode(m: &Embedded<'_>, top: f64) -> (Vec<u8>, [f64; 3], [f64; 3]) {
     for &v in m.mesh.faces.iter().flatten() {
         let delta = i64::from(v) - prev;
         prev = i64::from(v);
-        let mut z = ((delta << 1) ^ (delta >> 63)) as u64;
-        loop {
-            let byte = (z & 127) as u8;
-            z >>= 7;
-            if z == 0 {
-                out.push(byte);
-                break;
-            }
-            out.push(byte | 128);
-        }
+        push_varint(&mut out, ((delta << 1) ^ (delta >> 63)) as u64);
     }
     for &d in m.face_distance {
         let t = if top > 0.0 { d / top } else { 0.0 };
@@ -80,14 +73,26 @@ fn encode(m: &Embedded<'_>, top: f64) -> (Vec<u8>, [f64; 3], [f64; 3]) {
     (out, lo, hi)
 }
 
-/// The viewer's section of the report: the controls, the canvas, the embedded meshes and
-/// the script; `note` says why the input shown is not the input itself, when it is not.
-pub fn section(input: &Embedded<'_>, output: &Embedded<'_>, note: Option<&str>) -> String {
+/// The viewer's section of the report: the controls, the canvas, the embedded meshes (and
+/// clusters, when given) and the script; `note` says why the input shown is not the input
+/// itself, when it is not.
+pub fn section(
+    input: &Embedded<'_>,
+    output: &Embedded<'_>,
+    clusters: Option<&Clusters<'_>>,
+    note: Option<&str>,
+) -> String {
     let top = [input.face_distance, output.face_distance]
         .iter()
         .map(|d| crate::maps::percentile(d, 0.99))
         .fold(0.0, f64::max);
-    let mut h = String::from(
+    let option = clusters.map_or(String::new(), |c| {
+        format!(
+            "<option value=\"clusters\">clusters of {} (output: those of the input nearest)</option>",
+            c.stage.replace('`', "")
+        )
+    });
+    let mut h = format!(
         "<h2>Interactive view</h2><div id=\"viewer-controls\">\
          <label><input type=\"radio\" name=\"mode\" value=\"side\" checked> side by side</label> \
          <label><input type=\"radio\" name=\"mode\" value=\"overlay\"> overlaid</label> \
@@ -96,9 +101,10 @@ pub fn section(input: &Embedded<'_>, output: &Embedded<'_>, note: Option<&str>) 
          <option value=\"distance\">distance to the other mesh</option>\
          <option value=\"min_angle\">smallest angle</option>\
          <option value=\"curvature\">curvature (angle deficit)</option>\
-         <option value=\"regions\">regions (input: nearest output vertex)</option></select></label></div>\
+         <option value=\"regions\">regions (input: nearest output vertex)</option>{clusters}</select></label></div>\
          <canvas id=\"viewer\" width=\"1000\" height=\"460\" style=\"border:1px solid #ddd;max-width:100%;cursor:grab\"></canvas>\
          <p id=\"viewer-status\">The view needs JavaScript and WebGL.</p>",
+        clusters = option
     );
     if let Some(note) = note {
         let _ = write!(h, "<p class=\"warn\" id=\"viewer-note\">{note}</p>");
@@ -125,16 +131,56 @@ pub fn section(input: &Embedded<'_>, output: &Embedded<'_>, note: Option<&str>) 
             list(hi)
         );
     }
+    if let Some(c) = clusters {
+        for (id, labels) in [
+            ("clusters-input", c.input_faces),
+            ("clusters-output", &c.output_vertices[..]),
+        ] {
+            let data = base64::engine::general_purpose::STANDARD.encode(varints(labels));
+            let _ = write!(
+                h,
+                "<script type=\"application/octet-stream\" id=\"{id}\" data-count=\"{}\">{data}</script>",
+                labels.len()
+            );
+        }
+    }
     let _ = write!(h, "<script>{SCRIPT}</script>");
     h
 }
 
-/// The viewer's section for a run's input and output and their fields: a mesh over
-/// [`MAX_EMBED_FACES`] is shown decimated by the `qem` pipeline (and measured again), with
-/// a note saying so.
-pub fn for_report(input: &Mesh, output: &Mesh, fields: &coarsen_metrics::Fields) -> String {
-    let mut notes = Vec::new();
-    let small_input = decimated(input, "input", &mut notes);
+/// The input as the viewer shows it: `None` for the input itself, else the input
+/// decimated (QEM) to [`MAX_EMBED_FACES`] faces; with the note saying so.
+pub struct ShownInput {
+    /// The decimated input, when the input has too many faces to embed.
+    pub decimated: Option<Mesh>,
+    /// Why the input shown is not the input itself, when it is not.
+    pub notes: Vec<String>,
+}
+
+impl ShownInput {
+    /// How the viewer will show `input`.
+    pub fn of(input: &Mesh) -> ShownInput {
+        let mut notes = Vec::new();
+        let decimated = decimated(input, "input", &mut notes);
+        ShownInput { decimated, notes }
+    }
+}
+
+/// The viewer's section for a run's input (shown as `shown` says) and output and their
+/// fields, with the first clustering's clusters on the shown input when the run made
+/// some: an output over [`MAX_EMBED_FACES`] is shown decimated by the `qem` pipeline too
+/// (and the pair measured again), with a note saying so.
+pub fn for_report(
+    input: &Mesh,
+    shown: ShownInput,
+    output: &Mesh,
+    fields: &coarsen_metrics::Fields,
+    clusters: Option<&InputClusters>,
+) -> String {
+    let ShownInput {
+        decimated: small_input,
+        mut notes,
+    } = shown;
     let small_output = decimated(output, "output", &mut notes);
     let (a, b) = (
         small_input.as_ref().unwrap_or(input),
@@ -150,11 +196,70 @@ pub fn for_report(input: &Mesh, output: &Mesh, fields: &coarsen_metrics::Fields)
         }
     };
     let note = (!notes.is_empty()).then(|| notes.join(" "));
+    let clusters = clusters
+        .filter(|c| c.labels.len() == a.n_faces())
+        .map(|c| Clusters::new(c, a, b));
     section(
         &Embedded::new("input", a, &fields.input),
         &Embedded::new("output", b, &fields.output),
+        clusters.as_ref(),
         note.as_deref(),
     )
+}
+
+/// The clusters as the viewer colours them: per face of the shown input its cluster, per
+/// vertex of the output the cluster of the input face nearest it (so that the two sides
+/// match in colour).
+pub struct Clusters<'a> {
+    /// The stage that made them.
+    pub stage: &'a str,
+    /// Per face of the shown input.
+    pub input_faces: &'a [u32],
+    /// Per vertex of the output.
+    pub output_vertices: Vec<u32>,
+}
+
+impl<'a> Clusters<'a> {
+    /// `clusters` on `input` (the shown input), carried to the vertices of `output`.
+    pub fn new(clusters: &'a InputClusters, input: &Mesh, output: &Mesh) -> Self {
+        let bvh = coarsen_spatial::Bvh::build(&input.positions, &input.faces);
+        let output_vertices = output
+            .positions
+            .par_iter()
+            .map(|&p| {
+                bvh.closest_point(p)
+                    .map_or(0, |n| clusters.labels[n.face as usize])
+            })
+            .collect();
+        Clusters {
+            stage: &clusters.stage,
+            input_faces: &clusters.labels,
+            output_vertices,
+        }
+    }
+}
+
+/// `values` as varints, one after the other.
+fn varints(values: &[u32]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(2 * values.len());
+    for &v in values {
+        push_varint(&mut out, u64::from(v));
+    }
+    out
+}
+
+/// Appends `z` as a varint: seven bits a byte, low first, the top bit set on all but the
+/// last.
+fn push_varint(out: &mut Vec<u8>, mut z: u64) {
+    loop {
+        let byte = (z & 127) as u8;
+        z >>= 7;
+        if z == 0 {
+            out.push(byte);
+            break;
+        }
+        out.push(byte | 128);
+    }
 }
 
 /// `mesh` decimated to [`MAX_EMBED_FACES`] faces when it has more, with a note.
@@ -260,10 +365,56 @@ mod tests {
                 name: "output",
                 ..e
             },
+            None,
             Some("decimated"),
         );
         assert!(s.contains("id=\"mesh-input\"") && s.contains("id=\"mesh-output\""));
         assert!(s.contains("data-faces=\"80\"") && s.contains("viewer-note"));
         assert!(!s.contains("http") && !s.contains("<script src"));
+        assert!(
+            !s.contains("value=\"clusters\"") && !s.contains("id=\"clusters-input\""),
+            "no clusters offered without them"
+        );
+    }
+
+    #[test]
+    fn clusters_reach_the_output_vertices_through_the_nearest_input_face() {
+        // Two clusters on a sphere: its upper and lower half.
+        let m = coarsen_shapes::icosphere(1.0, 2).unwrap();
+        let labels: Vec<u32> = (0..m.n_faces())
+            .map(|f| {
+                let [a, b, c] = m.corners(f);
+                u32::from((a + b + c).z < 0.0)
+            })
+            .collect();
+        let input = InputClusters {
+            stage: "stage 2 `cluster.cvt`".into(),
+            labels,
+        };
+        let out = coarsen_shapes::icosphere(1.0, 0).unwrap();
+        let c = Clusters::new(&input, &m, &out);
+        for (p, &l) in out.positions.iter().zip(&c.output_vertices) {
+            if p.z.abs() > 0.1 {
+                assert_eq!(l, u32::from(p.z < 0.0), "vertex at {p}");
+            }
+        }
+        let d = vec![0.0; m.n_faces()];
+        let e = Embedded {
+            name: "input",
+            mesh: &m,
+            face_distance: &d,
+        };
+        let s = section(&e, &e, Some(&c), None);
+        assert!(s.contains("clusters of stage 2 cluster.cvt"));
+        assert!(s.contains(&format!(
+            "id=\"clusters-input\" data-count=\"{}\"",
+            m.n_faces()
+        )));
+        assert!(s.contains("id=\"clusters-output\" data-count=\"12\""));
+    }
+
+    #[test]
+    fn varints_take_one_byte_below_128_and_more_above() {
+        assert_eq!(varints(&[0, 127, 128, 300]), vec![0, 127, 128, 1, 172, 2]);
     }
 }
