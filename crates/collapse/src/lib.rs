@@ -155,7 +155,6 @@
 //! run first on big meshes) cuts the mesh into parts that depend on the mesh alone, each
 //! collapsed as a serial run would be, and joins them in part order.
 
-mod faces;
 mod guard;
 mod live;
 mod progressive;

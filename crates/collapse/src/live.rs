@@ -1,12 +1,12 @@
 //! The mesh being collapsed: flat arrays plus incremental vertex → faces lists.
 
-use crate::faces::FaceLists;
 use crate::progressive::{ChangedFace, DeletedFace, Progressive, Step, fingerprint};
 use crate::queue::{Entry, Fate, Queue};
 use crate::{
     CollapseError, CollapseRecord, CostModel, FaceGuard, Goal, Index, Merge, NONE, NoGuard,
     Options, Outcome, Plan, Reach, Refusals, Reshape, StopReason, Unit, VertexKind, keep_in_order,
 };
+use coarsen_edit::FaceLists;
 use coarsen_geom::{Aabb, DVec3, is_finite, triangle};
 use coarsen_mesh::ring::{RingShape, repeated_end, ring_shape};
 use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};

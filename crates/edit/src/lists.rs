@@ -6,15 +6,17 @@
 //! blocks outweigh the used ones the arena is compacted in one pass. Nothing is allocated
 //! per vertex.
 
-use crate::Index;
+/// A vertex or face index.
+type Index = u32;
 
 /// The arena is compacted once it is longer than twice the blocks in use plus this.
 const COMPACT_SLACK: usize = 1024;
 /// Room reserved beyond twice the blocks in use: the compaction's slack and a moved block.
 const SLACK: usize = COMPACT_SLACK + 1024;
 
+/// Each vertex's faces, as lists in one arena.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct FaceLists {
+pub struct FaceLists {
     start: Vec<u32>,
     len: Vec<u32>,
     cap: Vec<u32>,
@@ -26,7 +28,7 @@ pub(crate) struct FaceLists {
 impl FaceLists {
     /// Lists of the faces around each of `n_vertices` vertices; faces with `use_face[f]`
     /// false are left out.
-    pub(crate) fn build(n_vertices: usize, faces: &[[Index; 3]], use_face: &[bool]) -> Self {
+    pub fn build(n_vertices: usize, faces: &[[Index; 3]], use_face: &[bool]) -> Self {
         let mut len = vec![0u32; n_vertices];
         for (f, &ok) in faces.iter().zip(use_face) {
             if ok {
@@ -66,13 +68,13 @@ impl FaceLists {
 
     /// The faces around `v`.
     #[inline]
-    pub(crate) fn get(&self, v: Index) -> &[Index] {
+    pub fn get(&self, v: Index) -> &[Index] {
         let s = self.start[v as usize] as usize;
         &self.data[s..s + self.len[v as usize] as usize]
     }
 
     /// Removes face `f` from `v`'s list, keeping the order of the others.
-    pub(crate) fn remove(&mut self, v: Index, f: Index) {
+    pub fn remove(&mut self, v: Index, f: Index) {
         let s = self.start[v as usize] as usize;
         let l = self.len[v as usize] as usize;
         if let Some(i) = self.data[s..s + l].iter().position(|&x| x == f) {
@@ -82,7 +84,7 @@ impl FaceLists {
     }
 
     /// Replaces `v`'s list by `items`.
-    pub(crate) fn set(&mut self, v: Index, items: &[Index]) {
+    pub fn set(&mut self, v: Index, items: &[Index]) {
         let vi = v as usize;
         let n = items.len() as u32;
         if n > self.cap[vi] {
@@ -101,8 +103,21 @@ impl FaceLists {
         }
     }
 
+    /// A new vertex with an empty list; returns its index.
+    pub fn push_vertex(&mut self) -> Index {
+        self.start.push(self.data.len() as u32);
+        self.len.push(0);
+        self.cap.push(0);
+        (self.start.len() - 1) as Index
+    }
+
+    /// The vertices there are lists for.
+    pub fn n_vertices(&self) -> usize {
+        self.start.len()
+    }
+
     /// Empties `v`'s list and releases its block.
-    pub(crate) fn clear(&mut self, v: Index) {
+    pub fn clear(&mut self, v: Index) {
         let vi = v as usize;
         self.used -= self.cap[vi] as usize;
         self.cap[vi] = 0;
@@ -111,7 +126,7 @@ impl FaceLists {
 
     /// The lists of vertices `old_of` (the new vertex `i` is the old `old_of[i]`), each in
     /// its order with its faces renamed by `new_face` (old → new), in a fresh arena.
-    pub(crate) fn renumbered(&self, old_of: &[Index], new_face: &[Index]) -> Self {
+    pub fn renumbered(&self, old_of: &[Index], new_face: &[Index]) -> Self {
         let mut start = Vec::with_capacity(old_of.len());
         let mut len = Vec::with_capacity(old_of.len());
         let total: usize = old_of.iter().map(|&v| self.len[v as usize] as usize).sum();
