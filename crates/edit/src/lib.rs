@@ -226,7 +226,7 @@ impl Editable {
             .collect();
         let (na, nb) = (self.neighbors(a), self.neighbors(b));
         let common = na.iter().filter(|w| nb.binary_search(w).is_ok()).count();
-        if common != opposite.len() || self.repeats_a_face(a, b, &shared) {
+        if common != opposite.len() {
             return Err(Refusal::Link);
         }
         if shared.len() == 2 && self.is_boundary_vertex(a) && self.is_boundary_vertex(b) {
@@ -244,6 +244,11 @@ impl Editable {
                 .any(|&c| self.lists.get(c).iter().all(|f| shared.contains(f)))
         {
             return Err(Refusal::VertexLeft);
+        }
+        // The link condition's part on edges last: it is the costly one, and the checks
+        // above refuse most candidates first (the verdict is the same in any order).
+        if self.repeats_a_face(a, b, &shared) {
+            return Err(Refusal::Link);
         }
         Ok(())
     }
