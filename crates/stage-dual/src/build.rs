@@ -1,5 +1,6 @@
 //! The dual construction, its validity diagnosis and the clustering repairs.
 
+use coarsen_edit::{Editable, Rules};
 use coarsen_mesh::topology::NONE;
 use coarsen_mesh::{Mesh, Topology};
 use coarsen_stage_cvt::{Clusterer, Valette2004, face_neighbors, faces_by_cluster};
@@ -760,131 +761,13 @@ fn explode(labels: &mut [u32], m: usize, bad: &[u32]) -> usize {
     next as usize
 }
 
-/// The dual as a mesh whose edges can be collapsed: collapsing dual edge a–b is merging
-/// clusters a and b.
-struct DualMesh {
-    faces: Vec<[u32; 3]>,
-    alive: Vec<bool>,
-    /// Alive (and, until compacted, some dead) faces around each dual vertex.
-    around: Vec<Vec<u32>>,
-}
-
-impl DualMesh {
-    fn new(faces: Vec<[u32; 3]>, m: usize) -> Self {
-        let mut around = vec![Vec::new(); m];
-        for (i, f) in faces.iter().enumerate() {
-            f.iter().for_each(|&c| around[c as usize].push(i as u32));
-        }
-        DualMesh {
-            alive: vec![true; faces.len()],
-            faces,
-            around,
-        }
-    }
-
-    /// Alive faces around `v`.
-    fn faces_of(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
-        self.around[v as usize]
-            .iter()
-            .copied()
-            .filter(|&f| self.alive[f as usize])
-    }
-
-    /// Distinct neighbours of `v`, ascending.
-    fn neighbors(&self, v: u32) -> Vec<u32> {
-        let mut n: Vec<u32> = self
-            .faces_of(v)
-            .flat_map(|f| self.faces[f as usize])
-            .filter(|&w| w != v)
-            .collect();
-        n.sort_unstable();
-        n.dedup();
-        n
-    }
-
-    /// Alive faces holding both `a` and `b`.
-    fn edge_faces(&self, a: u32, b: u32) -> Vec<u32> {
-        self.faces_of(a)
-            .filter(|&f| self.faces[f as usize].contains(&b))
-            .collect()
-    }
-
-    /// True when `v` lies on an edge of one face.
-    fn is_boundary(&self, v: u32) -> bool {
-        self.neighbors(v)
-            .into_iter()
-            .any(|w| self.edge_faces(v, w).len() == 1)
-    }
-
-    /// True when collapsing `b` into `a` keeps the dual a manifold of the same topology:
-    /// the link condition, no interior edge between two boundary vertices, no duplicate
-    /// face and no vertex left without a face.
-    fn can_collapse(&self, a: u32, b: u32) -> bool {
-        let shared = self.edge_faces(a, b);
-        if shared.is_empty() || shared.len() > 2 {
-            return false;
-        }
-        let mut opposite: Vec<u32> = shared
-            .iter()
-            .flat_map(|&f| self.faces[f as usize])
-            .filter(|&c| c != a && c != b)
-            .collect();
-        opposite.sort_unstable();
-        opposite.dedup();
-        let (na, nb) = (self.neighbors(a), self.neighbors(b));
-        let common: Vec<u32> = na
-            .iter()
-            .copied()
-            .filter(|c| nb.binary_search(c).is_ok())
-            .collect();
-        if common != opposite {
-            return false;
-        }
-        if shared.len() == 2 && self.is_boundary(a) && self.is_boundary(b) {
-            return false;
-        }
-        if opposite
-            .iter()
-            .any(|&c| self.faces_of(c).all(|f| shared.contains(&f)))
-        {
-            return false;
-        }
-        // No face of b, renamed, may repeat a face of a.
-        let key = |mut f: [u32; 3]| {
-            f.sort_unstable();
-            f
-        };
-        let mut at_a: Vec<[u32; 3]> = self
-            .faces_of(a)
-            .filter(|f| !shared.contains(f))
-            .map(|f| key(self.faces[f as usize]))
-            .collect();
-        at_a.sort_unstable();
-        !self.faces_of(b).filter(|f| !shared.contains(f)).any(|f| {
-            let renamed = self.faces[f as usize].map(|c| if c == b { a } else { c });
-            at_a.binary_search(&key(renamed)).is_ok()
-        })
-    }
-
-    /// Collapses `b` into `a` (checked by [`DualMesh::can_collapse`]).
-    fn collapse(&mut self, a: u32, b: u32) {
-        let moved = std::mem::take(&mut self.around[b as usize]);
-        for f in moved {
-            if !self.alive[f as usize] {
-                continue;
-            }
-            let face = &mut self.faces[f as usize];
-            if face.contains(&a) {
-                self.alive[f as usize] = false;
-            } else {
-                face.iter_mut().filter(|c| **c == b).for_each(|c| *c = a);
-                self.around[a as usize].push(f);
-            }
-        }
-        let alive = &self.alive;
-        self.around[a as usize].retain(|&f| alive[f as usize]);
-    }
-}
+/// The checks a merge's collapse of the dual's edge passes beyond every collapse's: no
+/// cluster left without a dual triangle.
+const MERGE_RULES: Rules = Rules {
+    one_fan: false,
+    loops_of_three: false,
+    every_vertex_kept: true,
+};
 
 /// The fallback when splitting cannot repair the clustering (e.g. on a strip one or two
 /// faces wide, where every compact cluster touches the boundary on both sides): the
@@ -983,7 +866,7 @@ type Pair = (u64, u32, u32, u32, u32);
 /// joined by a dual edge too, but their union would be pinched), where each merged one
 /// went, and version stamps for the queue's lazy invalidation.
 struct Merging {
-    dual: DualMesh,
+    dual: Editable,
     area: Vec<f64>,
     touch: Vec<Vec<u32>>,
     into: Vec<u32>,
@@ -1029,7 +912,7 @@ impl Merging {
             }
         }
         Merging {
-            dual: DualMesh::new(faces, m),
+            dual: Editable::new(m, faces),
             area,
             touch,
             into: (0..m as u32).collect(),
@@ -1074,7 +957,7 @@ impl Merging {
     /// also touch at a corner of a vertex where five or more meet: its fan is split into
     /// triangles without an edge between them).
     fn can_merge(&mut self, topo: &Topology, a: u32, b: u32) -> bool {
-        if !self.dual.can_collapse(a, b) {
+        if self.dual.can_collapse(a, b, MERGE_RULES).is_err() {
             return false;
         }
         // Vertices minus edges of the clusters' common border: 1 for one path.
@@ -1408,7 +1291,8 @@ mod tests {
                     }
                     let b = t[(rng.next_u64() % t.len() as u64) as usize];
                     if !g.can_merge(&topo, a, b) {
-                        refused_at_corners += usize::from(g.dual.can_collapse(a, b));
+                        refused_at_corners +=
+                            usize::from(g.dual.can_collapse(a, b, MERGE_RULES).is_ok());
                         misses += 1;
                         continue;
                     }
