@@ -2,6 +2,7 @@
 //! collapse) and the watch that bounds how far the sweeps may leave the input.
 
 use super::*;
+use coarsen_edit::Editable;
 
 /// Points of the input whose distance to `mesh` is watched (true: on the boundary): its
 /// used vertices, edge midpoints, face centroids and the points halfway from each centroid
@@ -469,7 +470,8 @@ struct Fitting<'m, 's> {
 /// so what they read stays true for the vertices not yet touched).
 struct RoundMesh<'t> {
     topo: &'t Topology,
-    built: Built<'t>,
+    /// The same adjacency (as `topo`, from the round's start), as planning asks it.
+    edit: Editable,
     boundary_edges: Vec<u32>,
     /// Collapse candidates, least surface moved first: (error, length, edge).
     collapses: Vec<(f64, f64, u32)>,
@@ -565,8 +567,7 @@ impl<'m, 's> Fitting<'m, 's> {
         if d_max.is_nan() || d_max <= tol {
             return false;
         }
-        let ends = boundary_neighbours(&topo, self.mesh.n_vertices());
-        let mut round = self.round_mesh(&topo, &ends);
+        let mut round = self.round_mesh(&topo);
         let mut made = 0;
         for &(d, iv, f) in far
             .iter()
@@ -607,8 +608,7 @@ impl<'m, 's> Fitting<'m, 's> {
         if away.is_empty() {
             return false;
         }
-        let ends = boundary_neighbours(&topo, self.mesh.n_vertices());
-        let mut round = self.round_mesh(&topo, &ends);
+        let mut round = self.round_mesh(&topo);
         let before = self.done;
         for f in away {
             if self.done >= self.limits.max_pairs {
@@ -671,7 +671,7 @@ impl<'m, 's> Fitting<'m, 's> {
             ];
             for at in cands.into_iter().flatten() {
                 let Some((old, new)) =
-                    plan_split(mesh, &round.built, None, e, NEW_VERTEX, at, l.cos_turn)
+                    plan_split(mesh, &round.edit, None, [p, q], NEW_VERTEX, at, l.cos_turn)
                 else {
                     continue;
                 };
@@ -735,10 +735,9 @@ impl<'m, 's> Fitting<'m, 's> {
         far
     }
 
-    /// The round's view of the mesh (adjacency `topo`, boundary neighbours `ends`) and its
-    /// collapse candidates: edges shorter than the mean, ranked by the surface their
-    /// collapse at the midpoint moves.
-    fn round_mesh<'t>(&mut self, topo: &'t Topology, ends: &'t [Vec<u32>]) -> RoundMesh<'t> {
+    /// The round's view of the mesh (adjacency `topo`) and its collapse candidates: edges
+    /// shorter than the mean, ranked by the surface their collapse at the midpoint moves.
+    fn round_mesh<'t>(&mut self, topo: &'t Topology) -> RoundMesh<'t> {
         let mesh = &*self.mesh;
         let n_edges = topo.n_edges();
         let len = |e: u32| edge_length(mesh, topo, e);
@@ -763,7 +762,7 @@ impl<'m, 's> Fitting<'m, 's> {
         });
         RoundMesh {
             topo,
-            built: Built { topo, ends },
+            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone()),
             boundary_edges,
             refused_at: vec![f64::NEG_INFINITY; collapses.len()],
             collapses,
@@ -885,9 +884,9 @@ impl<'m, 's> Fitting<'m, 's> {
         let e = topo.find_edge(a, b)?;
         let (old, new) = plan_split(
             mesh,
-            &round.built,
+            &round.edit,
             Some(self.surface),
-            e,
+            topo.edge(e),
             NEW_VERTEX,
             at,
             self.limits.cos_turn,
@@ -993,9 +992,9 @@ impl<'m, 's> Fitting<'m, 's> {
                 } else {
                     plan_split(
                         mesh,
-                        &round.built,
+                        &round.edit,
                         Some(surface),
-                        s,
+                        [c, dd],
                         NEW_VERTEX,
                         at,
                         l.cos_turn,
@@ -1046,9 +1045,14 @@ impl<'m, 's> Fitting<'m, 's> {
             {
                 continue;
             }
-            let Some(col) =
-                plan_collapse(mesh, &round.built, Some(surface), k, l.cos_turn, l.floor)
-            else {
+            let Some(col) = plan_collapse(
+                mesh,
+                &round.edit,
+                Some(surface),
+                [a, b],
+                l.cos_turn,
+                l.floor,
+            ) else {
                 round.refused_at[i] = f64::INFINITY;
                 continue;
             };

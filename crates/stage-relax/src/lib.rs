@@ -732,7 +732,7 @@ mod tests {
     }
 
     /// A strip whose bottom row is twice as dense at its start.
-    fn uneven_strip() -> Mesh {
+    pub(crate) fn uneven_strip() -> Mesh {
         let xs: Vec<f64> = (0..30)
             .map(|i| {
                 if i < 4 {
@@ -785,39 +785,6 @@ mod tests {
             r.min_angle_after > r0.min_angle_after + 5.0,
             "{r:?} vs {r0:?}"
         );
-    }
-
-    /// Pairs planned on the table kept up to date pair by pair (built once) are the pairs
-    /// of a `Topology` built afresh for every pair.
-    #[test]
-    fn rebalancing_on_kept_adjacency_matches_rebuilding_it_every_pair() {
-        let sphere = coarsen_shapes::icosphere(1.0, 4).unwrap();
-        let mut jittered = coarsen_shapes::icosphere(1.0, 3).unwrap();
-        jitter_on_sphere(&mut jittered, 11, 0.12);
-        let surface = Surface::new(&sphere);
-        for (name, m, surface) in [
-            ("strip", uneven_strip(), None),
-            ("sphere", jittered.clone(), None),
-            ("sphere on its input", jittered, Some(&surface)),
-        ] {
-            let floor = 40f64.to_radians();
-            let cos_turn = 30f64.to_radians().cos();
-            let (mut fresh, mut kept) = (m.clone(), m);
-            let no_rails = Rails::default();
-            let run = |m: &mut Mesh, fresh| {
-                rebalance_with(m, surface, &no_rails, 40, cos_turn, floor, fresh)
-            };
-            let (a, built_a) = run(&mut fresh, true);
-            let (b, built_b) = run(&mut kept, false);
-            assert!(a >= 5, "{name}: {a} pairs");
-            assert_eq!(a, b, "{name}");
-            assert!(
-                built_a >= a && built_b == 1,
-                "{name}: {built_a}, {built_b} builds"
-            );
-            assert_eq!(fresh.faces, kept.faces, "{name}");
-            assert_eq!(position_bits(&fresh), position_bits(&kept), "{name}");
-        }
     }
 
     /// Attributes follow rebalancing: a vertex scalar equal to x stays equal to x (split
