@@ -140,6 +140,32 @@ impl Editable {
             .collect()
     }
 
+    /// True when `a`–`b` is an edge of some alive face.
+    pub fn has_edge(&self, a: u32, b: u32) -> bool {
+        self.lists
+            .get(a)
+            .iter()
+            .any(|&f| self.faces[f as usize].contains(&b))
+    }
+
+    /// Every edge (ends ascending, in ascending order) with its count of alive faces,
+    /// gathered from the faces now (no tracking needed).
+    pub fn edges_now(&self) -> Vec<([u32; 2], u32)> {
+        let mut all: Vec<[u32; 2]> = self
+            .alive_faces()
+            .flat_map(|t| (0..3).map(move |i| [t[i].min(t[(i + 1) % 3]), t[i].max(t[(i + 1) % 3])]))
+            .collect();
+        all.sort_unstable();
+        let mut out: Vec<([u32; 2], u32)> = Vec::with_capacity(all.len() / 2 + 1);
+        for e in all {
+            match out.last_mut() {
+                Some((last, n)) if *last == e => *n += 1,
+                _ => out.push((e, 1)),
+            }
+        }
+        out
+    }
+
     /// True when `a`–`b` is an edge of exactly one face.
     pub fn is_boundary_edge(&self, a: u32, b: u32) -> bool {
         self.lists
@@ -316,18 +342,50 @@ impl Editable {
                 if let Some(edges) = &mut self.edges {
                     count_edges(edges, face, true);
                 }
-                let mut list = Vec::new();
                 for v in face {
-                    list.clear();
-                    list.extend_from_slice(self.lists.get(v));
-                    if let Err(i) = list.binary_search(&f) {
-                        list.insert(i, f);
-                    }
-                    self.lists.set(v, &list);
+                    self.lists.insert_sorted(v, f);
                 }
             }
             None => self.alive[fi] = false,
         }
+    }
+
+    /// The two faces of interior edge `a`–`b` and the vertices opposite it, when it has
+    /// exactly two faces that hold it in opposite directions: `(g, h, c, d)` with face
+    /// `g` = a → b → c and face `h` = b → a → d (in some rotation); `None` otherwise.
+    pub fn flip_parts(&self, a: u32, b: u32) -> Option<(u32, u32, u32, u32)> {
+        let mut on_edge = self
+            .lists
+            .get(a)
+            .iter()
+            .copied()
+            .filter(|&f| self.faces[f as usize].contains(&b));
+        let (Some(f1), Some(f2), None) = (on_edge.next(), on_edge.next(), on_edge.next()) else {
+            return None;
+        };
+        let third = |f: u32, x: u32, y: u32| {
+            let t = self.faces[f as usize];
+            (0..3)
+                .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
+                .map(|i| t[(i + 2) % 3])
+        };
+        match (third(f1, a, b), third(f2, b, a)) {
+            (Some(c), Some(d)) => Some((f1, f2, c, d)),
+            _ => match (third(f2, a, b), third(f1, b, a)) {
+                (Some(c), Some(d)) => Some((f2, f1, c, d)),
+                _ => None,
+            },
+        }
+    }
+
+    /// Flips edge `a`–`b` of faces `g` = a → b → c and `h` = b → a → d (as
+    /// [`Editable::flip_parts`] gives them) into `c`–`d`: `g` becomes a → d → c and `h`
+    /// d → b → c, in their slots. Returns the two new faces.
+    pub fn flip(&mut self, [a, b]: [u32; 2], (g, h, c, d): (u32, u32, u32, u32)) -> [[u32; 3]; 2] {
+        let new = [[a, d, c], [d, b, c]];
+        self.replace_face(g, Some(new[0]));
+        self.replace_face(h, Some(new[1]));
+        new
     }
 
     /// Appends face `face` (alive) in a new slot, whose index it returns. Its corners must

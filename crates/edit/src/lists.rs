@@ -83,6 +83,27 @@ impl FaceLists {
         }
     }
 
+    /// Inserts face `f` into `v`'s list, which is ascending, where it keeps it ascending
+    /// (nothing when it is there already).
+    pub fn insert_sorted(&mut self, v: Index, f: Index) {
+        let vi = v as usize;
+        let (s, l) = (self.start[vi] as usize, self.len[vi] as usize);
+        let Err(i) = self.data[s..s + l].binary_search(&f) else {
+            return;
+        };
+        if l < self.cap[vi] as usize {
+            self.data.copy_within(s + i..s + l, s + i + 1);
+            self.data[s + i] = f;
+            self.len[vi] += 1;
+        } else {
+            let mut items = Vec::with_capacity(l + 1);
+            items.extend_from_slice(&self.data[s..s + i]);
+            items.push(f);
+            items.extend_from_slice(&self.data[s + i..s + l]);
+            self.set(v, &items);
+        }
+    }
+
     /// Replaces `v`'s list by `items`.
     pub fn set(&mut self, v: Index, items: &[Index]) {
         let vi = v as usize;

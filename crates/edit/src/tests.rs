@@ -168,3 +168,22 @@ proptest! {
         prop_assert_eq!(nv as i64 - ne as i64 + nf as i64, 1);
     }
 }
+
+#[test]
+fn a_flip_turns_the_shared_edge_and_keeps_the_slots() {
+    // Square 0 1 2 3 split along 0–2.
+    let mut e = Editable::new(4, vec![[0, 1, 2], [0, 2, 3]]).with_edges();
+    let parts = e.flip_parts(0, 2).unwrap();
+    assert_eq!(parts, (1, 0, 3, 1));
+    let new = e.flip([0, 2], parts);
+    assert_eq!(new, [[0, 1, 3], [1, 2, 3]]);
+    assert_eq!(e.face(1), [0, 1, 3]);
+    assert_eq!(e.face(0), [1, 2, 3]);
+    assert!(e.edges().unwrap().get(&[0, 2]).is_none());
+    assert_eq!(e.edges().unwrap().get(&[1, 3]), Some(&2));
+    assert_eq!(e.edges(), fresh(&e).edges());
+    let tracked: Vec<([u32; 2], u32)> = e.edges().unwrap().iter().map(|(&k, &n)| (k, n)).collect();
+    assert_eq!(e.edges_now(), tracked);
+    assert!(e.has_edge(3, 1) && !e.has_edge(0, 2));
+    assert!(e.flip_parts(0, 1).is_none(), "a boundary edge has one face");
+}

@@ -2,9 +2,9 @@
 //! slivers are still fans; flipping the edges of coplanar face pairs whose opposite angles
 //! sum above π turns them into well-shaped triangles without moving the surface.
 
+use coarsen_edit::Editable;
 use coarsen_geom::{DVec3, triangle};
-use coarsen_mesh::{Mesh, Topology};
-use std::collections::HashSet;
+use coarsen_mesh::Mesh;
 
 /// Two faces count as coplanar when their normals differ by less than this (radians):
 /// flipping their shared edge then moves the surface by at most the quad's size × this.
@@ -15,43 +15,36 @@ const MAX_SWEEPS: usize = 32;
 
 /// Flips, sweep after sweep (edge order, each face once per sweep), every interior edge
 /// a–b of faces abc and bad that are coplanar (within [`FLAT`]) and not locally Delaunay
-/// (the angles at c and d sum above π) into c–d, when c–d is no edge yet and both new
-/// faces keep the old faces' side; until a sweep flips nothing. Returns the flips made.
-/// Only the face array changes (a face keeps its slot).
+/// (the angles at c and d sum above π) into c–d, when c–d was no edge at the sweep's start
+/// nor made in it and both new faces keep the old faces' side; until a sweep flips
+/// nothing. Returns the flips made. Only the face array changes (a face keeps its slot).
 pub(crate) fn flip_to_delaunay(mesh: &mut Mesh) -> usize {
     let cos_flat = FLAT.cos();
+    let mut edit = Editable::new(mesh.n_vertices(), std::mem::take(&mut mesh.faces));
     let mut total = 0;
+    // The edges of two faces, ascending: a flip takes one away and makes another.
+    let mut edges: Vec<[u32; 2]> = edit
+        .edges_now()
+        .into_iter()
+        .filter(|&(_, n)| n == 2)
+        .map(|(ab, _)| ab)
+        .collect();
     for _ in 0..MAX_SWEEPS {
-        let Ok(topo) = Topology::try_build(mesh) else {
-            break;
-        };
-        let mut touched = vec![false; mesh.n_faces()];
-        let mut made: HashSet<[u32; 2]> = HashSet::new();
+        // The sweep visits the edges it starts with; an edge counts as there if it was
+        // there then (in `edges`: an edge of one face is never made by a flip) or is now.
+        let mut touched = vec![false; edit.faces().len()];
+        let mut made: Vec<[u32; 2]> = Vec::new();
         let mut flips = 0;
-        for e in 0..topo.n_edges() as u32 {
-            let &[f1, f2] = topo.edge_faces(e) else {
+        for &[a, b] in &edges {
+            let Some(parts) = edit.flip_parts(a, b) else {
                 continue;
             };
-            if touched[f1 as usize] || touched[f2 as usize] {
+            let (fa, fb, c, d) = parts;
+            if touched[fa as usize] || touched[fb as usize] {
                 continue;
             }
-            let [a, b] = topo.edge(e);
-            let third = |f: u32, x: u32, y: u32| {
-                let t = mesh.faces[f as usize];
-                (0..3)
-                    .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
-                    .map(|i| t[(i + 2) % 3])
-            };
-            // f1 holds a → b, f2 holds b → a (or the other way round).
-            let (fa, fb, c, d) = match (third(f1, a, b), third(f2, b, a)) {
-                (Some(c), Some(d)) => (f1, f2, c, d),
-                _ => match (third(f2, a, b), third(f1, b, a)) {
-                    (Some(c), Some(d)) => (f2, f1, c, d),
-                    _ => continue,
-                },
-            };
             let key = [c.min(d), c.max(d)];
-            if c == d || topo.find_edge(c, d).is_some() || made.contains(&key) {
+            if c == d || edit.has_edge(c, d) || edges.binary_search(&key).is_ok() {
                 continue;
             }
             let p = |v: u32| mesh.positions[v as usize];
@@ -76,19 +69,40 @@ pub(crate) fn flip_to_delaunay(mesh: &mut Mesh) -> usize {
             if !keeps_side {
                 continue;
             }
-            mesh.faces[fa as usize] = new[0];
-            mesh.faces[fb as usize] = new[1];
+            edit.flip([a, b], parts);
             touched[fa as usize] = true;
             touched[fb as usize] = true;
-            made.insert(key);
+            made.push(key);
             flips += 1;
         }
         total += flips;
         if flips == 0 {
             break;
         }
+        edges.retain(|&[a, b]| edit.has_edge(a, b));
+        made.sort_unstable();
+        edges = merge_sorted(&edges, &made);
     }
+    mesh.faces = edit.faces().to_vec();
     total
+}
+
+/// The union of two ascending lists with nothing in common, ascending.
+fn merge_sorted(x: &[[u32; 2]], y: &[[u32; 2]]) -> Vec<[u32; 2]> {
+    let mut out = Vec::with_capacity(x.len() + y.len());
+    let (mut i, mut j) = (0, 0);
+    while i < x.len() && j < y.len() {
+        if x[i] < y[j] {
+            out.push(x[i]);
+            i += 1;
+        } else {
+            out.push(y[j]);
+            j += 1;
+        }
+    }
+    out.extend_from_slice(&x[i..]);
+    out.extend_from_slice(&y[j..]);
+    out
 }
 
 /// The angle at `apex` of the triangle apex–x–y.
