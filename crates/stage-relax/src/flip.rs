@@ -1,6 +1,7 @@
 //! Edge flips that raise the smallest angle (or, above the floor, the shape).
 
 use super::*;
+use coarsen_edit::Editable;
 
 /// One sweep of edge flips over `mesh` (in edge order, each face flipped at most once):
 /// the interior edge a–b of faces abc and bad becomes c–d when the smallest angle of the
@@ -18,34 +19,25 @@ pub(crate) fn flip_sweep(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let mut round = FlipRound::new(mesh.n_faces());
+    let mut round = FlipRound::new(mesh);
     let mut flips = 0;
     for e in 0..topo.n_edges() as u32 {
-        let ef = topo.edge_faces(e);
-        if ef.len() != 2 || round.touched(ef[0] as usize) || round.touched(ef[1] as usize) {
+        let [a, b] = topo.edge(e);
+        // f1 holds a → b, f2 holds b → a.
+        let Some(parts) = round.edit.flip_parts(a, b) else {
+            continue;
+        };
+        let (f1, f2, c, d) = parts;
+        if round.touched(f1 as usize) || round.touched(f2 as usize) {
             continue;
         }
-        let [a, b] = topo.edge(e);
         if rails.is_rail_edge(a, b) {
             continue;
         }
-        // f1 holds a → b, f2 holds b → a.
-        let rot = |f: u32, x: u32, y: u32| -> Option<u32> {
-            let t = mesh.faces[f as usize];
-            (0..3)
-                .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
-                .map(|i| t[(i + 2) % 3])
-        };
-        let (c, d) = match (rot(ef[0], a, b), rot(ef[1], b, a)) {
-            (Some(c), Some(d)) => (c, d),
-            _ => match (rot(ef[1], a, b), rot(ef[0], b, a)) {
-                (Some(c), Some(d)) => (c, d),
-                _ => continue,
-            },
-        };
         if c == d || round.has_edge(topo, c, d) {
             continue;
         }
+        let ef = [f1, f2];
         let p = |v: u32| mesh.positions[v as usize];
         let old = [[a, b, c], [b, a, d]];
         let new = [[a, d, c], [d, b, c]];
@@ -80,38 +72,32 @@ pub(crate) fn flip_sweep(
         if !ok
             || watch.is_some_and(|w| {
                 let tris = new.map(|f| f.map(p));
-                !w.allows(ef, &tris)
+                !w.allows(&ef, &tris)
             })
         {
             continue;
         }
-        let (f1, f2) = (ef[0] as usize, ef[1] as usize);
-        let (g1, g2) = if rot(ef[0], a, b) == Some(c) {
-            (f1, f2)
-        } else {
-            (f2, f1)
-        };
-        mesh.faces[g1] = new[0];
-        mesh.faces[g2] = new[1];
-        round.flipped([f1, f2], c, d);
+        round.flip(mesh, [a, b], parts);
         flips += 1;
     }
     flips
 }
 
-/// What one round of flips has done so far: the faces flipped (each at most once a
-/// round) and the edges made, which its adjacency from before the round does not know.
+/// What one round of flips has done so far: the mesh's faces as an [`Editable`] that
+/// follows the flips, and the faces flipped (each at most once a round). An edge counts
+/// as there when the adjacency from before the round has it or the round made it.
 pub(crate) struct FlipRound {
+    /// The faces, flipped as the round goes.
+    pub(crate) edit: Editable,
     touched: Vec<bool>,
-    added: std::collections::HashSet<[u32; 2]>,
 }
 
 impl FlipRound {
-    /// A round over `n_faces` faces, nothing flipped yet.
-    pub(crate) fn new(n_faces: usize) -> Self {
+    /// A round over the faces of `mesh`, nothing flipped yet.
+    pub(crate) fn new(mesh: &Mesh) -> Self {
         FlipRound {
-            touched: vec![false; n_faces],
-            added: std::collections::HashSet::new(),
+            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone()),
+            touched: vec![false; mesh.n_faces()],
         }
     }
 
@@ -122,12 +108,17 @@ impl FlipRound {
 
     /// Whether `c`–`d` is an edge: in `topo` (from before the round) or made this round.
     pub(crate) fn has_edge(&self, topo: &Topology, c: u32, d: u32) -> bool {
-        topo.find_edge(c, d).is_some() || self.added.contains(&[c.min(d), c.max(d)])
+        topo.find_edge(c, d).is_some() || self.edit.has_edge(c, d)
     }
 
-    /// Records that faces `faces` were flipped into the new edge `c`–`d`.
-    pub(crate) fn flipped(&mut self, faces: [usize; 2], c: u32, d: u32) {
-        faces.iter().for_each(|&f| self.touched[f] = true);
-        self.added.insert([c.min(d), c.max(d)]);
+    /// Flips edge `a`–`b` (its [`Editable::flip_parts`]) in the round's faces and in
+    /// `mesh`'s, and marks its two faces.
+    pub(crate) fn flip(&mut self, mesh: &mut Mesh, ab: [u32; 2], parts: (u32, u32, u32, u32)) {
+        let new = self.edit.flip(ab, parts);
+        let (g, h, _, _) = parts;
+        mesh.faces[g as usize] = new[0];
+        mesh.faces[h as usize] = new[1];
+        self.touched[g as usize] = true;
+        self.touched[h as usize] = true;
     }
 }

@@ -169,7 +169,7 @@ fn mend_flips(
     tiny: f64,
     floor: f64,
 ) -> usize {
-    let mut round = FlipRound::new(mesh.n_faces());
+    let mut round = FlipRound::new(mesh);
     let mut flips = 0;
     for f in 0..mesh.n_faces() {
         if !away[f] || round.touched(f) {
@@ -223,13 +223,11 @@ fn mend_flips(
             if after.0 >= before.0 || after.1 < before.1.min(floor) {
                 continue;
             }
-            mesh.faces[f] = new[0];
-            mesh.faces[g] = new[1];
             for (h, t) in [(f, new[0]), (g, new[1])] {
                 let [x, y, z] = t.map(p);
                 away[h] = !surface.agrees(x, y, z);
             }
-            round.flipped([f, g], c, d);
+            round.flip(mesh, [a, b], (f as u32, g as u32, c, d));
             flips += 1;
             break;
         }
