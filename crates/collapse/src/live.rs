@@ -743,12 +743,7 @@ impl LiveMesh {
         {
             return false;
         }
-        self.lists
-            .get(a)
-            .iter()
-            .filter(|&&f| self.faces[f as usize].contains(&b))
-            .count()
-            == 1
+        self.lists.with_corner(a, b, &self.faces).count() == 1
     }
 
     /// Figures of the current state.

@@ -132,20 +132,12 @@ impl Editable {
 
     /// The alive faces that have both `a` and `b`, ascending.
     pub fn edge_faces(&self, a: u32, b: u32) -> Vec<u32> {
-        self.lists
-            .get(a)
-            .iter()
-            .copied()
-            .filter(|&f| self.faces[f as usize].contains(&b))
-            .collect()
+        self.lists.with_corner(a, b, &self.faces).collect()
     }
 
     /// True when `a`–`b` is an edge of some alive face.
     pub fn has_edge(&self, a: u32, b: u32) -> bool {
-        self.lists
-            .get(a)
-            .iter()
-            .any(|&f| self.faces[f as usize].contains(&b))
+        self.lists.with_corner(a, b, &self.faces).next().is_some()
     }
 
     /// Every edge (ends ascending, in ascending order) with its count of alive faces,
@@ -168,12 +160,7 @@ impl Editable {
 
     /// True when `a`–`b` is an edge of exactly one face.
     pub fn is_boundary_edge(&self, a: u32, b: u32) -> bool {
-        self.lists
-            .get(a)
-            .iter()
-            .filter(|&&f| self.faces[f as usize].contains(&b))
-            .count()
-            == 1
+        self.lists.with_corner(a, b, &self.faces).count() == 1
     }
 
     /// The vertices joined to `v` by an edge, ascending.
@@ -354,12 +341,7 @@ impl Editable {
     /// exactly two faces that hold it in opposite directions: `(g, h, c, d)` with face
     /// `g` = a → b → c and face `h` = b → a → d (in some rotation); `None` otherwise.
     pub fn flip_parts(&self, a: u32, b: u32) -> Option<(u32, u32, u32, u32)> {
-        let mut on_edge = self
-            .lists
-            .get(a)
-            .iter()
-            .copied()
-            .filter(|&f| self.faces[f as usize].contains(&b));
+        let mut on_edge = self.lists.with_corner(a, b, &self.faces);
         let (Some(f1), Some(f2), None) = (on_edge.next(), on_edge.next(), on_edge.next()) else {
             return None;
         };

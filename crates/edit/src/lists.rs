@@ -73,6 +73,21 @@ impl FaceLists {
         &self.data[s..s + self.len[v as usize] as usize]
     }
 
+    /// The faces in `a`'s list that also have corner `b` (the faces of edge `a`–`b`), in
+    /// the list's order; `faces` are the corners of every face.
+    #[inline]
+    pub fn with_corner<'s>(
+        &'s self,
+        a: Index,
+        b: Index,
+        faces: &'s [[Index; 3]],
+    ) -> impl Iterator<Item = Index> + 's {
+        self.get(a)
+            .iter()
+            .copied()
+            .filter(move |&f| faces[f as usize].contains(&b))
+    }
+
     /// Removes face `f` from `v`'s list, keeping the order of the others.
     pub fn remove(&mut self, v: Index, f: Index) {
         let s = self.start[v as usize] as usize;
