@@ -228,6 +228,70 @@ impl Run {
     }
 }
 
+/// What [`LiveMesh::vet`] decided for a candidate.
+enum Vetted {
+    /// Collapse it now, at `plan`, keeping `pinned` when the rules pin a vertex.
+    Go { plan: Plan, pinned: Option<Index> },
+    /// Not now (stale, refused, or dearer than queued).
+    Skip,
+    /// The run ends here.
+    Stop(StopReason),
+}
+
+/// The last face of a face goal: an interior edge collapse takes two faces and would end
+/// one below the goal, a boundary one exactly one. While one face is left, the candidates
+/// that take two and pass every check are set aside (in queue order) and a boundary edge
+/// is looked for; only when none can be collapsed is the first of them made (a closed
+/// mesh keeps an even face count: an odd goal is missed by one).
+#[derive(Default)]
+struct LastFace {
+    aside: Vec<Entry>,
+    /// Whether the candidate being tried came from `aside`.
+    settling: bool,
+    /// Whether the mesh has a boundary vertex, once asked.
+    has_boundary: Option<bool>,
+}
+
+impl LastFace {
+    /// The next candidate: the held one, the queue's next, or the first set aside.
+    #[inline]
+    fn next(&mut self, run: &mut Run) -> Option<Entry> {
+        let popped = run.held.take().or_else(|| run.q.pop());
+        popped.or_else(|| {
+            (!self.aside.is_empty()).then(|| {
+                self.settling = true;
+                self.aside.remove(0)
+            })
+        })
+    }
+
+    /// Sets `e` aside when it would take the last face's goal one face too far and a
+    /// boundary edge may still do.
+    #[inline]
+    fn holds_back(&mut self, mesh: &LiveMesh, e: Entry, unit: Unit, opts: &Options) -> bool {
+        let verts = e.vertices();
+        let hold = !self.settling
+            && unit == Unit::Edge
+            && matches!(opts.goal, Goal::Faces(n) if mesh.n_faces == n + 1)
+            && !mesh.is_boundary_edge(verts[0], verts[1])
+            && *self
+                .has_boundary
+                .get_or_insert_with(|| mesh.kind.par_iter().any(|&k| k == VertexKind::Boundary));
+        if hold {
+            self.aside.push(e);
+        }
+        hold
+    }
+
+    /// Puts what was set aside back in the queue (after a collapse, or at the end).
+    fn release(&mut self, q: &mut Queue) {
+        self.settling = false;
+        for e in self.aside.drain(..) {
+            q.put_back(e);
+        }
+    }
+}
+
 /// Work buffers of one run, reused by every collapse.
 struct Scratch {
     ring: Vec<(Index, Index)>,
@@ -1039,150 +1103,189 @@ impl LiveMesh {
         opts: &Options,
         progress: &mut dyn FnMut(usize),
     ) -> StopReason {
+        let mut last = LastFace::default();
+        let stop = loop {
+            if self.reached(opts.goal) {
+                break StopReason::Reached;
+            }
+            let Some(e) = last.next(run) else {
+                break StopReason::Exhausted;
+            };
+            let (plan, pinned) = match self.vet(e, run, model, guard, opts) {
+                Vetted::Skip => continue,
+                Vetted::Stop(reason) => break reason,
+                Vetted::Go { plan, pinned } => (plan, pinned),
+            };
+            if last.holds_back(self, e, model.unit(), opts) {
+                continue;
+            }
+            let kept = self.make(&e, &plan, pinned, run, model, opts);
+            self.after_collapse(&e, kept, run, model, opts, progress);
+            last.release(&mut run.q);
+        };
+        last.release(&mut run.q);
+        stop
+    }
+
+    /// Whether the candidate `e` is to be collapsed now and how (its plan, and the vertex
+    /// the rules pin), or skipped (stale, refused, dearer than queued: counted, parked or
+    /// queued again as each case asks), or ends the run (past the error limit: held).
+    #[inline]
+    fn vet<M: CostModel, G: FaceGuard>(
+        &self,
+        e: Entry,
+        run: &mut Run,
+        model: &M,
+        guard: &mut G,
+        opts: &Options,
+    ) -> Vetted {
+        let Run {
+            q, s, out, held, ..
+        } = run;
+        // Stale: a vertex changed or went since the entry was queued; a fresh entry
+        // for the same candidate was queued then, if it is still a candidate.
+        if !self.is_current(&e) {
+            return Vetted::Skip;
+        }
+        let verts = &e.vertices[..e.vertices().len()];
+        let pinned = match self.rule(verts) {
+            Ok(p) => p,
+            Err(r) => {
+                out.refused.count(r);
+                return Vetted::Skip;
+            }
+        };
+        // Recomputed rather than stored: the same inputs give the same plan, and a
+        // queue entry stays small.
+        let Some(plan) = self.plan(model, verts, pinned) else {
+            out.refused.count(Refusal::Model);
+            q.park(e, NONE);
+            return Vetted::Skip;
+        };
+        // A candidate outside the model's reach keeps its queued cost when its
+        // neighbourhood changes; if it has grown dearer since, it goes back in line
+        // at its current cost.
+        if plan.cost > e.cost {
+            q.push(plan.cost, e.vertices, e.stamp);
+            return Vetted::Skip;
+        }
+        // The queue is ordered by cost: nothing cheaper is left.
+        if let Some(max) = opts.max_error
+            && plan.cost > max
+        {
+            *held = Some(e);
+            return Vetted::Stop(StopReason::MaxError { cost: plan.cost });
+        }
+        // Refused candidates wait until a collapse touches one of their vertices (one
+        // refused by the link condition, until a collapse merges its witness).
+        if let Err(r) = self.check(verts, plan.position, opts.min_quality, s) {
+            out.refused.count(r);
+            let witness = if r == Refusal::Link { s.witness } else { NONE };
+            q.park(e, witness);
+            return Vetted::Skip;
+        }
+        if let Err(r) = self.guard(guard, verts, plan.position, s) {
+            out.refused.count(r);
+            q.park(e, NONE);
+            return Vetted::Skip;
+        }
+        Vetted::Go { plan, pinned }
+    }
+
+    /// Makes the collapse of `e` at `plan` and records it (the squared volume error, the
+    /// log, the run's figures); returns the vertex kept.
+    #[inline]
+    fn make<M: CostModel>(
+        &mut self,
+        e: &Entry,
+        plan: &Plan,
+        pinned: Option<Index>,
+        run: &mut Run,
+        model: &mut M,
+        opts: &Options,
+    ) -> Index {
+        let out = &mut run.out;
+        let verts = &e.vertices[..e.vertices().len()];
+        let sve = self.sve(verts, plan.position);
+        if opts.weighted_sve {
+            out.sve_weighted += crate::weighted_sve(self, verts, plan.position);
+        }
+        // A boundary vertex survives when there is one, so that kinds stay true.
+        let kept = pinned
+            .or_else(|| {
+                verts
+                    .iter()
+                    .copied()
+                    .find(|&v| self.kind[v as usize] == VertexKind::Boundary)
+            })
+            .unwrap_or(verts[0]);
+        self.merge(verts, kept, plan.position, &mut run.s);
+        model.merged(self, kept, verts);
+        let mut removed = [NONE; 2];
+        for (slot, &v) in removed.iter_mut().zip(verts.iter().filter(|&&v| v != kept)) {
+            *slot = v;
+        }
+        if opts.keep_log {
+            out.log.push(CollapseRecord {
+                kept: self.original(kept),
+                removed: removed.map(|v| self.original(v)),
+                position: plan.position,
+                cost: plan.cost,
+                sve,
+            });
+        }
+        out.collapses += 1;
+        out.sve += sve;
+        out.sve_max = out.sve_max.max(sve);
+        out.max_cost = out.max_cost.max(plan.cost);
+        out.costs.push(plan.cost);
+        kept
+    }
+
+    /// After the collapse of `e` into `kept`: the candidates around it queued again, stale
+    /// entries swept, the arrays closed up when half the faces are gone, progress told.
+    #[inline]
+    fn after_collapse<M: CostModel>(
+        &mut self,
+        e: &Entry,
+        kept: Index,
+        run: &mut Run,
+        model: &mut M,
+        opts: &Options,
+        progress: &mut dyn FnMut(usize),
+    ) {
+        let verts = &e.vertices[..e.vertices().len()];
         let unit = model.unit();
-        let reach = model.reach();
         let per_face = if unit == Unit::Edge { 3 } else { 2 };
         let Run {
             q,
             s,
             out,
-            held,
             may_close_up,
+            ..
         } = run;
-        // The last face of a face goal: an interior edge collapse takes two faces and would
-        // end one below the goal, a boundary one exactly one. While one face is left, the
-        // candidates that take two and pass every check are set aside (in queue order) and
-        // a boundary edge is looked for; only when none can be collapsed is the first of
-        // them made (a closed mesh keeps an even face count: an odd goal is missed by one).
-        let mut aside: Vec<Entry> = Vec::new();
-        let mut settling = false;
-        let mut has_boundary: Option<bool> = None;
-        let stop = loop {
-            if self.reached(opts.goal) {
-                break StopReason::Reached;
-            }
-            let popped = held.take().or_else(|| q.pop());
-            let Some(e) = popped.or_else(|| {
-                (!aside.is_empty()).then(|| {
-                    settling = true;
-                    aside.remove(0)
-                })
-            }) else {
-                break StopReason::Exhausted;
-            };
-            // Stale: a vertex changed or went since the entry was queued; a fresh entry
-            // for the same candidate was queued then, if it is still a candidate.
-            if !self.is_current(&e) {
-                continue;
-            }
-            let verts = e.vertices;
-            let verts = &verts[..e.vertices().len()];
-            let pinned = match self.rule(verts) {
-                Ok(p) => p,
-                Err(r) => {
-                    out.refused.count(r);
-                    continue;
-                }
-            };
-            // Recomputed rather than stored: the same inputs give the same plan, and a
-            // queue entry stays small.
-            let Some(plan) = self.plan(model, verts, pinned) else {
-                out.refused.count(Refusal::Model);
-                q.park(e, NONE);
-                continue;
-            };
-            // A candidate outside the model's reach keeps its queued cost when its
-            // neighbourhood changes; if it has grown dearer since, it goes back in line
-            // at its current cost.
-            if plan.cost > e.cost {
-                q.push(plan.cost, e.vertices, e.stamp);
-                continue;
-            }
-            // The queue is ordered by cost: nothing cheaper is left.
-            if let Some(max) = opts.max_error
-                && plan.cost > max
-            {
-                *held = Some(e);
-                break StopReason::MaxError { cost: plan.cost };
-            }
-            // Refused candidates wait until a collapse touches one of their vertices (one
-            // refused by the link condition, until a collapse merges its witness).
-            if let Err(r) = self.check(verts, plan.position, opts.min_quality, s) {
-                out.refused.count(r);
-                let witness = if r == Refusal::Link { s.witness } else { NONE };
-                q.park(e, witness);
-                continue;
-            }
-            if let Err(r) = self.guard(guard, verts, plan.position, s) {
-                out.refused.count(r);
-                q.park(e, NONE);
-                continue;
-            }
-            if !settling
-                && unit == Unit::Edge
-                && matches!(opts.goal, Goal::Faces(n) if self.n_faces == n + 1)
-                && !self.is_boundary_edge(verts[0], verts[1])
-                && *has_boundary
-                    .get_or_insert_with(|| self.kind.par_iter().any(|&k| k == VertexKind::Boundary))
-            {
-                aside.push(e);
-                continue;
-            }
-            let sve = self.sve(verts, plan.position);
-            if opts.weighted_sve {
-                out.sve_weighted += crate::weighted_sve(self, verts, plan.position);
-            }
-            // A boundary vertex survives when there is one, so that kinds stay true.
-            let kept = pinned
-                .or_else(|| {
-                    verts
-                        .iter()
-                        .copied()
-                        .find(|&v| self.kind[v as usize] == VertexKind::Boundary)
-                })
-                .unwrap_or(verts[0]);
-            self.merge(verts, kept, plan.position, s);
-            model.merged(self, kept, verts);
-            let mut removed = [NONE; 2];
-            for (slot, &v) in removed.iter_mut().zip(verts.iter().filter(|&&v| v != kept)) {
-                *slot = v;
-            }
-            if opts.keep_log {
-                out.log.push(CollapseRecord {
-                    kept: self.original(kept),
-                    removed: removed.map(|v| self.original(v)),
-                    position: plan.position,
-                    cost: plan.cost,
-                    sve,
-                });
-            }
-            out.collapses += 1;
-            out.sve += sve;
-            out.sve_max = out.sve_max.max(sve);
-            out.max_cost = out.max_cost.max(plan.cost);
-            out.costs.push(plan.cost);
-            self.requeue(model, unit, reach, kept, verts, q, s, &mut out.refused);
-            let live_estimate = self.n_faces * per_face / 2;
-            q.sweep_if_stale(live_estimate, |e| self.is_current(e));
-            if *may_close_up
-                && self.faces.len() >= opts.compact_min_faces
-                && 2 * self.n_faces < self.faces.len()
-                && !self.reached(opts.goal)
-            {
-                *may_close_up = self.close_up(model, q);
-            }
-            if out.collapses.is_multiple_of(PROGRESS_EVERY) {
-                progress(out.collapses);
-            }
-            settling = false;
-            for e in aside.drain(..) {
-                q.put_back(e);
-            }
-        };
-        for e in aside {
-            q.put_back(e);
+        self.requeue(
+            model,
+            unit,
+            model.reach(),
+            kept,
+            verts,
+            q,
+            s,
+            &mut out.refused,
+        );
+        let live_estimate = self.n_faces * per_face / 2;
+        q.sweep_if_stale(live_estimate, |e| self.is_current(e));
+        if *may_close_up
+            && self.faces.len() >= opts.compact_min_faces
+            && 2 * self.n_faces < self.faces.len()
+            && !self.reached(opts.goal)
+        {
+            *may_close_up = self.close_up(model, q);
         }
-        stop
+        if out.collapses.is_multiple_of(PROGRESS_EVERY) {
+            progress(out.collapses);
+        }
     }
 
     /// Renumbers the live vertices and faces densely, in their order, with the queue and
