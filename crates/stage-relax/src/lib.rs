@@ -337,152 +337,257 @@ fn edge_length(mesh: &Mesh, topo: &Topology, e: u32) -> f64 {
 /// Relaxes the vertices of `mesh` in place (see the crate docs), keeping them on `surface`
 /// when given.
 pub fn relax(mesh: &mut Mesh, surface: Option<&Surface<'_>>, params: &RelaxParams) -> Relaxed {
-    let min_angle = |m: &Mesh| {
-        (0..m.n_faces())
-            .map(|f| {
-                let [a, b, c] = m.corners(f);
-                triangle::min_angle(a, b, c).to_degrees()
-            })
-            .fold(f64::INFINITY, f64::min)
-    };
     let mut out = Relaxed {
-        min_angle_before: min_angle(mesh),
+        min_angle_before: min_angle_deg(mesh),
         ..Relaxed::default()
     };
-    let cos_turn = params.max_turn_deg.to_radians().cos();
-    let surface_on = surface.filter(|_| params.project);
-    let tol = surface_on.map_or(0.0, |s| {
-        0.01 * params.max_dev_pct * s.mesh.bbox().diagonal()
-    });
-    // The input's features: corners and rails the vertices are put on and kept on.
-    let mut rails = match surface_on.and_then(|s| Some((s, s.features.as_deref()?))) {
-        Some((sf, input)) if params.features => match Topology::try_build(mesh) {
-            Ok(topo) => {
-                let (rails, captured) = Rails::capture(mesh, &topo, input, sf.mesh);
-                out.features = Some(captured);
-                rails
-            }
-            Err(_) => Rails::default(),
-        },
-        _ => Rails::default(),
-    };
-    if params.rebalance > 0 {
-        out.rebalanced = rebalance(
-            mesh,
-            surface_on,
-            &rails,
-            params.rebalance,
-            cos_turn,
-            params.floor_deg.to_radians(),
-        );
-    }
-    // The input points `fit` and the bound look at.
-    let samples = match surface_on {
-        Some(s) if params.fit > 0 || params.max_dev_pct > 0.0 => {
-            input_samples(s, mesh, WATCH_FROM * tol)
-        }
-        _ => Vec::new(),
-    };
-    if params.fit > 0
-        && let Some(sf) = surface_on
-    {
-        (out.fitted, out.fit_given_up) = fit(
-            mesh,
-            sf,
-            &mut rails,
-            params.fit,
-            cos_turn,
-            params.floor_deg.to_radians(),
-            tol,
-            &samples,
-        );
-    }
-    let mut watch = surface_on
-        .filter(|_| params.max_dev_pct > 0.0)
-        .map(|_| Watch::new(&samples, tol));
+    let run = Relaxing::new(surface, params);
+    let mut rails = run.capture_features(mesh, &mut out);
+    run.rebalance_edges(mesh, &rails, &mut out);
+    let samples = run.sample_input(mesh);
+    run.fit_far_points(mesh, &mut rails, &samples, &mut out);
+    let mut watch = run.deviation_watch(&samples);
     drop(samples);
-    let Ok(topo) = Topology::try_build(mesh) else {
+    let Ok(mut topo) = Topology::try_build(mesh) else {
         out.min_angle_after = out.min_angle_before;
         return out;
     };
     let mut ends = sliding_ends(&topo, mesh.n_vertices(), &rails);
-    let mut topo = topo;
-    if params.mend
-        && let Some(sf) = surface_on
-    {
-        // The mesh's smallest angle does not drop (nor one above it below the floor).
-        let floor = params.floor_deg.max(out.min_angle_before).to_radians();
-        let smallest = out.min_angle_before.to_radians();
-        let m = mend(mesh, &mut topo, sf, &ends, &rails, floor, smallest);
-        let mut after = m.after;
-        if after > 0 {
-            // What moves and flips cannot mend (a part thinner than a face): a new vertex
-            // on the side such a face faces, paid for by a collapse elsewhere.
-            let made = unfold(
+    run.mend_facing_away(mesh, &mut topo, &mut ends, &mut rails, &mut out);
+    let shared = run.sweep_shared(&ends, &rails);
+    run.run_sweeps(mesh, &mut topo, &shared, &mut watch, &mut out);
+    run.polish_worst(mesh, &topo, &shared, &mut watch, &mut out);
+    out.min_angle_after = min_angle_deg(mesh);
+    out
+}
+
+/// The smallest angle of the faces of `m`, in degrees.
+fn min_angle_deg(m: &Mesh) -> f64 {
+    (0..m.n_faces())
+        .map(|f| {
+            let [a, b, c] = m.corners(f);
+            triangle::min_angle(a, b, c).to_degrees()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// What every step of [`relax`] reads: the surface, the parameters and the bounds they give.
+struct Relaxing<'a> {
+    /// The input surface faces must agree with.
+    surface: Option<&'a Surface<'a>>,
+    /// `surface` when projecting onto it.
+    surface_on: Option<&'a Surface<'a>>,
+    /// The stage's parameters.
+    params: &'a RelaxParams,
+    /// Cosine of `params.max_turn_deg`.
+    cos_turn: f64,
+    /// The deviation bound `params.max_dev_pct`, as a distance (0 without a surface).
+    tol: f64,
+}
+
+impl<'a> Relaxing<'a> {
+    /// The steps' shared reads for relaxing onto `surface` with `params`.
+    fn new(surface: Option<&'a Surface<'a>>, params: &'a RelaxParams) -> Self {
+        let cos_turn = params.max_turn_deg.to_radians().cos();
+        let surface_on = surface.filter(|_| params.project);
+        let tol = surface_on.map_or(0.0, |s| {
+            0.01 * params.max_dev_pct * s.mesh.bbox().diagonal()
+        });
+        Relaxing {
+            surface,
+            surface_on,
+            params,
+            cos_turn,
+            tol,
+        }
+    }
+
+    /// The input's corners and rails, put on the mesh (none unless `features`).
+    fn capture_features(&self, mesh: &mut Mesh, out: &mut Relaxed) -> Rails {
+        // The input's features: corners and rails the vertices are put on and kept on.
+        match self
+            .surface_on
+            .and_then(|s| Some((s, s.features.as_deref()?)))
+        {
+            Some((sf, input)) if self.params.features => match Topology::try_build(mesh) {
+                Ok(topo) => {
+                    let (rails, captured) = Rails::capture(mesh, &topo, input, sf.mesh);
+                    out.features = Some(captured);
+                    rails
+                }
+                Err(_) => Rails::default(),
+            },
+            _ => Rails::default(),
+        }
+    }
+
+    /// Moves vertices from short edges to long ones in split/collapse pairs (`rebalance`).
+    fn rebalance_edges(&self, mesh: &mut Mesh, rails: &Rails, out: &mut Relaxed) {
+        if self.params.rebalance > 0 {
+            out.rebalanced = rebalance(
+                mesh,
+                self.surface_on,
+                rails,
+                self.params.rebalance,
+                self.cos_turn,
+                self.params.floor_deg.to_radians(),
+            );
+        }
+    }
+
+    /// The input points `fit` and the bound look at (none when neither is on).
+    fn sample_input(&self, mesh: &Mesh) -> Vec<(DVec3, bool)> {
+        match self.surface_on {
+            Some(s) if self.params.fit > 0 || self.params.max_dev_pct > 0.0 => {
+                input_samples(s, mesh, WATCH_FROM * self.tol)
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// Puts vertices where the input is farthest from the mesh (`fit`).
+    fn fit_far_points(
+        &self,
+        mesh: &mut Mesh,
+        rails: &mut Rails,
+        samples: &[(DVec3, bool)],
+        out: &mut Relaxed,
+    ) {
+        if self.params.fit > 0
+            && let Some(sf) = self.surface_on
+        {
+            (out.fitted, out.fit_given_up) = fit(
                 mesh,
                 sf,
-                &mut rails,
-                (4 * after) as u32,
-                cos_turn,
-                params.floor_deg.to_radians(),
+                rails,
+                self.params.fit,
+                self.cos_turn,
+                self.params.floor_deg.to_radians(),
+                self.tol,
+                samples,
             );
-            if made > 0
-                && let Ok(t) = Topology::try_build(mesh)
-            {
-                topo = t;
-                ends = sliding_ends(&topo, mesh.n_vertices(), &rails);
-                after = mend(mesh, &mut topo, sf, &ends, &rails, floor, smallest).after;
-            }
         }
-        out.facing_away = Some([m.before, after]);
     }
-    let shared = SweepShared {
-        ends: &ends,
-        rails: &rails,
-        surface,
-        params,
-        cos_turn,
-    };
-    // The parts of a big mesh's sweeps (its vertices barely move between sweeps).
-    let parts = Parts::new(&mesh.positions);
-    for _ in 0..params.sweeps {
-        if let Some(w) = watch.as_mut() {
-            w.assign(mesh);
-        }
-        if params.flips {
-            let flipped = flip_sweep(
-                mesh,
-                &topo,
-                surface,
-                &rails,
-                watch.as_ref(),
-                cos_turn,
-                params.floor_deg.to_radians(),
-            );
-            out.flipped.push(flipped);
-            if flipped > 0 {
-                match Topology::try_build(mesh) {
-                    Ok(t) => topo = t,
-                    Err(_) => break,
+
+    /// The input points the sweeps keep within the deviation bound (when it is on).
+    fn deviation_watch(&self, samples: &[(DVec3, bool)]) -> Option<Watch> {
+        self.surface_on
+            .filter(|_| self.params.max_dev_pct > 0.0)
+            .map(|_| Watch::new(samples, self.tol))
+    }
+
+    /// Mends the faces facing away from the input (`mend`), keeping `topo` and `ends` current.
+    fn mend_facing_away(
+        &self,
+        mesh: &mut Mesh,
+        topo: &mut Topology,
+        ends: &mut Vec<Vec<u32>>,
+        rails: &mut Rails,
+        out: &mut Relaxed,
+    ) {
+        let params = self.params;
+        if params.mend
+            && let Some(sf) = self.surface_on
+        {
+            // The mesh's smallest angle does not drop (nor one above it below the floor).
+            let floor = params.floor_deg.max(out.min_angle_before).to_radians();
+            let smallest = out.min_angle_before.to_radians();
+            let m = mend(mesh, topo, sf, ends, rails, floor, smallest);
+            let mut after = m.after;
+            if after > 0 {
+                // What moves and flips cannot mend (a part thinner than a face): a new vertex
+                // on the side such a face faces, paid for by a collapse elsewhere.
+                let made = unfold(
+                    mesh,
+                    sf,
+                    rails,
+                    (4 * after) as u32,
+                    self.cos_turn,
+                    params.floor_deg.to_radians(),
+                );
+                if made > 0
+                    && let Ok(t) = Topology::try_build(mesh)
+                {
+                    *topo = t;
+                    *ends = sliding_ends(topo, mesh.n_vertices(), rails);
+                    after = mend(mesh, topo, sf, ends, rails, floor, smallest).after;
                 }
             }
-        }
-        let sweep = shared.over(&mesh.faces, &topo, watch.as_ref());
-        let moved = sweep.run(&mut mesh.positions, parts.as_ref());
-        out.moved.push(moved);
-        if moved == 0 && out.flipped.last().is_none_or(|&f| f == 0) {
-            break;
+            out.facing_away = Some([m.before, after]);
         }
     }
-    if params.polish > 0 {
-        if let Some(w) = watch.as_mut() {
-            w.assign(mesh);
+
+    /// What every sweep and the polish read, with the sliding `ends` and `rails`.
+    fn sweep_shared<'b>(&'b self, ends: &'b [Vec<u32>], rails: &'b Rails) -> SweepShared<'b> {
+        SweepShared {
+            ends,
+            rails,
+            surface: self.surface,
+            params: self.params,
+            cos_turn: self.cos_turn,
         }
-        let sweep = shared.over(&mesh.faces, &topo, watch.as_ref());
-        out.polished = polish(&mut mesh.positions, &sweep);
     }
-    out.min_angle_after = min_angle(mesh);
-    out
+
+    /// The sweeps of flips and vertex moves, until one changes nothing (`sweeps`, `flips`).
+    fn run_sweeps(
+        &self,
+        mesh: &mut Mesh,
+        topo: &mut Topology,
+        shared: &SweepShared<'_>,
+        watch: &mut Option<Watch>,
+        out: &mut Relaxed,
+    ) {
+        let params = self.params;
+        // The parts of a big mesh's sweeps (its vertices barely move between sweeps).
+        let parts = Parts::new(&mesh.positions);
+        for _ in 0..params.sweeps {
+            if let Some(w) = watch.as_mut() {
+                w.assign(mesh);
+            }
+            if params.flips {
+                let flipped = flip_sweep(
+                    mesh,
+                    topo,
+                    self.surface,
+                    shared.rails,
+                    watch.as_ref(),
+                    self.cos_turn,
+                    params.floor_deg.to_radians(),
+                );
+                out.flipped.push(flipped);
+                if flipped > 0 {
+                    match Topology::try_build(mesh) {
+                        Ok(t) => *topo = t,
+                        Err(_) => break,
+                    }
+                }
+            }
+            let sweep = shared.over(&mesh.faces, topo, watch.as_ref());
+            let moved = sweep.run(&mut mesh.positions, parts.as_ref());
+            out.moved.push(moved);
+            if moved == 0 && out.flipped.last().is_none_or(|&f| f == 0) {
+                break;
+            }
+        }
+    }
+
+    /// Lifts the worst faces by quality after the sweeps (`polish`).
+    fn polish_worst(
+        &self,
+        mesh: &mut Mesh,
+        topo: &Topology,
+        shared: &SweepShared<'_>,
+        watch: &mut Option<Watch>,
+        out: &mut Relaxed,
+    ) {
+        if self.params.polish > 0 {
+            if let Some(w) = watch.as_mut() {
+                w.assign(mesh);
+            }
+            let sweep = shared.over(&mesh.faces, topo, watch.as_ref());
+            out.polished = polish(&mut mesh.positions, &sweep);
+        }
+    }
 }
 
 /// The `relax` stage.

@@ -34,13 +34,7 @@ pub(crate) fn mend(
     floor: f64,
     smallest: f64,
 ) -> Mended {
-    let mut away: Vec<bool> = (0..mesh.n_faces())
-        .into_par_iter()
-        .map(|f| {
-            let [a, b, c] = mesh.corners(f);
-            !surface.agrees(a, b, c)
-        })
-        .collect();
+    let mut away = facing_away_flags(mesh, surface);
     let before = away.iter().filter(|&&x| x).count();
     let mut out = Mended {
         before,
@@ -51,95 +45,23 @@ pub(crate) fn mend(
     if before == 0 {
         return out;
     }
-    let tiny = 1e-10 * mesh.bbox().diagonal().powi(2);
+    let mender = Mender {
+        surface,
+        ends,
+        rails,
+        floor,
+        smallest,
+        tiny: 1e-10 * mesh.bbox().diagonal().powi(2),
+    };
     for _ in 0..ROUNDS {
-        let mut verts: Vec<u32> = (0..mesh.n_faces())
-            .filter(|&f| away[f])
-            .flat_map(|f| mesh.faces[f])
-            .collect();
-        verts.sort_unstable();
-        verts.dedup();
         let mut changed = false;
-        for v in verts {
-            let fan = topo.vertex_faces(v);
-            if fan.is_empty() || topo.n_vertex_fans(v) != 1 || rails.locked(v) {
-                continue;
-            }
-            let pos = |w: u32| mesh.positions[w as usize];
-            let p = pos(v);
-            // (faces facing away, smallest angle) of the fan with `v` at `q`; None when a
-            // face would be degenerate.
-            let score = |q: DVec3| -> Option<(usize, f64)> {
-                let mut n_away = 0;
-                let mut worst = f64::INFINITY;
-                for &f in fan {
-                    let [a, b, c] = mesh.faces[f as usize].map(|w| if w == v { q } else { pos(w) });
-                    if triangle::area(a, b, c) <= tiny {
-                        return None;
-                    }
-                    n_away += !surface.agrees(a, b, c) as usize;
-                    worst = worst.min(triangle::min_angle(a, b, c));
-                }
-                Some((n_away, worst))
-            };
-            let Some(now) = score(p) else { continue };
-            if now.0 == 0 {
-                continue;
-            }
-            let ring = topo.vertex_neighbors(v);
-            let mut cands: Vec<DVec3> = Vec::new();
-            if topo.is_boundary_vertex(v) {
-                for &w in &ends[v as usize] {
-                    for t in [0.25, 0.5] {
-                        cands.extend(surface.project_boundary_along(
-                            p,
-                            p.lerp(pos(w), t),
-                            BOUNDARY_REACH * p.distance(pos(w)),
-                        ));
-                    }
-                }
-            } else {
-                for &w in ring {
-                    for t in [0.25, 0.5] {
-                        cands.extend(surface.project(p.lerp(pos(w), t)));
-                    }
-                }
-                for &f in fan {
-                    let [a, b, c] = mesh.faces[f as usize].map(pos);
-                    cands.extend(surface.project(triangle::centroid(a, b, c)));
-                }
-                let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
-                cands.extend(surface.project(mean));
-                // On a thin part the nearest side may be the wrong one: the nearest point
-                // of the side the fan faces.
-                cands.extend(surface.project_facing(p, mesh.faces_cross(fan)));
-            }
-            let least = now.1.min(floor);
-            let scored: Vec<((usize, f64), DVec3)> = cands
-                .iter()
-                .filter(|q| q.is_finite() && **q != p)
-                .filter_map(|&q| score(q).map(|s| (s, q)))
-                .filter(|&((n, _), _)| n < now.0)
-                .collect();
-            // The fan's smallest angle kept (up to the floor); failing that, the mesh's.
-            let best_above = |bound: f64| {
-                scored
-                    .iter()
-                    .filter(|&&((_, a), _)| a >= bound)
-                    .min_by(|x, y| x.0.0.cmp(&y.0.0).then(y.0.1.total_cmp(&x.0.1)))
-            };
-            let best = best_above(least).or_else(|| best_above(least.min(smallest)));
-            if let Some(&(_, q)) = best {
-                mesh.positions[v as usize] = q;
-                for &f in fan {
-                    let [a, b, c] = mesh.corners(f as usize);
-                    away[f as usize] = !surface.agrees(a, b, c);
-                }
+        for v in vertices_of_faces_away(mesh, &away) {
+            if mender.move_vertex(mesh, topo, &mut away, v) {
                 out.moves += 1;
                 changed = true;
             }
         }
-        let flips = mend_flips(mesh, topo, surface, rails, &mut away, tiny, floor);
+        let flips = mend_flips(mesh, topo, surface, rails, &mut away, mender.tiny, floor);
         if flips > 0 {
             out.flips += flips;
             changed = true;
@@ -154,6 +76,152 @@ pub(crate) fn mend(
     }
     out.after = away.iter().filter(|&&x| x).count();
     out
+}
+
+/// For each face of `mesh`, whether it faces away from `surface`.
+fn facing_away_flags(mesh: &Mesh, surface: &Surface<'_>) -> Vec<bool> {
+    (0..mesh.n_faces())
+        .into_par_iter()
+        .map(|f| {
+            let [a, b, c] = mesh.corners(f);
+            !surface.agrees(a, b, c)
+        })
+        .collect()
+}
+
+/// The vertices of the faces flagged in `away`, in index order, each once.
+fn vertices_of_faces_away(mesh: &Mesh, away: &[bool]) -> Vec<u32> {
+    let mut verts: Vec<u32> = (0..mesh.n_faces())
+        .filter(|&f| away[f])
+        .flat_map(|f| mesh.faces[f])
+        .collect();
+    verts.sort_unstable();
+    verts.dedup();
+    verts
+}
+
+/// What [`mend`]'s vertex moves read: the surface, the ends, the rails and the bounds.
+struct Mender<'a> {
+    /// The input surface.
+    surface: &'a Surface<'a>,
+    /// The boundary (or rail) neighbours of each vertex.
+    ends: &'a [Vec<u32>],
+    /// The corners and rail vertices that stay.
+    rails: &'a Rails,
+    /// The angle (radians) up to which a fan keeps its smallest angle.
+    floor: f64,
+    /// The smallest angle (radians) a fan keeps when it cannot keep `floor`.
+    smallest: f64,
+    /// The area at or below which a face is degenerate.
+    tiny: f64,
+}
+
+impl Mender<'_> {
+    /// Moves `v` to a nearby input point where fewer of its faces face away, if any; true if so.
+    fn move_vertex(&self, mesh: &mut Mesh, topo: &Topology, away: &mut [bool], v: u32) -> bool {
+        let fan = topo.vertex_faces(v);
+        if fan.is_empty() || topo.n_vertex_fans(v) != 1 || self.rails.locked(v) {
+            return false;
+        }
+        let p = mesh.positions[v as usize];
+        let Some(now) = self.score(mesh, fan, v, p) else {
+            return false;
+        };
+        if now.0 == 0 {
+            return false;
+        }
+        let cands = self.candidates(mesh, topo, v);
+        let Some(q) = self.best(mesh, fan, v, now, &cands) else {
+            return false;
+        };
+        mesh.positions[v as usize] = q;
+        for &f in fan {
+            let [a, b, c] = mesh.corners(f as usize);
+            away[f as usize] = !self.surface.agrees(a, b, c);
+        }
+        true
+    }
+
+    /// (faces facing away, smallest angle) of `fan` with `v` at `q`; None if one is degenerate.
+    fn score(&self, mesh: &Mesh, fan: &[u32], v: u32, q: DVec3) -> Option<(usize, f64)> {
+        let pos = |w: u32| mesh.positions[w as usize];
+        let mut n_away = 0;
+        let mut worst = f64::INFINITY;
+        for &f in fan {
+            let [a, b, c] = mesh.faces[f as usize].map(|w| if w == v { q } else { pos(w) });
+            if triangle::area(a, b, c) <= self.tiny {
+                return None;
+            }
+            n_away += !self.surface.agrees(a, b, c) as usize;
+            worst = worst.min(triangle::min_angle(a, b, c));
+        }
+        Some((n_away, worst))
+    }
+
+    /// The points of the input vertex `v` of `mesh` (adjacency `topo`) tries.
+    fn candidates(&self, mesh: &Mesh, topo: &Topology, v: u32) -> Vec<DVec3> {
+        let surface = self.surface;
+        let fan = topo.vertex_faces(v);
+        let pos = |w: u32| mesh.positions[w as usize];
+        let p = pos(v);
+        let ring = topo.vertex_neighbors(v);
+        let mut cands: Vec<DVec3> = Vec::new();
+        if topo.is_boundary_vertex(v) {
+            for &w in &self.ends[v as usize] {
+                for t in [0.25, 0.5] {
+                    cands.extend(surface.project_boundary_along(
+                        p,
+                        p.lerp(pos(w), t),
+                        BOUNDARY_REACH * p.distance(pos(w)),
+                    ));
+                }
+            }
+        } else {
+            for &w in ring {
+                for t in [0.25, 0.5] {
+                    cands.extend(surface.project(p.lerp(pos(w), t)));
+                }
+            }
+            for &f in fan {
+                let [a, b, c] = mesh.faces[f as usize].map(pos);
+                cands.extend(surface.project(triangle::centroid(a, b, c)));
+            }
+            let mean = ring.iter().map(|&w| pos(w)).sum::<DVec3>() / ring.len().max(1) as f64;
+            cands.extend(surface.project(mean));
+            // On a thin part the nearest side may be the wrong one: the nearest point
+            // of the side the fan faces.
+            cands.extend(surface.project_facing(p, mesh.faces_cross(fan)));
+        }
+        cands
+    }
+
+    /// The best of `cands` for `v` by [`mend`]'s rule, if one has fewer faces facing away.
+    fn best(
+        &self,
+        mesh: &Mesh,
+        fan: &[u32],
+        v: u32,
+        now: (usize, f64),
+        cands: &[DVec3],
+    ) -> Option<DVec3> {
+        let p = mesh.positions[v as usize];
+        let least = now.1.min(self.floor);
+        let scored: Vec<((usize, f64), DVec3)> = cands
+            .iter()
+            .filter(|q| q.is_finite() && **q != p)
+            .filter_map(|&q| self.score(mesh, fan, v, q).map(|s| (s, q)))
+            .filter(|&((n, _), _)| n < now.0)
+            .collect();
+        // The fan's smallest angle kept (up to the floor); failing that, the mesh's.
+        let best_above = |bound: f64| {
+            scored
+                .iter()
+                .filter(|&&((_, a), _)| a >= bound)
+                .min_by(|x, y| x.0.0.cmp(&y.0.0).then(y.0.1.total_cmp(&x.0.1)))
+        };
+        let best = best_above(least).or_else(|| best_above(least.min(self.smallest)));
+        best.map(|&(_, q)| q)
+    }
 }
 
 /// Flips the interior edges of faces facing away (flags `away`, updated) where the two new
