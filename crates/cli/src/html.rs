@@ -359,6 +359,24 @@ pub fn page(
     notes: &[String],
 ) -> String {
     let mut h = String::new();
+    write_head(&mut h, report);
+    write_summary(&mut h, report);
+    if let Some(v) = viewer {
+        h.push_str(v);
+    }
+    write_pictures(&mut h, pictures);
+    if let Some(m) = metrics {
+        write_metrics(&mut h, m, input_quality);
+    }
+    write_stage_plots(&mut h, report);
+    write_stages(&mut h, report);
+    write_warnings(&mut h, report, notes);
+    h.push_str("</body></html>\n");
+    h
+}
+
+/// Writes the page's head (title and style sheet) and opens its body.
+fn write_head(h: &mut String, report: &RunReport) {
     let _ = write!(
         h,
         "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>coarsen: {name}</title><style>\
@@ -369,6 +387,10 @@ pub fn page(
          figcaption{{font-size:12px;color:#555}}.warn{{color:#a33}}</style></head><body>",
         name = escape(&report.pipeline)
     );
+}
+
+/// Writes the heading and the one-line summary: pipeline, input and output sizes, run time.
+fn write_summary(h: &mut String, report: &RunReport) {
     let _ = write!(
         h,
         "<h1>coarsen run: pipeline <code>{}</code></h1><p>Input <code>{}</code>: {} vertices, {} faces → output: {} vertices, {} faces, in {:.3} s.</p>",
@@ -380,67 +402,75 @@ pub fn page(
         report.output_faces,
         report.seconds
     );
-    if let Some(v) = viewer {
-        h.push_str(v);
-    }
+}
+
+/// Writes the pictures section.
+fn write_pictures(h: &mut String, pictures: &[Picture]) {
     h.push_str("<h2>Pictures</h2><div id=\"pictures\">");
     for p in pictures {
         h.push_str(&img(p));
     }
     h.push_str("</div>");
-    if let Some(m) = metrics {
-        let (q, v) = (&m.quality, &m.validity);
-        h.push_str("<h2>Output against the input</h2><table id=\"metrics\"><tr><th>figure</th><th>value</th></tr>");
-        let mut row = |k: &str, val: String| {
-            let _ = write!(h, "<tr><td>{k}</td><td>{}</td></tr>", escape(&val));
-        };
+}
+
+/// Writes the table of the output's figures against the input and the smallest-angle
+/// histogram.
+fn write_metrics(h: &mut String, m: &MetricsReport, input_quality: Option<&Quality>) {
+    let (q, v) = (&m.quality, &m.validity);
+    h.push_str("<h2>Output against the input</h2><table id=\"metrics\"><tr><th>figure</th><th>value</th></tr>");
+    let mut row = |k: &str, val: String| {
+        let _ = write!(h, "<tr><td>{k}</td><td>{}</td></tr>", escape(&val));
+    };
+    row(
+        "vertices / faces",
+        format!("{} / {}", v.n_vertices, v.n_faces),
+    );
+    row("α_min", format!("{:.2}°", q.alpha_min_deg));
+    row("α_avg", format!("{:.2}°", q.alpha_avg_deg));
+    row("triangles under 30°", format!("{:.2} %", q.p_lt30_pct));
+    row("Q_min / Q_avg", format!("{:.3} / {:.3}", q.q_min, q.q_avg));
+    if let Some(f) = &m.fidelity {
         row(
-            "vertices / faces",
-            format!("{} / {}", v.n_vertices, v.n_faces),
-        );
-        row("α_min", format!("{:.2}°", q.alpha_min_deg));
-        row("α_avg", format!("{:.2}°", q.alpha_avg_deg));
-        row("triangles under 30°", format!("{:.2} %", q.p_lt30_pct));
-        row("Q_min / Q_avg", format!("{:.3} / {:.3}", q.q_min, q.q_avg));
-        if let Some(f) = &m.fidelity {
-            row(
-                "Hausdorff",
-                format!("{:.3} % of the diagonal", f.hausdorff_pct),
-            );
-            row(
-                "mean / RMS distance",
-                format!("{:.4} % / {:.4} %", f.mean_dist_pct, f.rms_dist_pct),
-            );
-            row(
-                "distance samples (input → output / output → input)",
-                format!("{} / {}", f.forward_samples, f.backward_samples),
-            );
-        }
-        row("manifold", v.manifold.to_string());
-        row(
-            "components / boundary loops",
-            format!("{} / {}", v.n_components, v.n_boundary_loops),
+            "Hausdorff",
+            format!("{:.3} % of the diagonal", f.hausdorff_pct),
         );
         row(
-            "genus",
-            v.genus
-                .map(|g| g.to_string())
-                .unwrap_or_else(|| "undefined".into()),
+            "mean / RMS distance",
+            format!("{:.4} % / {:.4} %", f.mean_dist_pct, f.rms_dist_pct),
         );
         row(
-            "degenerate / flipped faces",
-            format!(
-                "{} / {}",
-                v.n_degenerate,
-                v.n_flipped
-                    .map(|n| n.to_string())
-                    .unwrap_or_else(|| "—".into())
-            ),
+            "distance samples (input → output / output → input)",
+            format!("{} / {}", f.forward_samples, f.backward_samples),
         );
-        h.push_str("</table><h3>Smallest angle of each triangle</h3>");
-        let input_bins = input_quality.map(|q| q.min_angle_histogram.as_slice());
-        h.push_str(&histogram_svg(&q.min_angle_histogram, input_bins));
     }
+    row("manifold", v.manifold.to_string());
+    row(
+        "components / boundary loops",
+        format!("{} / {}", v.n_components, v.n_boundary_loops),
+    );
+    row(
+        "genus",
+        v.genus
+            .map(|g| g.to_string())
+            .unwrap_or_else(|| "undefined".into()),
+    );
+    row(
+        "degenerate / flipped faces",
+        format!(
+            "{} / {}",
+            v.n_degenerate,
+            v.n_flipped
+                .map(|n| n.to_string())
+                .unwrap_or_else(|| "—".into())
+        ),
+    );
+    h.push_str("</table><h3>Smallest angle of each triangle</h3>");
+    let input_bins = input_quality.map(|q| q.min_angle_histogram.as_slice());
+    h.push_str(&histogram_svg(&q.min_angle_histogram, input_bins));
+}
+
+/// Writes the per-stage plots, if the run has any.
+fn write_stage_plots(h: &mut String, report: &RunReport) {
     let plots = crate::plots::stage_plots(report);
     if !plots.is_empty() {
         h.push_str("<h2>How the stages went</h2><div id=\"plots\">");
@@ -449,6 +479,10 @@ pub fn page(
         }
         h.push_str("</div>");
     }
+}
+
+/// Writes the table of stages: sizes before and after, and run time.
+fn write_stages(h: &mut String, report: &RunReport) {
     h.push_str("<h2>Stages</h2><table id=\"stages\"><tr><th>#</th><th>stage</th><th>faces before</th><th>faces after</th><th>vertices after</th><th>seconds</th></tr>");
     for s in &report.stages {
         let _ = write!(
@@ -463,6 +497,10 @@ pub fn page(
         );
     }
     h.push_str("</table>");
+}
+
+/// Writes the stages' warnings and the run's notes, if there are any.
+fn write_warnings(h: &mut String, report: &RunReport, notes: &[String]) {
     let warnings: Vec<String> = report
         .stages
         .iter()
@@ -480,8 +518,6 @@ pub fn page(
         }
         h.push_str("</ul>");
     }
-    h.push_str("</body></html>\n");
-    h
 }
 
 #[cfg(test)]

@@ -386,19 +386,56 @@ fn primitive(
 ) -> Result<(), IoError> {
     let mesh = inst.mesh.index();
     let at = |kind| IoError::element(name, "mesh", mesh as u64, kind);
+    check_drawn_as_triangles(prim, inst).map_err(at)?;
+    let attrs = read_attributes(g, prim, buffers, name, &at)?;
+    check_attribute_shapes(prim, &attrs).map_err(at)?;
+    let n = attrs.positions.count;
+    let indices = read_indices(prim, n, buffers, name, &at)?;
+    check_limits(g, n, indices.len() / 3, name, opts)?;
+    let local = weld_positions(g, &attrs.positions, &inst.matrix);
+    add_triangles(g, prim, &inst.matrix, &attrs, &indices, &local);
+    g.glb_vertices += n;
+    Ok(())
+}
+
+/// The vertex attributes read of one primitive.
+struct PrimitiveAttributes {
+    positions: Read,
+    normals: Option<Read>,
+    uvs: Option<Read>,
+    colors: Option<Read>,
+}
+
+/// Refuses a primitive that is not a plain triangle list: other modes, morph targets.
+fn check_drawn_as_triangles(
+    prim: &gltf::Primitive<'_>,
+    inst: &Instance<'_>,
+) -> Result<(), ErrorKind> {
     if prim.mode() != Mode::Triangles {
-        return Err(at(ErrorKind::Unsupported(format!(
+        return Err(ErrorKind::Unsupported(format!(
             "primitive {} is drawn as {:?}; only triangle lists are read",
             prim.index(),
             prim.mode()
-        ))));
+        )));
     }
     if prim.morph_targets().len() > 0 || inst.mesh.weights().is_some() {
-        return Err(at(ErrorKind::Unsupported(format!(
+        return Err(ErrorKind::Unsupported(format!(
             "morph targets (primitive {})",
             prim.index()
-        ))));
+        )));
     }
+    Ok(())
+}
+
+/// Reads the primitive's `POSITION` (required), `NORMAL`, `TEXCOORD_0` and `COLOR_0`, and
+/// notes its other attribute sets in `g` as ignored.
+fn read_attributes(
+    g: &mut Gathered,
+    prim: &gltf::Primitive<'_>,
+    buffers: &[Vec<u8>],
+    name: &str,
+    at: &impl Fn(ErrorKind) -> IoError,
+) -> Result<PrimitiveAttributes, IoError> {
     let mut positions = None;
     let mut normals = None;
     let mut uvs = None;
@@ -423,39 +460,65 @@ fn primitive(
             prim.index()
         )))
     })?;
-    let n = positions.count;
+    Ok(PrimitiveAttributes {
+        positions,
+        normals,
+        uvs,
+        colors,
+    })
+}
+
+/// Checks that every attribute has an allowed number of components per element and one
+/// element per position.
+fn check_attribute_shapes(
+    prim: &gltf::Primitive<'_>,
+    attrs: &PrimitiveAttributes,
+) -> Result<(), ErrorKind> {
+    let n = attrs.positions.count;
     let shapes: [(&str, Option<&Read>, &[usize]); 4] = [
-        ("POSITION", Some(&positions), &[3]),
-        ("NORMAL", normals.as_ref(), &[3]),
-        ("TEXCOORD_0", uvs.as_ref(), &[2]),
-        ("COLOR_0", colors.as_ref(), &[3, 4]),
+        ("POSITION", Some(&attrs.positions), &[3]),
+        ("NORMAL", attrs.normals.as_ref(), &[3]),
+        ("TEXCOORD_0", attrs.uvs.as_ref(), &[2]),
+        ("COLOR_0", attrs.colors.as_ref(), &[3, 4]),
     ];
     for (what, a, dims) in shapes {
         if let Some(a) = a
             && !dims.contains(&a.dims)
         {
-            return Err(at(ErrorKind::Syntax(format!(
+            return Err(ErrorKind::Syntax(format!(
                 "primitive {}: {what} has {} components per element, not {dims:?}",
                 prim.index(),
                 a.dims
-            ))));
+            )));
         }
     }
     for (what, a) in [
-        ("NORMAL", &normals),
-        ("TEXCOORD_0", &uvs),
-        ("COLOR_0", &colors),
+        ("NORMAL", &attrs.normals),
+        ("TEXCOORD_0", &attrs.uvs),
+        ("COLOR_0", &attrs.colors),
     ] {
         if let Some(a) = a
             && a.count != n
         {
-            return Err(at(ErrorKind::Syntax(format!(
+            return Err(ErrorKind::Syntax(format!(
                 "primitive {}: {what} has {} elements for {n} positions",
                 prim.index(),
                 a.count
-            ))));
+            )));
         }
     }
+    Ok(())
+}
+
+/// The primitive's triangle corners as indices into its `n` vertices (`0..n` when it has
+/// no indices), checked to make whole triangles of existing vertices.
+fn read_indices(
+    prim: &gltf::Primitive<'_>,
+    n: usize,
+    buffers: &[Vec<u8>],
+    name: &str,
+    at: &impl Fn(ErrorKind) -> IoError,
+) -> Result<Vec<u64>, IoError> {
     let indices = match prim.indices() {
         Some(acc) => {
             let a = read_accessor(&acc, buffers, name)?;
@@ -483,16 +546,32 @@ fn primitive(
             prim.index()
         ))));
     }
-    check_limits(g, n, indices.len() / 3, name, opts)?;
-    let m = &inst.matrix;
-    let flip = det3(m) < 0.0;
-    let normal_matrix = inverse_transpose3(m);
-    let local: Vec<u32> = (0..n)
+    Ok(indices)
+}
+
+/// The mesh vertex of each of the primitive's vertices, its position transformed by `m`
+/// and welded into `g`.
+fn weld_positions(g: &mut Gathered, positions: &Read, m: &[[f64; 4]; 4]) -> Vec<u32> {
+    (0..positions.count)
         .map(|i| {
             let p = positions.vec3(i);
             weld(g, transform_point(m, p))
         })
-        .collect();
+        .collect()
+}
+
+/// Adds the primitive's triangles to `g` (turned around under a mirroring transform `m`),
+/// with their material and the values of their corners.
+fn add_triangles(
+    g: &mut Gathered,
+    prim: &gltf::Primitive<'_>,
+    m: &[[f64; 4]; 4],
+    attrs: &PrimitiveAttributes,
+    indices: &[u64],
+    local: &[u32],
+) {
+    let flip = det3(m) < 0.0;
+    let normal_matrix = inverse_transpose3(m);
     let material = prim.material().index().map_or(u32::MAX, |i| i as u32);
     for tri in indices.chunks_exact(3) {
         let tri = if flip {
@@ -503,11 +582,16 @@ fn primitive(
         g.faces.push(tri.map(|i| local[i as usize]));
         g.face_material.push(material);
         for &i in &tri {
-            corner(g, i as usize, &normals, &uvs, &colors, &normal_matrix);
+            corner(
+                g,
+                i as usize,
+                &attrs.normals,
+                &attrs.uvs,
+                &attrs.colors,
+                &normal_matrix,
+            );
         }
     }
-    g.glb_vertices += n;
-    Ok(())
 }
 
 /// Records one corner's values (zero where the primitive lacks the attribute).
