@@ -570,10 +570,34 @@ fn give_fans_vertices(
 pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport), HygieneError> {
     mesh.validate_indices()?;
     reject_non_finite(&mesh)?;
-    let nv = mesh.n_vertices();
-    let mut report = HygieneReport {
+    let mut report = empty_report(&mesh, opts);
+    let rep = weld_representatives(&mesh, opts.weld, &mut report);
+    let faces = welded_faces(&mesh, &rep, opts.weld);
+    let mut keep = vec![true; faces.len()];
+    if opts.drop_degenerate {
+        drop_degenerate_faces(&mesh, &faces, opts, &mut keep, &mut report);
+    }
+    let (dups, opposite) = mark_duplicates(&faces, &mut keep, opts.drop_duplicate_faces);
+    report.duplicate_faces = dups;
+    report.opposite_duplicate_pairs = opposite;
+    // In the welded numbering, ends of kept faces only: the renumbering below keeps them.
+    let marked = clean_marked_edges(&mesh.marked_edges, &rep, &faces, &keep, &mut report);
+    report.marked_edges_out = marked.len();
+    let numbering = surviving_vertices(&faces, &keep, &rep, opts, &mut report);
+    if numbering.old_of_new.len() == mesh.n_vertices() && keep.iter().all(|&k| k) {
+        // Nothing welded, dropped or renumbered: the mesh goes on as it came.
+        drop(faces);
+        return Ok(unchanged(mesh, marked, report));
+    }
+    let out = renumbered(&mesh, &faces, &keep, &numbering, marked, &mut report);
+    Ok((out, report))
+}
+
+/// The report before any step: the options and the input's counts, every step at 0.
+fn empty_report(mesh: &Mesh, opts: &HygieneOptions) -> HygieneReport {
+    HygieneReport {
         options: opts.clone(),
-        vertices_in: nv,
+        vertices_in: mesh.n_vertices(),
         faces_in: mesh.n_faces(),
         welded_vertices: 0,
         repeated_index_faces: 0,
@@ -589,20 +613,32 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         marked_off_faces: 0,
         marked_edges_out: 0,
         dropped_attributes: Vec::new(),
-    };
+    }
+}
 
+/// Each vertex's surviving vertex after welding (with `weld`), the welded ones counted.
+fn weld_representatives(mesh: &Mesh, weld: bool, report: &mut HygieneReport) -> Vec<Index> {
     // Every vertex maps to the surviving vertex of its position group (itself without welding).
-    let rep = if opts.weld {
+    let rep = if weld {
         weld_map(&mesh.positions)
     } else {
-        (0..nv as Index).collect()
+        (0..mesh.n_vertices() as Index).collect()
     };
     report.welded_vertices = rep
         .iter()
         .enumerate()
         .filter(|&(v, &r)| r as usize != v)
         .count();
-    let faces: std::borrow::Cow<'_, [[Index; 3]]> = match opts.weld {
+    rep
+}
+
+/// The faces of `mesh` in the welded numbering `rep` (borrowed as they are without `weld`).
+fn welded_faces<'a>(
+    mesh: &'a Mesh,
+    rep: &[Index],
+    weld: bool,
+) -> std::borrow::Cow<'a, [[Index; 3]]> {
+    match weld {
         true => mesh
             .faces
             .par_iter()
@@ -610,38 +646,56 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
             .collect::<Vec<_>>()
             .into(),
         false => mesh.faces.as_slice().into(),
-    };
-
-    let mut keep = vec![true; faces.len()];
-    if opts.drop_degenerate {
-        let threshold = area_threshold(&mesh, opts.degenerate_area_rel);
-        // Per face: 0 kept, 1 repeats an index, 2 zero area.
-        let verdict: Vec<u8> = faces
-            .par_iter()
-            .enumerate()
-            .map(|(f, &[a, b, c])| {
-                if a == b || b == c || a == c {
-                    1
-                } else if is_degenerate_area(mesh.face_area(f), threshold) {
-                    2
-                } else {
-                    0
-                }
-            })
-            .collect();
-        for (k, &v) in keep.iter_mut().zip(&verdict) {
-            *k = v == 0;
-            report.repeated_index_faces += usize::from(v == 1);
-            report.zero_area_faces += usize::from(v == 2);
-        }
     }
-    let (dups, opposite) = mark_duplicates(&faces, &mut keep, opts.drop_duplicate_faces);
-    report.duplicate_faces = dups;
-    report.opposite_duplicate_pairs = opposite;
-    // In the welded numbering, ends of kept faces only: the renumbering below keeps them.
-    let marked = clean_marked_edges(&mesh.marked_edges, &rep, &faces, &keep, &mut report);
-    report.marked_edges_out = marked.len();
+}
 
+/// Unmarks in `keep` the faces that repeat an index or have zero area, counting each kind.
+fn drop_degenerate_faces(
+    mesh: &Mesh,
+    faces: &[[Index; 3]],
+    opts: &HygieneOptions,
+    keep: &mut [bool],
+    report: &mut HygieneReport,
+) {
+    let threshold = area_threshold(mesh, opts.degenerate_area_rel);
+    // Per face: 0 kept, 1 repeats an index, 2 zero area.
+    let verdict: Vec<u8> = faces
+        .par_iter()
+        .enumerate()
+        .map(|(f, &[a, b, c])| {
+            if a == b || b == c || a == c {
+                1
+            } else if is_degenerate_area(mesh.face_area(f), threshold) {
+                2
+            } else {
+                0
+            }
+        })
+        .collect();
+    for (k, &v) in keep.iter_mut().zip(&verdict) {
+        *k = v == 0;
+        report.repeated_index_faces += usize::from(v == 1);
+        report.zero_area_faces += usize::from(v == 2);
+    }
+}
+
+/// Where the surviving vertices go: old → new index and back.
+struct Numbering {
+    /// Each old vertex's new index (`Index::MAX` for one that does not survive).
+    new_index: Vec<Index>,
+    /// Each new vertex's old index, ascending.
+    old_of_new: Vec<Index>,
+}
+
+/// The surviving vertices and their new numbering (dropped unreferenced ones counted).
+fn surviving_vertices(
+    faces: &[[Index; 3]],
+    keep: &[bool],
+    rep: &[Index],
+    opts: &HygieneOptions,
+    report: &mut HygieneReport,
+) -> Numbering {
+    let nv = rep.len();
     // Surviving vertices: group representatives, referenced ones unless told to keep all.
     let mut referenced = vec![false; nv];
     for (f, face) in faces.iter().enumerate() {
@@ -662,15 +716,37 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
             report.unreferenced_vertices += 1;
         }
     }
-    if old_of_new.len() == nv && keep.iter().all(|&k| k) {
-        // Nothing welded, dropped or renumbered: the mesh goes on as it came.
-        drop(faces);
-        let mut mesh = mesh;
-        mesh.marked_edges = marked;
-        report.vertices_out = nv;
-        report.faces_out = mesh.n_faces();
-        return Ok((mesh, report));
+    Numbering {
+        new_index,
+        old_of_new,
     }
+}
+
+/// `mesh` as it came, with its cleaned marked edges and the report's output counts.
+fn unchanged(
+    mut mesh: Mesh,
+    marked: Vec<[Index; 2]>,
+    mut report: HygieneReport,
+) -> (Mesh, HygieneReport) {
+    mesh.marked_edges = marked;
+    report.vertices_out = mesh.n_vertices();
+    report.faces_out = mesh.n_faces();
+    (mesh, report)
+}
+
+/// The mesh of the kept faces on the surviving vertices, every column carried along.
+fn renumbered(
+    mesh: &Mesh,
+    faces: &[[Index; 3]],
+    keep: &[bool],
+    numbering: &Numbering,
+    marked: Vec<[Index; 2]>,
+    report: &mut HygieneReport,
+) -> Mesh {
+    let Numbering {
+        new_index,
+        old_of_new,
+    } = numbering;
     let kept_faces: Vec<Index> = (0..faces.len() as Index)
         .filter(|&f| keep[f as usize])
         .collect();
@@ -687,7 +763,7 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
     let (mut out, carry) = mesh.rebuilt(
         positions,
         new_faces,
-        &VertexOrigins::from_map(&old_of_new),
+        &VertexOrigins::from_map(old_of_new),
         &FaceOrigins::from_parents(kept_faces),
     );
     out.wedges = wedges;
@@ -703,9 +779,10 @@ pub fn clean(mesh: Mesh, opts: &HygieneOptions) -> Result<(Mesh, HygieneReport),
         .collect();
     report.vertices_out = out.n_vertices();
     report.faces_out = out.n_faces();
-    Ok((out, report))
+    out
 }
 
+/// Rejects the first NaN or infinite position or float attribute, naming it.
 fn reject_non_finite(mesh: &Mesh) -> Result<(), HygieneError> {
     match find_non_finite(mesh) {
         None => Ok(()),

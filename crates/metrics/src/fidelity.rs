@@ -55,6 +55,7 @@ use crate::validity::{encloses_volume, topology};
 use coarsen_mesh::{DVec3, Mesh};
 use coarsen_spatial::{Bvh, NearSet};
 use serde::{Deserialize, Serialize};
+use std::ops::Range;
 
 /// Distances up to this fraction of the input's scale (see the module docs) count as 0.
 pub const ROUNDING_FLOOR: f64 = 1e-12;
@@ -346,12 +347,26 @@ fn one_side_with(
     batched: bool,
     record: bool,
 ) -> (Stats, Option<DistanceField>) {
-    let mesh = from.mesh;
-    let n_faces = mesh.n_faces();
-    let samples = opts.face_samples(n_faces);
-    let first = FirstUse::of(mesh);
+    let side = Side::new(from.mesh, to, opts, floor, batched, record);
+    let parts = map_chunks(side.mesh.n_faces(), CHUNK, |range| {
+        side.measure_chunk(range)
+    });
+    let total = sum_in_chunk_order(&parts);
+    (total, record.then(|| assemble_field(side.mesh, parts)))
+}
 
-    // Cumulative areas give each face its share of the samples.
+/// The figures of all chunks, merged in chunk order.
+fn sum_in_chunk_order(parts: &[ChunkResult]) -> Stats {
+    let mut total = Stats::default();
+    for part in parts {
+        total.merge(&part.0);
+    }
+    total
+}
+
+/// The area of faces `0..i` of `mesh` for each `i` up to the face count, and the total.
+fn cumulative_areas(mesh: &Mesh) -> (Vec<f64>, f64) {
+    let n_faces = mesh.n_faces();
     let mut cumulative = Vec::with_capacity(n_faces + 1);
     let mut area = 0.0;
     cumulative.push(0.0);
@@ -359,114 +374,283 @@ fn one_side_with(
         area += mesh.face_area(f);
         cumulative.push(area);
     }
-    let spread = area > 0.0 && area.is_finite();
-    let before = |f: usize| -> u64 {
-        if !spread {
+    (cumulative, area)
+}
+
+/// What every chunk of one direction reads: the two surfaces, the options and the way the
+/// samples are shared out.
+struct Side<'a> {
+    /// The mesh whose samples are measured.
+    mesh: &'a Mesh,
+    /// The surface they are measured against.
+    to: &'a Bvh,
+    /// Distances up to this count as 0.
+    floor: f64,
+    /// Whether a face's samples are answered from triangles gathered once for the face.
+    batched: bool,
+    /// Whether the per-element distances are kept.
+    record: bool,
+    /// The face samples in all.
+    samples: u64,
+    /// Which face samples each vertex and each edge.
+    first: FirstUse,
+    /// The area of faces `0..i`, for each `i` up to the face count.
+    cumulative: Vec<f64>,
+    /// The mesh's area.
+    area: f64,
+    /// Whether the face samples are spread by area (a positive, finite area).
+    spread: bool,
+    /// The spacing of the face samples, which the edge samples keep too.
+    spacing: f64,
+}
+
+impl<'a> Side<'a> {
+    /// The shared reads for measuring the samples of `mesh` against `to`.
+    fn new(
+        mesh: &'a Mesh,
+        to: &'a Bvh,
+        opts: &FidelityOptions,
+        floor: f64,
+        batched: bool,
+        record: bool,
+    ) -> Self {
+        let samples = opts.face_samples(mesh.n_faces());
+        let first = FirstUse::of(mesh);
+        // Cumulative areas give each face its share of the samples.
+        let (cumulative, area) = cumulative_areas(mesh);
+        let spread = area > 0.0 && area.is_finite();
+        // The spacing of the face samples, which the edge samples keep too.
+        let spacing = if spread {
+            (area / samples as f64).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        Side {
+            mesh,
+            to,
+            floor,
+            batched,
+            record,
+            samples,
+            first,
+            cumulative,
+            area,
+            spread,
+            spacing,
+        }
+    }
+
+    /// How many face samples the faces before face `f` hold.
+    fn before(&self, f: usize) -> u64 {
+        if !self.spread {
             0
-        } else if f == n_faces {
-            samples
+        } else if f == self.mesh.n_faces() {
+            self.samples
         } else {
             // The cast truncates, i.e. floors the non-negative quotient.
-            ((samples as f64 * cumulative[f] / area) as u64).min(samples)
+            ((self.samples as f64 * self.cumulative[f] / self.area) as u64).min(self.samples)
         }
-    };
-    // The spacing of the face samples, which the edge samples keep too.
-    let spacing = if spread {
-        (area / samples as f64).sqrt()
-    } else {
-        f64::INFINITY
-    };
-
-    let parts = map_chunks(n_faces, CHUNK, |range| -> ChunkResult {
-        let mut stats = Stats::default();
-        let mut refined = 0.0f64;
-        let (mut face_max, mut vertex_at) = (Vec::new(), Vec::new());
-        let mut near = NearSet::new();
-        let distance = |p: DVec3, near: &NearSet| {
-            // `to` holds every face of a checked, non-empty mesh: a nearest point exists.
-            let d = to.closest_point_near(near, p).map_or(0.0, |h| h.distance());
-            if d <= floor { 0.0 } else { d }
-        };
-        let mut measure = |p: DVec3, near: &NearSet| {
-            let d = distance(p, near);
-            stats.add(d);
-            d
-        };
-        for f in range {
-            let mut largest = 0.0f64;
-            let corners = mesh.corners(f);
-            let owned_vertices = first.vertices_of(mesh, f);
-            let edge_points: [u64; 3] = std::array::from_fn(|k| {
-                if first.owns_edge(mesh, f, k) {
-                    edge_points(corners[k].distance(corners[(k + 1) % 3]), spacing)
-                } else {
-                    0
-                }
-            });
-            let n_face = before(f + 1) - before(f);
-            let n = n_face
-                + owned_vertices.iter().filter(|&&o| o).count() as u64
-                + edge_points.iter().sum::<u64>();
-            let [a, b, c] = corners;
-            // The set gathered for an earlier face serves while it covers this one.
-            if batched && n >= 2 && !corners.iter().all(|&x| near.covers(x)) {
-                let centre = (a + b + c) / 3.0;
-                let radius = corners
-                    .iter()
-                    .map(|&x| (x - centre).length())
-                    .fold(0.0, f64::max);
-                to.gather_near(centre, NEAR_GROW * radius, NEAR_LIMIT, &mut near);
-            }
-            for (k, _) in owned_vertices.iter().enumerate().filter(|(_, o)| **o) {
-                let d = measure(corners[k], &near);
-                largest = largest.max(d);
-                if record {
-                    vertex_at.push((mesh.faces[f][k], d));
-                }
-            }
-            let mut peaks = [(0.0, 0.0); 3];
-            for (k, &count) in edge_points.iter().enumerate() {
-                let (p, q) = (corners[k], corners[(k + 1) % 3]);
-                let step = 1.0 / (count + 1) as f64;
-                let mut best = (f64::NEG_INFINITY, 0.0);
-                for i in 1..=count {
-                    let t = i as f64 * step;
-                    let d = measure(p + (q - p) * t, &near);
-                    largest = largest.max(d);
-                    if d > best.0 {
-                        best = (d, t);
-                    }
-                }
-                peaks[k] = (best.1 - step, best.1 + step);
-            }
-            // The largest distance along an edge is often a kink (the edge passing over a
-            // crease of the other surface), which evenly spaced points miss by up to half
-            // a spacing's rise: a search between the largest point's neighbours finds it.
-            for (k, &(lo, hi)) in peaks.iter().enumerate() {
-                if edge_points[k] > 0 {
-                    let (p, q) = (corners[k], corners[(k + 1) % 3]);
-                    let peak = golden_max(lo, hi, |t| distance(p + (q - p) * t, &near));
-                    refined = refined.max(peak);
-                    largest = largest.max(peak);
-                }
-            }
-            for j in 0..n_face {
-                let (u, v) = face_sample(j);
-                largest = largest.max(measure(a + (b - a) * u + (c - a) * v, &near));
-            }
-            if record {
-                face_max.push(largest);
-            }
-        }
-        stats.max = stats.max.max(refined);
-        (stats, face_max, vertex_at)
-    });
-
-    let mut total = Stats::default();
-    for part in &parts {
-        total.merge(&part.0);
     }
-    (total, record.then(|| assemble_field(mesh, parts)))
+
+    /// The distance from `p` to the other surface (rounding noise as 0).
+    fn distance(&self, p: DVec3, near: &NearSet) -> f64 {
+        // `to` holds every face of a checked, non-empty mesh: a nearest point exists.
+        let d = self
+            .to
+            .closest_point_near(near, p)
+            .map_or(0.0, |h| h.distance());
+        if d <= self.floor { 0.0 } else { d }
+    }
+
+    /// The samples face `f` owns.
+    fn face_samples(&self, f: usize) -> FaceSamples {
+        let (mesh, first) = (self.mesh, &self.first);
+        let corners = mesh.corners(f);
+        let owned_vertices = first.vertices_of(mesh, f);
+        let edge_points: [u64; 3] = std::array::from_fn(|k| {
+            if first.owns_edge(mesh, f, k) {
+                edge_points(corners[k].distance(corners[(k + 1) % 3]), self.spacing)
+            } else {
+                0
+            }
+        });
+        let n_face = self.before(f + 1) - self.before(f);
+        FaceSamples {
+            f,
+            corners,
+            owned_vertices,
+            edge_points,
+            n_face,
+        }
+    }
+
+    /// The figures and, when recorded, the distances of the faces in `range`.
+    fn measure_chunk(&self, range: Range<usize>) -> ChunkResult {
+        let mut chunk = Chunk::new(self);
+        for f in range {
+            chunk.measure_face(f);
+        }
+        chunk.finish()
+    }
+}
+
+/// The samples one face owns (see the module docs).
+struct FaceSamples {
+    /// The face.
+    f: usize,
+    /// Its corners' positions.
+    corners: [DVec3; 3],
+    /// Which corners it samples.
+    owned_vertices: [bool; 3],
+    /// How many points it samples on its edge from corner `k` to corner `k + 1`.
+    edge_points: [u64; 3],
+    /// How many of the face samples it holds.
+    n_face: u64,
+}
+
+impl FaceSamples {
+    /// How many samples in all (the edge searches' points apart).
+    fn count(&self) -> u64 {
+        self.n_face
+            + self.owned_vertices.iter().filter(|&&o| o).count() as u64
+            + self.edge_points.iter().sum::<u64>()
+    }
+}
+
+/// The running state of one chunk of faces.
+struct Chunk<'s> {
+    /// What every chunk reads.
+    side: &'s Side<'s>,
+    /// The figures of the samples so far.
+    stats: Stats,
+    /// The largest distance the edge searches found (it counts for the maximum only).
+    refined: f64,
+    /// Each face's largest distance, when recorded.
+    face_max: Vec<f64>,
+    /// The sampled vertices' distances, when recorded.
+    vertex_at: Vec<(u32, f64)>,
+    /// The triangles of the other surface gathered for a face so far.
+    near: NearSet,
+}
+
+impl<'s> Chunk<'s> {
+    /// A chunk with nothing measured yet.
+    fn new(side: &'s Side<'s>) -> Self {
+        Chunk {
+            side,
+            stats: Stats::default(),
+            refined: 0.0f64,
+            face_max: Vec::new(),
+            vertex_at: Vec::new(),
+            near: NearSet::new(),
+        }
+    }
+
+    /// The distance at `p`, added to the figures.
+    fn measure(&mut self, p: DVec3) -> f64 {
+        let d = self.side.distance(p, &self.near);
+        self.stats.add(d);
+        d
+    }
+
+    /// Measures the samples face `f` owns and, when recording, keeps their largest distance.
+    fn measure_face(&mut self, f: usize) {
+        let mut largest = 0.0f64;
+        let face = self.side.face_samples(f);
+        self.gather_near(&face);
+        self.measure_vertices(&face, &mut largest);
+        let peaks = self.measure_edges(&face, &mut largest);
+        self.search_edge_peaks(&face, &peaks, &mut largest);
+        self.measure_face_points(&face, &mut largest);
+        if self.side.record {
+            self.face_max.push(largest);
+        }
+    }
+
+    /// Gathers the triangles near `face` unless those gathered already serve.
+    fn gather_near(&mut self, face: &FaceSamples) {
+        let corners = face.corners;
+        let [a, b, c] = corners;
+        // The set gathered for an earlier face serves while it covers this one.
+        if self.side.batched && face.count() >= 2 && !corners.iter().all(|&x| self.near.covers(x)) {
+            let centre = (a + b + c) / 3.0;
+            let radius = corners
+                .iter()
+                .map(|&x| (x - centre).length())
+                .fold(0.0, f64::max);
+            self.side
+                .to
+                .gather_near(centre, NEAR_GROW * radius, NEAR_LIMIT, &mut self.near);
+        }
+    }
+
+    /// Measures the corners `face` owns.
+    fn measure_vertices(&mut self, face: &FaceSamples, largest: &mut f64) {
+        for (k, _) in face.owned_vertices.iter().enumerate().filter(|(_, o)| **o) {
+            let d = self.measure(face.corners[k]);
+            *largest = largest.max(d);
+            if self.side.record {
+                self.vertex_at.push((self.side.mesh.faces[face.f][k], d));
+            }
+        }
+    }
+
+    /// Measures the even points on the edges `face` owns; gives each one's farthest's bracket.
+    fn measure_edges(&mut self, face: &FaceSamples, largest: &mut f64) -> [(f64, f64); 3] {
+        let corners = face.corners;
+        let mut peaks = [(0.0, 0.0); 3];
+        for (k, &count) in face.edge_points.iter().enumerate() {
+            let (p, q) = (corners[k], corners[(k + 1) % 3]);
+            let step = 1.0 / (count + 1) as f64;
+            let mut best = (f64::NEG_INFINITY, 0.0);
+            for i in 1..=count {
+                let t = i as f64 * step;
+                let d = self.measure(p + (q - p) * t);
+                *largest = largest.max(d);
+                if d > best.0 {
+                    best = (d, t);
+                }
+            }
+            peaks[k] = (best.1 - step, best.1 + step);
+        }
+        peaks
+    }
+
+    /// Searches each owned edge's bracket `peaks` for the edge's largest distance.
+    fn search_edge_peaks(
+        &mut self,
+        face: &FaceSamples,
+        peaks: &[(f64, f64); 3],
+        largest: &mut f64,
+    ) {
+        let corners = face.corners;
+        // The largest distance along an edge is often a kink (the edge passing over a
+        // crease of the other surface), which evenly spaced points miss by up to half
+        // a spacing's rise: a search between the largest point's neighbours finds it.
+        for (k, &(lo, hi)) in peaks.iter().enumerate() {
+            if face.edge_points[k] > 0 {
+                let (p, q) = (corners[k], corners[(k + 1) % 3]);
+                let peak = golden_max(lo, hi, |t| self.side.distance(p + (q - p) * t, &self.near));
+                self.refined = self.refined.max(peak);
+                *largest = largest.max(peak);
+            }
+        }
+    }
+
+    /// Measures the face samples `face` holds.
+    fn measure_face_points(&mut self, face: &FaceSamples, largest: &mut f64) {
+        let [a, b, c] = face.corners;
+        for j in 0..face.n_face {
+            let (u, v) = face_sample(j);
+            *largest = largest.max(self.measure(a + (b - a) * u + (c - a) * v));
+        }
+    }
+
+    /// The chunk's figures (the edge searches' maximum included) and its records.
+    fn finish(mut self) -> ChunkResult {
+        self.stats.max = self.stats.max.max(self.refined);
+        (self.stats, self.face_max, self.vertex_at)
+    }
 }
 
 /// The per-element distances from the chunks' records: each face's largest distance
