@@ -7,13 +7,16 @@
 //! * [`Editable`]: faces (alive or dead slots), each vertex's alive faces in ascending
 //!   order and, on request ([`Editable::with_edges`]), every edge with its face count.
 //!   Geometry stays with the caller: the same structure serves the relaxation's
-//!   split/collapse pairs on a mesh and the dual's merging of clusters on a graph of
-//!   clusters without positions.
+//!   split/collapse pairs and flips and the subdivision's Delaunay flips on a mesh, and
+//!   the dual's merging of clusters on a graph of clusters without positions.
 //! * [`Editable::can_collapse`]: the topological checks of an edge collapse as one table
 //!   of [`Rules`] (after meshoptimizer's `kCanCollapse`): the link condition, the boundary
 //!   rules, and the rules a client adds (both ends one fan, a loop of three boundary
-//!   edges, a vertex left with no face). The geometric vetoes (faces turning over, angles) are the
-//!   client's, asked after these.
+//!   edges, a vertex left with no face). The geometric vetoes (faces turning over,
+//!   angles) are the client's, asked after these.
+//! * The edits: [`Editable::collapse`], [`Editable::flip`] (with
+//!   [`Editable::flip_parts`]), [`Editable::replace_face`], [`Editable::push_face`] and
+//!   [`Editable::add_vertex`].
 //!
 //! Every operation is sequential and in index order: the same edits give the same mesh.
 
