@@ -226,7 +226,12 @@ const CLUSTER: &str = "cluster";
 /// The label of the face of `mesh` nearest each of `points`, which lie on a mesh whose box
 /// has diagonal `diagonal`. `mesh` may be that surface in other units by a power of two
 /// (the runner rescales meshes of extreme size), which is undone first.
-fn carry_labels(mesh: &Mesh, labels: &[u32], points: &[DVec3], diagonal: f64) -> Vec<u32> {
+pub(crate) fn carry_labels(
+    mesh: &Mesh,
+    labels: &[u32],
+    points: &[DVec3],
+    diagonal: f64,
+) -> Vec<u32> {
     let ratio = mesh.bbox().diagonal() / diagonal;
     let scale = if ratio.is_finite() && ratio > 0.0 {
         2f64.powi(ratio.log2().round() as i32)

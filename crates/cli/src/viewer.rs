@@ -11,7 +11,6 @@ use crate::html::InputClusters;
 use base64::Engine as _;
 use coarsen_mesh::Mesh;
 use coarsen_metrics::MeshFields;
-use rayon::prelude::*;
 use std::fmt::Write as _;
 
 /// The viewer's script.
@@ -222,15 +221,9 @@ pub struct Clusters<'a> {
 impl<'a> Clusters<'a> {
     /// `clusters` on `input` (the shown input), carried to the vertices of `output`.
     pub fn new(clusters: &'a InputClusters, input: &Mesh, output: &Mesh) -> Self {
-        let bvh = coarsen_spatial::Bvh::build(&input.positions, &input.faces);
-        let output_vertices = output
-            .positions
-            .par_iter()
-            .map(|&p| {
-                bvh.closest_point(p)
-                    .map_or(0, |n| clusters.labels[n.face as usize])
-            })
-            .collect();
+        let diagonal = input.bbox().diagonal();
+        let output_vertices =
+            crate::html::carry_labels(input, &clusters.labels, &output.positions, diagonal);
         Clusters {
             stage: &clusters.stage,
             input_faces: &clusters.labels,
