@@ -42,6 +42,11 @@
 //! input point nearest its centroid on the side it faces (or its midpoint's), when fewer
 //! of the new faces face away, paired with the collapse elsewhere that moves the surface
 //! least (as `fit` pairs them, so the vertex count stays), and the vertices mended again.
+//! Where no split helps either (a turned face held by slivers around it), an edge of one of
+//! its corners is collapsed (at the edge's middle on the input or at an end) when fewer
+//! faces around it face away after, none folds over and none gets an angle under half the
+//! floor (or of the smallest around it), paired with the split of a long edge elsewhere,
+//! and the vertices mended again.
 //!
 //! With `rebalance` > 0, before the sweeps, pairs of one split and one collapse move
 //! vertices from short edges to long ones: the longest interior edges (those joining two
@@ -145,7 +150,8 @@ params! {
         pub max_dev_pct: f64 = 0.0,
         /// Before the sweeps, move the vertices of faces facing away from the input (a
         /// part thinner than a face, a fold) to nearby points of the input where fewer do,
-        /// flip their edges, or split them paired with a collapse elsewhere.
+        /// flip their edges, split them paired with a collapse elsewhere, or collapse one of their
+        /// edges paired with a split elsewhere.
         pub mend: bool = true,
         /// Rounds of polishing after the sweeps: the vertices of the worst faces by quality
         /// (the lowest 0.2 %, at least 8) move where the smallest quality of their faces
@@ -494,17 +500,21 @@ impl<'a> Relaxing<'a> {
             let smallest = out.min_angle_before.to_radians();
             let m = mend(mesh, topo, sf, ends, rails, floor, smallest);
             let mut after = m.after;
-            if after > 0 {
-                // What moves and flips cannot mend (a part thinner than a face): a new vertex
-                // on the side such a face faces, paid for by a collapse elsewhere.
-                let made = unfold(
-                    mesh,
-                    sf,
-                    rails,
-                    (4 * after) as u32,
-                    self.cos_turn,
-                    params.floor_deg.to_radians(),
-                );
+            // What moves and flips cannot mend (a part thinner than a face): a new vertex on
+            // the side such a face faces, paid for by a collapse elsewhere (`unfold`); what
+            // no split mends either, an edge of such a face collapsed, paid for by a split
+            // elsewhere (`unturn`). Each followed by mending again.
+            let (cos_turn, floor_deg) = (self.cos_turn, params.floor_deg.to_radians());
+            let unfolding =
+                |m: &mut Mesh, r: &mut Rails, n| unfold(m, sf, r, n, cos_turn, floor_deg);
+            let unturning =
+                |m: &mut Mesh, r: &mut Rails, n| unturn(m, sf, r, n, cos_turn, floor_deg);
+            type Pairs<'p> = &'p dyn Fn(&mut Mesh, &mut Rails, u32) -> usize;
+            for pairs in [&unfolding as Pairs<'_>, &unturning] {
+                if after == 0 {
+                    break;
+                }
+                let made = pairs(mesh, rails, (4 * after) as u32);
                 if made > 0
                     && let Ok(t) = Topology::try_build(mesh)
                 {
@@ -802,6 +812,8 @@ mod tests {
         let r = relax(&mut m, Some(&surface), &RelaxParams::default());
         assert!(r.min_angle_after >= r.min_angle_before, "{r:?}");
         assert!(mean_min_angle(&m) > before, "{r:?}");
+        // The jitter folds faces that mending pairs away: the boundary is the result's.
+        let topo = Topology::build(&m);
         let mut slid = 0;
         for v in 0..m.n_vertices() as u32 {
             let p = m.positions[v as usize];

@@ -85,6 +85,7 @@ pub(crate) fn blend_origins(x: &[(u32, f64)], y: &[(u32, f64)]) -> Vec<(u32, f64
 }
 
 /// A planned collapse of edge `keep`–`gone` into `keep` at `at`, freeing the faces `freed`.
+#[derive(Clone)]
 pub(crate) struct Collapse {
     pub(crate) keep: u32,
     pub(crate) gone: u32,
@@ -236,27 +237,262 @@ pub(crate) fn rebalance(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let Origins {
-        before,
-        mut v_from,
-        mut f_from,
-    } = Origins::start(mesh);
-    let mut edit = Editable::new(mesh.n_vertices(), mesh.faces.clone()).with_edges();
-    let mut done = 0;
-    while done < max_pairs as usize {
-        let Some(pair) = find_pair(mesh, &edit, surface, rails, cos_turn, floor) else {
+    let mut run = Pairing::start(mesh);
+    while run.done < max_pairs as usize {
+        let Some(pair) = find_pair(mesh, &run.edit, surface, rails, cos_turn, floor) else {
             break;
         };
-        if before.is_some() {
-            carry_pair_origins(mesh, &pair, &mut v_from, &mut f_from);
+        run.apply(mesh, pair);
+    }
+    run.finish(mesh)
+}
+
+/// A run of split/collapse pairs: the adjacency that follows them, where each vertex and
+/// face comes from (when there are attributes to carry), the pairs made.
+struct Pairing {
+    origins: Origins,
+    edit: Editable,
+    done: usize,
+}
+
+impl Pairing {
+    /// A run starting on `mesh`.
+    fn start(mesh: &Mesh) -> Pairing {
+        Pairing {
+            origins: Origins::start(mesh),
+            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone()).with_edges(),
+            done: 0,
         }
-        apply_pair(mesh, &mut edit, pair);
-        done += 1;
     }
-    if let Some(before) = before.filter(|_| done > 0) {
-        carry_attributes(mesh, &before, v_from, f_from);
+
+    /// Makes `pair` on `mesh`, recording where what it changes comes from.
+    fn apply(&mut self, mesh: &mut Mesh, pair: Pair) {
+        let o = &mut self.origins;
+        if o.before.is_some() {
+            carry_pair_origins(mesh, &pair, &mut o.v_from, &mut o.f_from);
+        }
+        apply_pair(mesh, &mut self.edit, pair);
+        self.done += 1;
     }
-    done
+
+    /// Gives `mesh` its attributes back (see [`carry_attributes`]); the pairs made.
+    fn finish(self, mesh: &mut Mesh) -> usize {
+        let Origins {
+            before,
+            v_from,
+            f_from,
+        } = self.origins;
+        if let Some(before) = before.filter(|_| self.done > 0) {
+            carry_attributes(mesh, &before, v_from, f_from);
+        }
+        self.done
+    }
+}
+
+/// Split edges [`unturn`] tries for one collapse, longest first, at most.
+const UNTURN_SPLIT_TRIES: usize = 64;
+
+/// Up to `max_pairs` times: collapses an edge of a face facing away from `surface` (the
+/// face goes with it, or is renamed off the fold) where fewer faces around the edge face
+/// away after than before, none folds over and none gets an angle under half of `floor`
+/// (radians) or of the smallest angle around the edge, whichever is lower; paired with the
+/// split of a long interior edge elsewhere at its midpoint on `surface`, so the vertex
+/// count stays. What moves, flips and splits cannot mend (a turned face whose every
+/// vertex is held by the others) goes this way. Rounds over the faces facing away until
+/// one makes no pair. Attributes follow as in [`rebalance`]. Returns the pairs made.
+pub(crate) fn unturn(
+    mesh: &mut Mesh,
+    surface: &Surface<'_>,
+    rails: &Rails,
+    max_pairs: u32,
+    cos_turn: f64,
+    floor: f64,
+) -> usize {
+    let mut run = Pairing::start(mesh);
+    while run.done < max_pairs as usize {
+        let away: Vec<u32> = (0..mesh.n_faces() as u32)
+            .filter(|&f| {
+                let [a, b, c] = mesh.corners(f as usize);
+                !surface.agrees(a, b, c)
+            })
+            .collect();
+        // The interior edges, longest first (stale once pairs are made: checked again).
+        let pos = |v: u32| mesh.positions[v as usize];
+        let mut splits: Vec<(f64, [u32; 2])> = run
+            .edit
+            .edges()
+            .expect("unturn keeps the edges")
+            .iter()
+            .filter(|&(&[a, b], &faces)| faces == 2 && !rails.is_rail_edge(a, b))
+            .map(|(&[a, b], _)| (pos(a).distance(pos(b)), [a, b]))
+            .collect();
+        splits.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        let start = run.done;
+        for f in away {
+            if run.done >= max_pairs as usize {
+                break;
+            }
+            let found =
+                unturning_pair(mesh, &run.edit, surface, rails, &splits, f, cos_turn, floor);
+            if let Some(pair) = found {
+                run.apply(mesh, pair);
+            }
+        }
+        if run.done == start {
+            break;
+        }
+    }
+    run.finish(mesh)
+}
+
+/// The pair of [`unturn`] for face `f` when it still faces away: the first edge of its
+/// corners that can go (its own edges shortest first, then the corners' other edges
+/// shortest first), and the first edge of `splits` away from that collapse that splits
+/// without a new face facing away.
+#[allow(clippy::too_many_arguments)]
+fn unturning_pair(
+    mesh: &Mesh,
+    edit: &Editable,
+    surface: &Surface<'_>,
+    rails: &Rails,
+    splits: &[(f64, [u32; 2])],
+    f: u32,
+    cos_turn: f64,
+    floor: f64,
+) -> Option<Pair> {
+    let pos = |v: u32| mesh.positions[v as usize];
+    let len = |[a, b]: [u32; 2]| pos(a).distance(pos(b));
+    let t = mesh.faces[f as usize];
+    let [a, b, c] = t.map(pos);
+    if !edit.is_alive(f) || surface.agrees(a, b, c) {
+        return None;
+    }
+    let mut sides: Vec<[u32; 2]> = (0..3).map(|k| [t[k], t[(k + 1) % 3]]).collect();
+    sides.sort_by(|&x, &y| len(x).total_cmp(&len(y)));
+    let mut others: Vec<[u32; 2]> = Vec::new();
+    for v in t {
+        for &g in edit.faces_around(v) {
+            for w in edit.face(g) {
+                if !t.contains(&w) && !others.contains(&[v, w]) {
+                    others.push([v, w]);
+                }
+            }
+        }
+    }
+    others.sort_by(|&x, &y| len(x).total_cmp(&len(y)).then(x.cmp(&y)));
+    sides.extend(others);
+    sides.retain(|&[x, y]| !rails.locked(x) && !rails.locked(y));
+    for side in sides {
+        let Some(col) = plan_unturning_collapse(mesh, edit, surface, side, cos_turn, floor) else {
+            continue;
+        };
+        let away_from_collapse = |&&(_, [c, d]): &&(f64, [u32; 2])| {
+            !edit
+                .edge_faces(c, d)
+                .iter()
+                .flat_map(|&g| edit.face(g))
+                .any(|w| w == col.keep || w == col.gone)
+        };
+        for &(_, sab) in splits
+            .iter()
+            .filter(|&&(_, [c, d])| edit.edge_faces(c, d).len() == 2)
+            .filter(away_from_collapse)
+            .take(UNTURN_SPLIT_TRIES)
+        {
+            let [c, d] = sab;
+            let Some(at) = surface.project(pos(c).lerp(pos(d), 0.5)) else {
+                continue;
+            };
+            let pair = Pair::with_split(mesh, edit, Some(surface), sab, at, &col, cos_turn);
+            if pair.is_some() {
+                return pair;
+            }
+        }
+    }
+    None
+}
+
+/// Plans the collapse of edge `a`–`b` (of `edit`, the adjacency of `mesh`) of a face
+/// facing away from `surface`, for [`unturn`]: the topological checks of
+/// [`plan_collapse`]; the merged vertex at a boundary end, else at the edge's midpoint on
+/// the input or at either end, whichever leaves the largest smallest angle; no face left
+/// around it facing away, turning over from a face that did not (by more than `cos_turn`)
+/// or with an angle under half of `floor` (when above 0) or of the smallest angle around
+/// the edge, whichever is lower.
+fn plan_unturning_collapse(
+    mesh: &Mesh,
+    edit: &Editable,
+    surface: &Surface<'_>,
+    [a, b]: [u32; 2],
+    cos_turn: f64,
+    floor: f64,
+) -> Option<Collapse> {
+    edit.can_collapse(a, b, COLLAPSE_RULES).ok()?;
+    let ef = edit.edge_faces(a, b);
+    let pos = |v: u32| mesh.positions[v as usize];
+    let (keep, gone) = (a.min(b), a.max(b));
+    let spots: Vec<DVec3> = match (edit.is_boundary_vertex(a), edit.is_boundary_vertex(b)) {
+        (true, true) if ef.len() == 1 => vec![pos(a), pos(b)],
+        (true, true) => return None,
+        (true, false) => vec![pos(a)],
+        (false, true) => vec![pos(b)],
+        (false, false) => surface
+            .project(pos(a).lerp(pos(b), 0.5))
+            .into_iter()
+            .chain([pos(a), pos(b)])
+            .collect(),
+    };
+    // The faces left around the merged vertex, with whether each faced away before.
+    let mut before = f64::INFINITY;
+    let mut away_before = 0;
+    let mut kept: Vec<([u32; 3], bool, DVec3)> = Vec::new();
+    for v in [a, b] {
+        for &f in edit.faces_around(v) {
+            let t = mesh.faces[f as usize];
+            if v == b && t.contains(&a) {
+                continue;
+            }
+            let [x, y, z] = t.map(pos);
+            before = before.min(triangle::min_angle(x, y, z));
+            let away = !surface.agrees(x, y, z);
+            away_before += away as usize;
+            if !ef.contains(&f) {
+                kept.push((t, away, triangle::normal(x, y, z)));
+            }
+        }
+    }
+    let guard = 0.5
+        * if floor > 0.0 {
+            before.min(floor)
+        } else {
+            before
+        };
+    // (faces left facing away, smallest angle) with the merged vertex at `at`.
+    let judge = |at: DVec3| -> Option<(usize, f64)> {
+        let mut worst = f64::INFINITY;
+        let mut n_away = 0;
+        for &(t, away, n_old) in &kept {
+            let [x, y, z] = t.map(|w| if w == a || w == b { at } else { pos(w) });
+            let n_new = triangle::normal(x, y, z);
+            let angle = triangle::min_angle(x, y, z);
+            if (!away && n_new.dot(n_old) < cos_turn) || angle < guard {
+                return None;
+            }
+            n_away += !surface.agrees(x, y, z) as usize;
+            worst = worst.min(angle);
+        }
+        (n_away < away_before).then_some((n_away, worst))
+    };
+    let (_, at) = spots
+        .into_iter()
+        .filter_map(|at| judge(at).map(|w| (w, at)))
+        .min_by(|x, y| x.0.0.cmp(&y.0.0).then(y.0.1.total_cmp(&x.0.1)))?;
+    Some(Collapse {
+        keep,
+        gone,
+        at,
+        freed: ef,
+    })
 }
 
 /// What one round of [`rebalance`] found: the split edge's ends and faces, its new faces
@@ -267,6 +503,29 @@ struct Pair {
     new: [[u32; 3]; 4],
     at: DVec3,
     col: Collapse,
+}
+
+impl Pair {
+    /// Collapse `col` paired with the split of edge `ends` at `at`, when the split can be
+    /// made (see [`plan_split`]).
+    fn with_split(
+        mesh: &Mesh,
+        edit: &Editable,
+        surface: Option<&Surface<'_>>,
+        ends: [u32; 2],
+        at: DVec3,
+        col: &Collapse,
+        cos_turn: f64,
+    ) -> Option<Pair> {
+        let (old, new) = plan_split(mesh, edit, surface, ends, col.gone, at, cos_turn)?;
+        Some(Pair {
+            ends,
+            old,
+            new,
+            at,
+            col: col.clone(),
+        })
+    }
 }
 
 /// The next pair (see [`rebalance`]) of `mesh`, whose adjacency is `edit` (with its
@@ -333,17 +592,10 @@ fn find_pair(
             let Some(col) = plan_collapse(mesh, edit, surface, kab, cos_turn, floor) else {
                 continue;
             };
-            let Some((old, new)) = plan_split(mesh, edit, surface, sab, col.gone, at, cos_turn)
-            else {
+            let Some(pair) = Pair::with_split(mesh, edit, surface, sab, at, &col, cos_turn) else {
                 continue 'pair;
             };
-            return Some(Pair {
-                ends: sab,
-                old,
-                new,
-                at,
-                col,
-            });
+            return Some(pair);
         }
     }
     None
@@ -410,6 +662,45 @@ fn apply_pair(mesh: &mut Mesh, edit: &mut Editable, pair: Pair) {
 mod tests {
     use super::*;
     use crate::tests::{jitter_on_sphere, uneven_strip};
+
+    /// A vertex pushed past a neighbour folds faces over; the pairs collapse the fold away
+    /// and split a long edge elsewhere: none faces away after, the vertex count stays, the
+    /// mesh stays closed and manifold. A mesh with nothing facing away is left as it is.
+    #[test]
+    fn unturning_pairs_collapse_a_fold_away() {
+        let original = coarsen_shapes::icosphere(1.0, 4).unwrap();
+        let surface = Surface::new(&original);
+        let clean = coarsen_shapes::icosphere(1.0, 3).unwrap();
+        let mut folded = clean.clone();
+        let t = Topology::build(&folded);
+        let (v, w) = (100u32, t.vertex_neighbors(100)[0]);
+        let (pv, pw) = (folded.positions[v as usize], folded.positions[w as usize]);
+        folded.positions[v as usize] = (pw + 0.4 * (pw - pv)).normalize();
+        let away = |m: &Mesh| {
+            (0..m.n_faces())
+                .filter(|&f| {
+                    let [a, b, c] = m.corners(f);
+                    !surface.agrees(a, b, c)
+                })
+                .count()
+        };
+        let before = away(&folded);
+        assert!(before > 0, "the push folded nothing");
+        let (floor, cos_turn) = (40f64.to_radians(), 30f64.to_radians().cos());
+        let rails = Rails::default();
+        let mut m = folded.clone();
+        let made = unturn(&mut m, &surface, &rails, 8, cos_turn, floor);
+        assert!(made > 0);
+        assert_eq!(away(&m), 0, "{made} pairs");
+        assert_eq!(m.n_vertices(), folded.n_vertices());
+        assert_eq!(m.n_faces(), folded.n_faces());
+        let topo = Topology::try_build(&m).expect("manifold");
+        assert!((0..topo.n_edges() as u32).all(|e| topo.edge_faces(e).len() == 2));
+        let mut same = clean.clone();
+        assert_eq!(unturn(&mut same, &surface, &rails, 8, cos_turn, floor), 0);
+        assert_eq!(same.positions, clean.positions);
+        assert_eq!(same.faces, clean.faces);
+    }
 
     /// The editable mesh following the pairs is, after each pair, the one built afresh
     /// from the mesh (faces slot for slot, each vertex's faces, the edges with their
