@@ -14,7 +14,7 @@
 //!   rules, and the rules a client adds (both ends one fan, a loop of three boundary
 //!   edges, a vertex left with no face). The geometric vetoes (faces turning over,
 //!   angles) are the client's, asked after these.
-//! * The edits: [`Editable::collapse`], [`Editable::flip`] (with
+//! * The edits: [`Editable::collapse`], [`Editable::split_edge`], [`Editable::flip`] (with
 //!   [`Editable::flip_parts`]), [`Editable::replace_face`], [`Editable::push_face`] and
 //!   [`Editable::add_vertex`].
 //!
@@ -371,6 +371,37 @@ impl Editable {
         self.replace_face(g, Some(new[0]));
         self.replace_face(h, Some(new[1]));
         new
+    }
+
+    /// Splits interior edge `c`–`d` at vertex `m`, which has no faces (a vertex a collapse
+    /// left, or [`Editable::add_vertex`]'s): of its faces `g` = c → d → x and
+    /// `h` = d → c → y, the halves on `x`'s side take their slots (`g` c → m → x, `h`
+    /// m → d → x) and those on `y`'s side the dead slots `reuse` (d → m → y, then
+    /// m → c → y), each appended in a new slot where `None`. Returns the four slots in that
+    /// order; `None` (nothing changed) when the edge does not have exactly two faces that
+    /// hold it in opposite directions, `m` has faces or a slot of `reuse` is alive.
+    pub fn split_edge(
+        &mut self,
+        [c, d]: [u32; 2],
+        m: u32,
+        reuse: [Option<u32>; 2],
+    ) -> Option<[u32; 4]> {
+        let (g, h, x, y) = self.flip_parts(c, d)?;
+        if !self.lists.get(m).is_empty() || reuse.iter().flatten().any(|&f| self.is_alive(f)) {
+            return None;
+        }
+        self.replace_face(g, Some([c, m, x]));
+        self.replace_face(h, Some([m, d, x]));
+        let mut place = |slot: Option<u32>, face: [u32; 3]| match slot {
+            Some(f) => {
+                self.replace_face(f, Some(face));
+                f
+            }
+            None => self.push_face(face),
+        };
+        let s3 = place(reuse[0], [d, m, y]);
+        let s4 = place(reuse[1], [m, c, y]);
+        Some([g, h, s3, s4])
     }
 
     /// Appends face `face` (alive) in a new slot, whose index it returns. Its corners must

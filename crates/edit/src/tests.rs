@@ -187,3 +187,36 @@ fn a_flip_turns_the_shared_edge_and_keeps_the_slots() {
     assert!(e.has_edge(3, 1) && !e.has_edge(0, 2));
     assert!(e.flip_parts(0, 1).is_none(), "a boundary edge has one face");
 }
+
+#[test]
+fn a_split_edge_makes_four_faces_in_the_old_and_reused_slots() {
+    // Square 0 1 2 3 split along 0–2; vertex 4 is free.
+    let mut e = Editable::new(5, vec![[0, 1, 2], [0, 2, 3], [4, 4, 4]]).with_edges();
+    e.replace_face(2, None);
+    assert_eq!(e.split_edge([0, 2], 1, [None, None]), None, "1 has faces");
+    assert_eq!(
+        e.split_edge([0, 1], 4, [None, None]),
+        None,
+        "a boundary edge"
+    );
+    assert_eq!(
+        e.split_edge([0, 2], 4, [Some(0), None]),
+        None,
+        "slot 0 is alive"
+    );
+    // g = 2 → 0 → 1 (face 0), h = 0 → 2 → 3 (face 1).
+    let slots = e.split_edge([2, 0], 4, [Some(2), None]).unwrap();
+    assert_eq!(slots, [0, 1, 2, 3]);
+    assert_eq!(e.face(0), [2, 4, 1]);
+    assert_eq!(e.face(1), [4, 0, 1]);
+    assert_eq!(e.face(2), [0, 4, 3]);
+    assert_eq!(e.face(3), [4, 2, 3]);
+    assert!(!e.has_edge(0, 2));
+    assert_eq!(e.faces_around(4), &[0, 1, 2, 3]);
+    assert_eq!(e.n_fans(4), 1);
+    assert!(!e.is_boundary_vertex(4));
+    assert_eq!(e.edges(), fresh(&e).edges());
+    for v in 0..5 {
+        assert_eq!(e.faces_around(v), fresh(&e).faces_around(v));
+    }
+}

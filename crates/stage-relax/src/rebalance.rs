@@ -495,12 +495,11 @@ fn plan_unturning_collapse(
     })
 }
 
-/// What one round of [`rebalance`] found: the split edge's ends and faces, its new faces
-/// and midpoint, and the collapse.
+/// What one round of [`rebalance`] found: the split edge's ends and faces, its midpoint,
+/// and the collapse.
 struct Pair {
     ends: [u32; 2],
     old: [u32; 2],
-    new: [[u32; 3]; 4],
     at: DVec3,
     col: Collapse,
 }
@@ -517,11 +516,10 @@ impl Pair {
         col: &Collapse,
         cos_turn: f64,
     ) -> Option<Pair> {
-        let (old, new) = plan_split(mesh, edit, surface, ends, col.gone, at, cos_turn)?;
+        let (old, _) = plan_split(mesh, edit, surface, ends, col.gone, at, cos_turn)?;
         Some(Pair {
             ends,
             old,
-            new,
             at,
             col: col.clone(),
         })
@@ -628,34 +626,28 @@ fn carry_pair_origins(
     }
 }
 
-/// Makes `pair` on `edit` and `mesh`: the collapse, then the split's new faces in the
-/// split's two faces and the collapse's freed ones (two, or one on the boundary: then the
-/// last new face is appended).
+/// Makes `pair` on `edit` and `mesh`: the collapse, then the split
+/// ([`Editable::split_edge`]) at the collapse's freed vertex, its new faces in the split's
+/// two faces and the collapse's freed ones (two, or one on the boundary: then the last
+/// new face is appended).
 fn apply_pair(mesh: &mut Mesh, edit: &mut Editable, pair: Pair) {
-    let Pair {
-        old, new, at, col, ..
-    } = pair;
+    let Pair { ends, at, col, .. } = pair;
     // The faces the collapse renames (its freed ones among them).
     let renamed = edit.faces_around(col.gone).to_vec();
     let freed = edit.collapse(col.keep, col.gone);
     debug_assert_eq!(freed, col.freed);
     mesh.positions[col.keep as usize] = col.at;
     mesh.positions[col.gone as usize] = at;
-    let slots: Vec<u32> = old.iter().chain(&freed).copied().collect();
-    for (i, t) in new.into_iter().enumerate() {
-        match slots.get(i) {
-            Some(&f) => edit.replace_face(f, Some(t)),
-            None => {
-                edit.push_face(t);
-            }
-        }
-    }
+    let reuse = [freed.first().copied(), freed.get(1).copied()];
+    let slots = edit
+        .split_edge(ends, col.gone, reuse)
+        .expect("a split planned on this mesh, away from the collapse");
     // The mesh's faces follow, slot for slot.
-    for &f in renamed.iter().chain(&old) {
-        mesh.faces[f as usize] = edit.face(f);
-    }
     mesh.faces
         .extend_from_slice(&edit.faces()[mesh.faces.len()..]);
+    for &f in renamed.iter().chain(&slots) {
+        mesh.faces[f as usize] = edit.face(f);
+    }
 }
 
 #[cfg(test)]
