@@ -170,6 +170,9 @@ pub trait Energy: Send + Sync {
     fn cluster(&self, s: &Sums) -> f64;
 }
 
+/// Below this, the cube of a whole number is exact in `f64` (its cube is under 2⁵³).
+const EXACT_CUBE: f64 = 208_063.0;
+
 /// Paper 1's Eq.(7): E⁽³⁾ = Σᵢ mᵢʳ (Σ‖yₜ‖² − ‖Σyₜ‖²/mᵢ), every face of mass 1.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shu2009 {
@@ -191,13 +194,15 @@ impl Energy for Shu2009 {
         if s.count <= 0.0 {
             return 0.0;
         }
-        // The common exponents without `powf`, which would dominate the move tests.
+        // The common exponents without `powf`, which would dominate the move tests. `m` is
+        // a whole number, so below [`EXACT_CUBE`] m·m·m is exact: what `powf` gives.
         let m = s.count;
         let scale = match self.r {
             0.0 => 1.0,
             0.5 => m.sqrt(),
             1.0 => m,
             2.0 => m * m,
+            3.0 if m < EXACT_CUBE => m * m * m,
             r => m.powf(r),
         };
         scale * s.spread()
@@ -249,6 +254,25 @@ mod tests {
         assert!((e0 - 0.5).abs() < 1e-12);
         assert!((e2 - 4.0 * 0.5).abs() < 1e-12);
         assert_eq!(Shu2009 { r: 2.0 }.face_mass(7.0, 3.0), 1.0);
+    }
+
+    /// r = 3 without `powf` gives `powf`'s bits, up to the largest exact cube and past it.
+    #[test]
+    fn shu_cube_is_powf_bit_for_bit() {
+        let base = Sums::of(1.0, DVec3::ZERO).plus(Sums::of(1.0, DVec3::X * 0.3));
+        let counts = (1..2000).chain([65_535, 131_072, 208_062, 208_063, 208_064, 3_000_001]);
+        for m in counts {
+            let s = Sums {
+                count: f64::from(m),
+                ..base
+            };
+            let want = f64::from(m).powf(3.0) * s.spread();
+            assert_eq!(
+                Shu2009 { r: 3.0 }.cluster(&s).to_bits(),
+                want.to_bits(),
+                "{m}"
+            );
+        }
     }
 
     #[test]
