@@ -44,9 +44,9 @@
 //! least (as `fit` pairs them, so the vertex count stays), and the vertices mended again.
 //! Where no split helps either (a turned face held by slivers around it), an edge of one of
 //! its corners is collapsed (at the edge's middle on the input or at an end) when fewer
-//! faces around it face away after, none folds over and none gets an angle under half the
-//! floor (or of the smallest around it), paired with the split of a long edge elsewhere,
-//! and the vertices mended again.
+//! faces around it face away after, none turns by 90° or more and none gets an angle under
+//! half the floor (or of the smallest around it), paired with the split of a long edge
+//! elsewhere, and the vertices mended again.
 //!
 //! With `rebalance` > 0, before the sweeps, pairs of one split and one collapse move
 //! vertices from short edges to long ones: the longest interior edges (those joining two

@@ -294,8 +294,10 @@ const UNTURN_SPLIT_TRIES: usize = 64;
 
 /// Up to `max_pairs` times: collapses an edge of a face facing away from `surface` (the
 /// face goes with it, or is renamed off the fold) where fewer faces around the edge face
-/// away after than before, none folds over and none gets an angle under half of `floor`
-/// (radians) or of the smallest angle around the edge, whichever is lower; paired with the
+/// away after than before, none that did not face away turns by 90° or more (or more than
+/// `cos_turn` allows, if that is looser: where a part is thinner than the faces, mending
+/// turns faces far) and none gets an angle under half of `floor` (radians) or of the
+/// smallest angle around the edge, whichever is lower; paired with the
 /// split of a long interior edge elsewhere at its midpoint on `surface`, so the vertex
 /// count stays. What moves, flips and splits cannot mend (a turned face whose every
 /// vertex is held by the others) goes this way. Rounds over the faces facing away until
@@ -415,10 +417,10 @@ fn unturning_pair(
 /// Plans the collapse of edge `a`–`b` (of `edit`, the adjacency of `mesh`) of a face
 /// facing away from `surface`, for [`unturn`]: the topological checks of
 /// [`plan_collapse`]; the merged vertex at a boundary end, else at the edge's midpoint on
-/// the input or at either end, whichever leaves the largest smallest angle; no face left
-/// around it facing away, turning over from a face that did not (by more than `cos_turn`)
-/// or with an angle under half of `floor` (when above 0) or of the smallest angle around
-/// the edge, whichever is lower.
+/// the input or at either end, whichever leaves fewest faces around it facing away (fewer
+/// than before), then the largest smallest angle; none that did not face away turning by
+/// 90° or more (or more than `cos_turn` allows, if looser), none with an angle under half
+/// of `floor` (when above 0) or of the smallest angle around the edge, whichever is lower.
 fn plan_unturning_collapse(
     mesh: &Mesh,
     edit: &Editable,
@@ -475,7 +477,7 @@ fn plan_unturning_collapse(
             let [x, y, z] = t.map(|w| if w == a || w == b { at } else { pos(w) });
             let n_new = triangle::normal(x, y, z);
             let angle = triangle::min_angle(x, y, z);
-            if (!away && n_new.dot(n_old) < cos_turn) || angle < guard {
+            if (!away && n_new.dot(n_old) < cos_turn.min(0.0)) || angle < guard {
                 return None;
             }
             n_away += !surface.agrees(x, y, z) as usize;
