@@ -14,14 +14,20 @@
 //!   rules, and the rules a client adds (both ends one fan, a loop of three boundary
 //!   edges, a vertex left with no face). The geometric vetoes (faces turning over,
 //!   angles) are the client's, asked after these.
+//! * [`Constraints`]: fixed vertices, vertices bound to curves and the curves' edges
+//!   (sharp features; empty unless given, [`Editable::with_constraints`]): no collapse
+//!   takes a constrained vertex, no flip turns a curve edge, a split of one puts its new
+//!   vertex on the curve.
 //! * The edits: [`Editable::collapse`], [`Editable::split_edge`], [`Editable::flip`] (with
 //!   [`Editable::flip_parts`]), [`Editable::replace_face`], [`Editable::push_face`] and
 //!   [`Editable::add_vertex`].
 //!
 //! Every operation is sequential and in index order: the same edits give the same mesh.
 
+mod constraints;
 mod lists;
 
+pub use constraints::{Constraints, Role};
 pub use lists::FaceLists;
 
 use std::collections::BTreeMap;
@@ -45,6 +51,8 @@ pub enum Refusal {
     LoopOfThree,
     /// A vertex opposite the edge has no other face ([`Rules::every_vertex_kept`]).
     VertexLeft,
+    /// An end is fixed or on a curve ([`Constraints`]).
+    Constrained,
 }
 
 /// The checks of [`Editable::can_collapse`] beyond those every collapse must pass (one
@@ -70,6 +78,8 @@ pub struct Editable {
     lists: FaceLists,
     /// Every edge (ends ascending) with its count of alive faces, when kept.
     edges: Option<BTreeMap<[u32; 2], u32>>,
+    /// What the edits respect (none by default).
+    constraints: Constraints,
 }
 
 impl Editable {
@@ -83,7 +93,19 @@ impl Editable {
             alive,
             lists,
             edges: None,
+            constraints: Constraints::default(),
         }
+    }
+
+    /// The same, its edits respecting `constraints` (see [`Constraints`]).
+    pub fn with_constraints(mut self, constraints: Constraints) -> Editable {
+        self.constraints = constraints;
+        self
+    }
+
+    /// The constraints the edits respect, as the edits left them.
+    pub fn constraints(&self) -> &Constraints {
+        &self.constraints
     }
 
     /// The same, also keeping every edge with its face count ([`Editable::edges`]).
@@ -223,6 +245,9 @@ impl Editable {
     /// topology, by the checks every collapse passes and those `rules` adds: `Err` names
     /// the first check that fails.
     pub fn can_collapse(&self, a: u32, b: u32, rules: Rules) -> Result<(), Refusal> {
+        if self.constraints.locked(a) || self.constraints.locked(b) {
+            return Err(Refusal::Constrained);
+        }
         let shared = self.edge_faces(a, b);
         if shared.is_empty() || shared.len() > 2 {
             return Err(Refusal::NotAnEdge);
@@ -341,9 +366,18 @@ impl Editable {
     }
 
     /// The two faces of interior edge `a`–`b` and the vertices opposite it, when it has
-    /// exactly two faces that hold it in opposite directions: `(g, h, c, d)` with face
-    /// `g` = a → b → c and face `h` = b → a → d (in some rotation); `None` otherwise.
+    /// exactly two faces that hold it in opposite directions and is no curve edge (see
+    /// [`Constraints`]): `(g, h, c, d)` with face `g` = a → b → c and face `h` =
+    /// b → a → d (in some rotation); `None` otherwise.
     pub fn flip_parts(&self, a: u32, b: u32) -> Option<(u32, u32, u32, u32)> {
+        if self.constraints.is_curve_edge(a, b) {
+            return None;
+        }
+        self.edge_parts(a, b)
+    }
+
+    /// [`Editable::flip_parts`] whatever the constraints.
+    fn edge_parts(&self, a: u32, b: u32) -> Option<(u32, u32, u32, u32)> {
         let mut on_edge = self.lists.with_corner(a, b, &self.faces);
         let (Some(f1), Some(f2), None) = (on_edge.next(), on_edge.next(), on_edge.next()) else {
             return None;
@@ -379,17 +413,19 @@ impl Editable {
     /// m → d → x) and those on `y`'s side the dead slots `reuse` (d → m → y, then
     /// m → c → y), each appended in a new slot where `None`. Returns the four slots in that
     /// order; `None` (nothing changed) when the edge does not have exactly two faces that
-    /// hold it in opposite directions, `m` has faces or a slot of `reuse` is alive.
+    /// hold it in opposite directions, `m` has faces or a slot of `reuse` is alive. A
+    /// curve edge's new vertex joins its curve ([`Constraints::split_edge`]).
     pub fn split_edge(
         &mut self,
         [c, d]: [u32; 2],
         m: u32,
         reuse: [Option<u32>; 2],
     ) -> Option<[u32; 4]> {
-        let (g, h, x, y) = self.flip_parts(c, d)?;
+        let (g, h, x, y) = self.edge_parts(c, d)?;
         if !self.lists.get(m).is_empty() || reuse.iter().flatten().any(|&f| self.is_alive(f)) {
             return None;
         }
+        self.constraints.split_edge(c, d, m);
         self.replace_face(g, Some([c, m, x]));
         self.replace_face(h, Some([m, d, x]));
         let mut place = |slot: Option<u32>, face: [u32; 3]| match slot {

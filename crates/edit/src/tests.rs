@@ -220,3 +220,43 @@ fn a_split_edge_makes_four_faces_in_the_old_and_reused_slots() {
         assert_eq!(e.faces_around(v), fresh(&e).faces_around(v));
     }
 }
+
+#[test]
+fn constraints_hold_fixed_and_curve_vertices_and_curve_edges() {
+    // The 2 × 2 grid: vertices 0..9, centre 4. Curve 0 runs 3 → 4 → 5 across the middle;
+    // corner 0 is fixed.
+    let mut c = Constraints::new(9);
+    c.fix(0);
+    c.bind(4, 0, [3, 5]);
+    c.bind(3, 0, [4, 4]);
+    c.bind(5, 0, [4, 4]);
+    c.add_curve_edge(3, 4, 0);
+    c.add_curve_edge(4, 5, 0);
+    assert!(!c.is_empty());
+    let mut g = grid(2).with_constraints(c);
+    assert_eq!(
+        g.can_collapse(1, 0, Rules::default()),
+        Err(Refusal::Constrained)
+    );
+    assert_eq!(
+        g.can_collapse(4, 7, Rules::default()),
+        Err(Refusal::Constrained)
+    );
+    assert_eq!(g.can_collapse(1, 2, Rules::default()), Ok(()));
+    assert!(g.flip_parts(4, 5).is_none(), "a curve edge is not flipped");
+    assert!(g.flip_parts(4, 8).is_some());
+    // Splitting curve edge 4–5 at a new vertex puts it on the curve between them.
+    let m = g.add_vertex();
+    assert!(g.split_edge([4, 5], m, [None, None]).is_some());
+    let c = g.constraints();
+    assert_eq!(c.role(m), Role::OnCurve(0));
+    assert_eq!(c.curve_ends(m), Some([4, 5]));
+    assert_eq!(c.curve_ends(4), Some([3, m]));
+    assert!(!c.is_curve_edge(4, 5));
+    assert!(c.is_curve_edge(4, m) && c.is_curve_edge(m, 5));
+    assert_eq!(
+        g.can_collapse(m, 4, Rules::default()),
+        Err(Refusal::Constrained)
+    );
+    assert!(Constraints::new(3).is_empty());
+}

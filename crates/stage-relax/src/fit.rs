@@ -762,7 +762,8 @@ impl<'m, 's> Fitting<'m, 's> {
         });
         RoundMesh {
             topo,
-            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone()),
+            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone())
+                .with_constraints(self.rails.constraints().clone()),
             boundary_edges,
             refused_at: vec![f64::NEG_INFINITY; collapses.len()],
             collapses,
@@ -1037,8 +1038,6 @@ impl<'m, 's> Fitting<'m, 's> {
             let [a, b] = topo.edge(k);
             if round.touched[a as usize]
                 || round.touched[b as usize]
-                || self.rails.locked(a)
-                || self.rails.locked(b)
                 || split.around.contains(&a)
                 || split.around.contains(&b)
                 || bound <= round.refused_at[i]

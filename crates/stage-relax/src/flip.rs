@@ -19,19 +19,16 @@ pub(crate) fn flip_sweep(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let mut round = FlipRound::new(mesh);
+    let mut round = FlipRound::new(mesh, rails);
     let mut flips = 0;
     for e in 0..topo.n_edges() as u32 {
         let [a, b] = topo.edge(e);
-        // f1 holds a → b, f2 holds b → a.
+        // f1 holds a → b, f2 holds b → a (no rail edge: the round's constraints).
         let Some(parts) = round.edit.flip_parts(a, b) else {
             continue;
         };
         let (f1, f2, c, d) = parts;
         if round.touched(f1 as usize) || round.touched(f2 as usize) {
-            continue;
-        }
-        if rails.is_rail_edge(a, b) {
             continue;
         }
         if c == d || round.has_edge(topo, c, d) {
@@ -93,10 +90,12 @@ pub(crate) struct FlipRound {
 }
 
 impl FlipRound {
-    /// A round over the faces of `mesh`, nothing flipped yet.
-    pub(crate) fn new(mesh: &Mesh) -> Self {
+    /// A round over the faces of `mesh`, nothing flipped yet, no rail edge of `rails`
+    /// flippable.
+    pub(crate) fn new(mesh: &Mesh, rails: &Rails) -> Self {
         FlipRound {
-            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone()),
+            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone())
+                .with_constraints(rails.constraints().clone()),
             touched: vec![false; mesh.n_faces()],
         }
     }

@@ -91,6 +91,7 @@
 //! at the mesh's scale) and `feature_rail_vertices` (with `features`), and
 //! `min_angle_before` / `min_angle_after` in degrees.
 
+use coarsen_edit::{Constraints, Role};
 use coarsen_geom::{DVec3, triangle};
 use coarsen_mesh::{FaceOrigins, Topology, VertexOrigins};
 use coarsen_metrics::{Facing, SurfaceIndex};
@@ -113,8 +114,8 @@ use fit::*;
 use flip::*;
 use mend::*;
 use polish::*;
+use rails::Rails;
 pub use rails::{Captured, InputFeatures};
-use rails::{Rails, Role};
 use rebalance::*;
 use sweep::*;
 

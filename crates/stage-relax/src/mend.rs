@@ -237,7 +237,7 @@ fn mend_flips(
     tiny: f64,
     floor: f64,
 ) -> usize {
-    let mut round = FlipRound::new(mesh);
+    let mut round = FlipRound::new(mesh, rails);
     let mut flips = 0;
     for f in 0..mesh.n_faces() {
         if !away[f] || round.touched(f) {

@@ -226,17 +226,6 @@ impl Rail {
     }
 }
 
-/// What a vertex of the relaxed mesh is to the features.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Role {
-    /// Free to move on the surface.
-    Free,
-    /// On an input corner: never moves.
-    Fixed,
-    /// On rail `0`: slides along it.
-    On(u32),
-}
-
 /// What the capture did, for the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Captured {
@@ -253,60 +242,48 @@ pub struct Captured {
 }
 
 /// The constraints of one relaxation (see the module docs); empty when features are off.
+/// Corners are fixed vertices and rails curves of [`Constraints`], so that every edit made
+/// on an [`coarsen_edit::Editable`] given them respects them too.
 #[derive(Default)]
 pub(crate) struct Rails {
-    role: Vec<Role>,
-    /// The two rail neighbours of each rail vertex.
-    ends: HashMap<u32, [u32; 2]>,
-    /// Rail edges, as (smaller, larger) vertex, and their rail.
-    edges: HashMap<(u32, u32), u32>,
+    constraints: Constraints,
     rails: Vec<Rail>,
 }
 
 impl Rails {
-    /// The role of vertex `v`.
+    /// The corners, rail vertices and rail edges, as edits are given them.
+    pub(crate) fn constraints(&self) -> &Constraints {
+        &self.constraints
+    }
+
+    /// The role of vertex `v`: free, a corner (fixed), or on a rail.
     pub(crate) fn role(&self, v: u32) -> Role {
-        self.role.get(v as usize).copied().unwrap_or(Role::Free)
+        self.constraints.role(v)
     }
 
     /// Whether `v` is a corner or a rail vertex.
     pub(crate) fn locked(&self, v: u32) -> bool {
-        self.role(v) != Role::Free
+        self.constraints.locked(v)
     }
 
     /// Whether `a`–`b` is a rail edge.
     pub(crate) fn is_rail_edge(&self, a: u32, b: u32) -> bool {
-        self.rail_of_edge(a, b).is_some()
+        self.constraints.is_curve_edge(a, b)
     }
 
     /// The rail of edge `a`–`b`, when it is a rail edge.
     pub(crate) fn rail_of_edge(&self, a: u32, b: u32) -> Option<u32> {
-        match self.edges.is_empty() {
-            true => None,
-            false => self.edges.get(&(a.min(b), a.max(b))).copied(),
-        }
+        self.constraints.curve_of_edge(a, b)
     }
 
     /// Records that rail edge `a`–`b` was split at vertex `v`, now on its rail.
     pub(crate) fn split_edge(&mut self, a: u32, b: u32, v: u32) {
-        let Some(r) = self.edges.remove(&(a.min(b), a.max(b))) else {
-            return;
-        };
-        self.role[v as usize] = Role::On(r);
-        self.ends.insert(v, [a, b]);
-        for (x, y) in [(a, b), (b, a)] {
-            if let Some(e) = self.ends.get_mut(&x)
-                && let Some(slot) = e.iter_mut().find(|w| **w == y)
-            {
-                *slot = v;
-            }
-            self.edges.insert((x.min(v), x.max(v)), r);
-        }
+        self.constraints.split_edge(a, b, v);
     }
 
     /// The two rail neighbours of rail vertex `v`.
     pub(crate) fn rail_ends(&self, v: u32) -> Option<[u32; 2]> {
-        self.ends.get(&v).copied()
+        self.constraints.curve_ends(v)
     }
 
     /// The nearest point of rail `r` to `target`, when within `reach` of `from`.
@@ -338,7 +315,7 @@ impl Rails {
         // No edges, or none with a length: nothing to put on features.
         if !(h > 0.0 && h.is_finite()) {
             let rails = Rails {
-                role: vec![Role::Free; mesh.n_vertices()],
+                constraints: Constraints::new(mesh.n_vertices()),
                 ..Rails::default()
             };
             return (rails, Captured::default());
@@ -393,7 +370,7 @@ impl Trial {
         let mut positions = mesh.positions.clone();
         let mut out = Captured::default();
         let mut rails = Rails {
-            role: vec![Role::Free; mesh.n_vertices()],
+            constraints: Constraints::new(mesh.n_vertices()),
             ..Rails::default()
         };
         let mut corner_at: HashMap<u32, u32> = HashMap::new();
@@ -412,14 +389,14 @@ impl Trial {
                 continue;
             }
             let free = |v: u32| {
-                rails.role[v as usize] == Role::Free
+                rails.role(v) == Role::Free
                     && topo.is_boundary_vertex(v) == on_boundary
                     && topo.n_vertex_fans(v) == 1
             };
             if let Some(v) = grid.nearest(&positions, p, TUBE * h, free)
                 && !crowded(&positions, topo, v, p, h)
             {
-                rails.role[v as usize] = Role::Fixed;
+                rails.constraints.fix(v);
                 positions[v as usize] = p;
                 corner_at.insert(c, v);
                 out.corners_kept += 1;
@@ -447,18 +424,17 @@ impl Trial {
             };
             for (i, &v) in chain.iter().enumerate() {
                 if let Some(q) = at[i].filter(|&q| !crowded(&positions, topo, v, q, h)) {
-                    rails.role[v as usize] = Role::On(r);
                     positions[v as usize] = q;
                     let (prev, next) = match i {
                         0 => (chain[chain.len() - 2], chain[1]),
                         _ => (chain[i - 1], chain[i + 1]),
                     };
-                    rails.ends.insert(v, [prev, next]);
+                    rails.constraints.bind(v, r, [prev, next]);
                     out.rail_vertices += 1;
                 }
             }
             for w in chain.windows(2) {
-                rails.edges.insert((w[0].min(w[1]), w[0].max(w[1])), r);
+                rails.constraints.add_curve_edge(w[0], w[1], r);
             }
             rails.rails.push(rail);
             out.rails_kept += 1;
@@ -1200,20 +1176,20 @@ mod tests {
     #[test]
     fn splitting_a_rail_edge_puts_the_new_vertex_between_its_ends() {
         // Corner 0, rail vertices 1 and 2 of rail 0, corner 3; vertex 4 free.
+        let mut constraints = Constraints::new(5);
+        constraints.fix(0);
+        constraints.bind(1, 0, [0, 2]);
+        constraints.bind(2, 0, [1, 3]);
+        constraints.fix(3);
+        for (a, b) in [(0, 1), (1, 2), (2, 3)] {
+            constraints.add_curve_edge(a, b, 0);
+        }
         let mut rails = Rails {
-            role: vec![
-                Role::Fixed,
-                Role::On(0),
-                Role::On(0),
-                Role::Fixed,
-                Role::Free,
-            ],
-            ends: HashMap::from([(1, [0, 2]), (2, [1, 3])]),
-            edges: HashMap::from([((0, 1), 0), ((1, 2), 0), ((2, 3), 0)]),
+            constraints,
             rails: Vec::new(),
         };
         rails.split_edge(2, 1, 4);
-        assert_eq!(rails.role(4), Role::On(0));
+        assert_eq!(rails.role(4), Role::OnCurve(0));
         assert_eq!(rails.rail_ends(4), Some([2, 1]));
         assert_eq!(rails.rail_ends(1), Some([0, 4]));
         assert_eq!(rails.rail_ends(2), Some([4, 3]));

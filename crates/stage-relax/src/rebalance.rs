@@ -237,7 +237,7 @@ pub(crate) fn rebalance(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let mut run = Pairing::start(mesh);
+    let mut run = Pairing::start(mesh, rails);
     while run.done < max_pairs as usize {
         let Some(pair) = find_pair(mesh, &run.edit, surface, rails, cos_turn, floor) else {
             break;
@@ -247,8 +247,9 @@ pub(crate) fn rebalance(
     run.finish(mesh)
 }
 
-/// A run of split/collapse pairs: the adjacency that follows them, where each vertex and
-/// face comes from (when there are attributes to carry), the pairs made.
+/// A run of split/collapse pairs: the adjacency that follows them (with the corners and
+/// rails as its constraints), where each vertex and face comes from (when there are
+/// attributes to carry), the pairs made.
 struct Pairing {
     origins: Origins,
     edit: Editable,
@@ -256,11 +257,13 @@ struct Pairing {
 }
 
 impl Pairing {
-    /// A run starting on `mesh`.
-    fn start(mesh: &Mesh) -> Pairing {
+    /// A run starting on `mesh`, its collapses keeping the corners and rails of `rails`.
+    fn start(mesh: &Mesh, rails: &Rails) -> Pairing {
         Pairing {
             origins: Origins::start(mesh),
-            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone()).with_edges(),
+            edit: Editable::new(mesh.n_vertices(), mesh.faces.clone())
+                .with_edges()
+                .with_constraints(rails.constraints().clone()),
             done: 0,
         }
     }
@@ -310,7 +313,7 @@ pub(crate) fn unturn(
     cos_turn: f64,
     floor: f64,
 ) -> usize {
-    let mut run = Pairing::start(mesh);
+    let mut run = Pairing::start(mesh, rails);
     while run.done < max_pairs as usize {
         let away: Vec<u32> = (0..mesh.n_faces() as u32)
             .filter(|&f| {
@@ -334,8 +337,7 @@ pub(crate) fn unturn(
             if run.done >= max_pairs as usize {
                 break;
             }
-            let found =
-                unturning_pair(mesh, &run.edit, surface, rails, &splits, f, cos_turn, floor);
+            let found = unturning_pair(mesh, &run.edit, surface, &splits, f, cos_turn, floor);
             if let Some(pair) = found {
                 run.apply(mesh, pair);
             }
@@ -349,14 +351,13 @@ pub(crate) fn unturn(
 
 /// The pair of [`unturn`] for face `f` when it still faces away: the first edge of its
 /// corners that can go (its own edges shortest first, then the corners' other edges
-/// shortest first), and the first edge of `splits` away from that collapse that splits
+/// shortest first; no corner or rail vertex, `edit`'s constraints), and the first edge of
+/// `splits` away from that collapse that splits
 /// without a new face facing away.
-#[allow(clippy::too_many_arguments)]
 fn unturning_pair(
     mesh: &Mesh,
     edit: &Editable,
     surface: &Surface<'_>,
-    rails: &Rails,
     splits: &[(f64, [u32; 2])],
     f: u32,
     cos_turn: f64,
@@ -383,7 +384,6 @@ fn unturning_pair(
     }
     others.sort_by(|&x, &y| len(x).total_cmp(&len(y)).then(x.cmp(&y)));
     sides.extend(others);
-    sides.retain(|&[x, y]| !rails.locked(x) && !rails.locked(y));
     for side in sides {
         let Some(col) = plan_unturning_collapse(mesh, edit, surface, side, cos_turn, floor) else {
             continue;
@@ -567,9 +567,7 @@ fn find_pair(
     let mut collapses: Vec<(f64, usize)> = edges
         .iter()
         .enumerate()
-        .filter(|&(_, &(l, [a, b], _))| {
-            !rails.locked(a) && !rails.locked(b) && l < COLLAPSE_RATIO * mean
-        })
+        .filter(|&(_, &(l, _, _))| l < COLLAPSE_RATIO * mean)
         .map(|(i, &(l, _, _))| (l, i))
         .collect();
     collapses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));

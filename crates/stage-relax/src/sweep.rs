@@ -268,7 +268,7 @@ impl Sweep<'_> {
         // neighbours). A corner stays.
         let rail = match self.rails.role(v) {
             Role::Fixed => return None,
-            Role::On(r) => Some(r),
+            Role::OnCurve(r) => Some(r),
             Role::Free => None,
         };
         let place = if rail.is_some() || topo.is_boundary_vertex(v) {
