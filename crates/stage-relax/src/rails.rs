@@ -25,7 +25,10 @@
 //! * Then, during the relaxation, a corner never moves, a rail vertex slides only along its
 //!   rail, no rail edge is flipped or collapsed, the split/collapse edits of rebalancing
 //!   and fitting move no rail or corner vertex, and fitting may split a rail edge at a
-//!   point of its rail (the new vertex joins the rail).
+//!   point of its rail (the new vertex joins the rail). Corners and rails are the fixed
+//!   vertices and curves of a `coarsen_edit::Constraints`: the flips and the
+//!   split/collapse pairs made on an `Editable` are refused by it; the vertex moves and
+//!   the mending flips ask the roles here.
 
 use super::*;
 use coarsen_features::{FeatureKind, FeatureOptions, Features};
