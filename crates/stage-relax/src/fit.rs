@@ -3,6 +3,7 @@
 
 use super::*;
 use coarsen_edit::Editable;
+use std::collections::HashSet;
 
 /// Points of the input whose distance to `mesh` is watched (true: on the boundary): its
 /// used vertices, edge midpoints, face centroids and the points halfway from each centroid
@@ -119,6 +120,16 @@ impl Watch {
             })
         })
     }
+}
+
+/// The farthest from the input of the points a quarter, half and three quarters along the
+/// segment `a`–`b` (a boundary chord), with its distance; `None` when none projects.
+pub(crate) fn chord_far_point(surface: &Surface<'_>, a: DVec3, b: DVec3) -> Option<(f64, DVec3)> {
+    [0.25, 0.5, 0.75]
+        .map(|t| a.lerp(b, t))
+        .into_iter()
+        .filter_map(|q| surface.project(q).map(|on| (q.distance(on), q)))
+        .max_by(|x, y| x.0.total_cmp(&y.0))
 }
 
 /// [`fit`] splits, in one round, only where the input lies at least this fraction of the
@@ -454,6 +465,12 @@ struct Fitting<'m, 's> {
     rails: &'m mut Rails,
     /// Points no split, collapse or pull could bring nearer: left alone from then on.
     given_up: Vec<bool>,
+    /// The round's far points on the mesh's boundary chords (see
+    /// [`Fitting::chord_points`]), numbered after `samples`: the input boundary point
+    /// nearest each, and the chord it is for.
+    chords: Vec<(DVec3, [u32; 2])>,
+    /// Chords (ends ascending) none of whose far points could be brought nearer.
+    chords_given_up: HashSet<[u32; 2]>,
     /// The points looked at: after the first round, only those that were beyond `tol`
     /// (the edits keep the others within it), or without a bound beyond [`FIT_FROM`] of the
     /// farthest.
@@ -525,6 +542,8 @@ impl<'m, 's> Fitting<'m, 's> {
             f_from: origins.f_from,
             rails,
             given_up: vec![false; samples.len()],
+            chords: Vec::new(),
+            chords_given_up: HashSet::new(),
             active: (0..samples.len() as u32).collect(),
             first: true,
             tris: Vec::new(),
@@ -559,7 +578,9 @@ impl<'m, 's> Fitting<'m, 's> {
         if topo.n_edges() == 0 || self.mesh.n_faces() == 0 {
             return false;
         }
-        let far = self.far_points();
+        let mut far = self.far_points();
+        far.extend(self.chord_points(&topo));
+        far.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
         let Some(&(d_max, _, _)) = far.first() else {
             return false;
         };
@@ -586,10 +607,7 @@ impl<'m, 's> Fitting<'m, 's> {
                 break;
             }
         }
-        made > 0
-            || far
-                .iter()
-                .any(|x| x.0 > tol && !self.given_up[x.1 as usize])
+        made > 0 || far.iter().any(|x| x.0 > tol && !self.is_given_up(x.1))
     }
 
     /// One round of [`unfold`]: a pair at each face facing away in turn. False when no
@@ -708,8 +726,8 @@ impl<'m, 's> Fitting<'m, 's> {
         }
     }
 
-    /// The active points not given up with their distance to the mesh and nearest face,
-    /// farthest first; after the first round's, only the points beyond the bound stay
+    /// The active points not given up with their distance to the mesh and nearest face
+    /// (in no order); after the first round's, only the points beyond the bound stay
     /// active.
     fn far_points(&mut self) -> Vec<(f64, u32, u32)> {
         let bvh = Bvh::build(&self.mesh.positions, &self.mesh.faces);
@@ -731,8 +749,71 @@ impl<'m, 's> Fitting<'m, 's> {
             self.active = far.iter().map(|x| x.1).collect();
             self.active.sort_unstable();
         }
-        far.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
         far
+    }
+
+    /// The far points of the mesh's boundary chords: where a boundary edge (adjacency
+    /// `topo`) passes farther than `tol` from the input (over a bay of a hole's rim that
+    /// the input points by it do not see, being near the face), the point of the input
+    /// boundary along the chord's loop nearest its farthest sample (a quarter, half and
+    /// three quarters along), as `(distance, number after the samples, the edge's face)`.
+    /// Chords given up are left out.
+    fn chord_points(&mut self, topo: &Topology) -> Vec<(f64, u32, u32)> {
+        self.chords.clear();
+        let (mesh, surface, tol) = (&*self.mesh, self.surface, self.limits.tol);
+        if tol <= 0.0 {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for e in 0..topo.n_edges() as u32 {
+            let &[f] = topo.edge_faces(e) else {
+                continue;
+            };
+            let [a, b] = topo.edge(e);
+            let key = [a.min(b), a.max(b)];
+            if self.chords_given_up.contains(&key) {
+                continue;
+            }
+            let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+            let Some((d, q)) = chord_far_point(surface, pa, pb).filter(|&(d, _)| d > tol) else {
+                continue;
+            };
+            // On the loop the chord's ends lie on, within reach of them.
+            let reach = BOUNDARY_REACH * pa.distance(pb);
+            let Some(p) = surface.project_boundary_along(pa, q, reach) else {
+                continue;
+            };
+            out.push((d, (self.samples.len() + self.chords.len()) as u32, f));
+            self.chords.push((p, key));
+        }
+        out
+    }
+
+    /// Far point `iv`: an input sample, or after them the round's chord points; with
+    /// whether it lies on the boundary.
+    fn sample(&self, iv: u32) -> (DVec3, bool) {
+        match (iv as usize).checked_sub(self.samples.len()) {
+            None => self.samples[iv as usize],
+            Some(k) => (self.chords[k].0, true),
+        }
+    }
+
+    /// Leaves far point `iv` alone from now on (a chord point: its chord).
+    fn give_up(&mut self, iv: u32) {
+        match (iv as usize).checked_sub(self.samples.len()) {
+            None => self.given_up[iv as usize] = true,
+            Some(k) => {
+                self.chords_given_up.insert(self.chords[k].1);
+            }
+        }
+    }
+
+    /// Whether far point `iv` was given up.
+    fn is_given_up(&self, iv: u32) -> bool {
+        match (iv as usize).checked_sub(self.samples.len()) {
+            None => self.given_up[iv as usize],
+            Some(k) => self.chords_given_up.contains(&self.chords[k].1),
+        }
     }
 
     /// The round's view of the mesh (adjacency `topo`) and its collapse candidates: edges
@@ -781,7 +862,7 @@ impl<'m, 's> Fitting<'m, 's> {
         if face.iter().any(|&w| self.rails.locked(w)) {
             return self.visit_rail(round, d, iv, f);
         }
-        let (p, on_boundary) = self.samples[iv as usize];
+        let (p, on_boundary) = self.sample(iv);
         let edges = self.split_edges(round, p, on_boundary, f);
         let Some(split) = self.plan_split_at(round, &edges, p, on_boundary, d) else {
             // No split fits here: pull the nearest end of the nearest edge towards `p`.
@@ -803,7 +884,7 @@ impl<'m, 's> Fitting<'m, 's> {
                 self.done += 1;
                 self.fails = 0;
             } else {
-                self.given_up[iv as usize] = true;
+                self.give_up(iv);
                 self.fails += 1;
             }
             return Visited::Next;
@@ -811,7 +892,7 @@ impl<'m, 's> Fitting<'m, 's> {
         // Distance the split removes (the far point's distance is at most this after).
         let gain = d - split.at.distance(p);
         let Some(col) = self.pick_collapse(round, &split, gain) else {
-            self.given_up[iv as usize] = true;
+            self.give_up(iv);
             self.fails += 1;
             return Visited::Next;
         };
@@ -827,7 +908,7 @@ impl<'m, 's> Fitting<'m, 's> {
     /// the rail edge of `f` nearest it split at the rail point nearest it, paired with a
     /// collapse elsewhere; or the point given up.
     fn visit_rail(&mut self, round: &mut RoundMesh<'_>, d: f64, iv: u32, f: u32) -> Visited {
-        let (p, _) = self.samples[iv as usize];
+        let (p, _) = self.sample(iv);
         let split = self.plan_rail_split(round, p, d, f);
         let gain = split.as_ref().map_or(0.0, |(s, _)| d - s.at.distance(p));
         let col = match split.as_ref() {
@@ -835,7 +916,7 @@ impl<'m, 's> Fitting<'m, 's> {
             _ => None,
         };
         let (Some((split, [a, b])), Some(col)) = (split, col) else {
-            self.given_up[iv as usize] = true;
+            self.give_up(iv);
             self.fails += 1;
             return Visited::Next;
         };

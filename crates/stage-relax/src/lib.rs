@@ -60,11 +60,15 @@
 //! vertices, edge midpoints and points inside its faces; beyond `max_dev_pct` when set) get
 //! a vertex: a split at that point paired with the collapse that moves the surface least
 //! elsewhere, or a nearby vertex pulled there; new angles may dip to 0.8 of the floor (or of
-//! the smallest angle) for the sweeps to lift.
+//! the smallest angle) for the sweeps to lift. With `max_dev_pct` set, so do the boundary
+//! chords that pass farther than it from the input (over a bay of a hole's rim, where every
+//! input point lies near the face and none sees it): the input boundary point nearest the
+//! chord's farthest point gets a vertex the same way.
 //!
 //! With `max_dev_pct` > 0 the sweeps keep fidelity: a move or a flip is refused when an
 //! input point near the faces it changes would end farther than that bound from them (or,
-//! if already farther, farther than it was).
+//! if already farther, farther than it was), or when a boundary vertex's move takes one of
+//! its two boundary chords farther than the bound from the input (or farther than it was).
 //!
 //! With `polish` > 0, after the sweeps, the vertices of the worst faces by quality (the
 //! lowest 0.2 %, at least 8) are offered the sweep's moves and moves towards
@@ -141,13 +145,15 @@ params! {
         /// collapses a short edge elsewhere, so the vertex count stays. 0 = none.
         pub rebalance: u32 = 0,
         /// At most this many fidelity edits before the sweeps (after rebalancing): where the
-        /// input lies farthest from the mesh (beyond `max_dev_pct`) a new vertex goes there
-        /// and an edge is collapsed where that moves the surface least, or a nearby vertex
-        /// is pulled there; the vertex count stays. 0 = none.
+        /// input lies farthest from the mesh (beyond `max_dev_pct`), or a boundary edge
+        /// farthest from the input, a new vertex goes there and an edge is collapsed where
+        /// that moves the surface least, or a nearby vertex is pulled there; the vertex
+        /// count stays. 0 = none.
         pub fit: u32 = 0,
         /// Moves and flips may not leave a point of the input farther than this from the
         /// mesh (percent of the input's bounding-box diagonal), nor one already farther,
-        /// farther still; `fit` works on the points beyond it. 0 = no bound.
+        /// farther still, nor a boundary edge so far from the input; `fit` works on the
+        /// points beyond it. 0 = no bound.
         pub max_dev_pct: f64 = 0.0,
         /// Before the sweeps, move the vertices of faces facing away from the input (a
         /// part thinner than a face, a fold) to nearby points of the input where fewer do,
@@ -792,6 +798,83 @@ mod tests {
         for f in 0..2 {
             assert!(m.face_normal(f).z > 0.0);
         }
+    }
+
+    /// A flat annulus of `n_theta` × `n_r` rings of triangles, all turned the same way:
+    /// inside a circle of radius `r0`, outside a regular octagon of circumradius 1 with a
+    /// corner on +x (so that an octagon's outer boundary lies on a finer one's); the rings
+    /// between go from circle to octagon. With `twist`, ring `i` is turned by `i` half
+    /// steps, so each face on the inner circle has its third corner over its middle.
+    fn annulus(n_theta: u32, n_r: u32, r0: f64, twist: bool) -> Mesh {
+        use std::f64::consts::{PI, TAU};
+        let step = TAU / f64::from(n_theta);
+        let mut positions = Vec::new();
+        for i in 0..=n_r {
+            let s = f64::from(i) / f64::from(n_r);
+            let turn = if twist {
+                0.5 * step * f64::from(i)
+            } else {
+                0.0
+            };
+            for j in 0..n_theta {
+                let t = step * f64::from(j) + turn;
+                let side = (t / (PI / 4.0)).floor() * (PI / 4.0) + PI / 8.0;
+                let outer = (PI / 8.0).cos() / (t - side).cos();
+                let r = r0 + (outer - r0) * s;
+                positions.push(DVec3::new(r * t.cos(), r * t.sin(), 0.0));
+            }
+        }
+        let at = |i: u32, j: u32| i * n_theta + j % n_theta;
+        let mut faces = Vec::new();
+        for i in 0..n_r {
+            for j in 0..n_theta {
+                if twist {
+                    faces.push([at(i, j), at(i, j + 1), at(i + 1, j)]);
+                    faces.push([at(i, j + 1), at(i + 1, j + 1), at(i + 1, j)]);
+                } else {
+                    faces.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
+                    faces.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+                }
+            }
+        }
+        Mesh::new(positions, faces)
+    }
+
+    /// The farthest any boundary chord of `m` passes from `surface`.
+    fn worst_chord(m: &Mesh, surface: &Surface<'_>) -> f64 {
+        let topo = Topology::build(m);
+        (0..topo.n_edges() as u32)
+            .filter(|&e| topo.is_boundary_edge(e))
+            .filter_map(|e| {
+                let [a, b] = topo.edge(e).map(|v| m.positions[v as usize]);
+                fit::chord_far_point(surface, a, b).map(|x| x.0)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// An octagon in a round hole: its chords pass over the hole (1.35 % of the diagonal
+    /// from the input at their middles) while every input point lies on the mesh. The
+    /// fidelity edits split the chords at the rim, paired with collapses elsewhere, and
+    /// the sweeps keep them there: every chord ends within the bound.
+    #[test]
+    fn boundary_chords_over_a_hole_are_brought_to_its_rim() {
+        let original = annulus(64, 8, 0.5, false);
+        let surface = Surface::new(&original);
+        let mut m = annulus(16, 4, 0.5, true);
+        let before = worst_chord(&m, &surface);
+        let tol = 0.002 * original.bbox().diagonal();
+        assert!(before > 1.5 * tol, "{before}");
+        let params = RelaxParams {
+            fit: 100,
+            max_dev_pct: 0.2,
+            ..RelaxParams::default()
+        };
+        let n = m.n_vertices();
+        let r = relax(&mut m, Some(&surface), &params);
+        let after = worst_chord(&m, &surface);
+        assert!(after <= tol * (1.0 + 1e-9), "{before} -> {after}: {r:?}");
+        assert_eq!(m.n_vertices(), n);
+        assert!(Topology::try_build(&m).is_ok());
     }
 
     /// On a disc with holes, boundary vertices only slide along the input's boundary edges.

@@ -347,8 +347,29 @@ impl Sweep<'_> {
             && self.watch.is_none_or(|w| {
                 tris.clear();
                 tris.extend(moved_fan());
-                w.allows(fan, tris)
+                w.allows(fan, tris) && self.chords_fit(v, q, pos, w.tol)
             })
+    }
+
+    /// Whether the boundary chords of boundary vertex `v` (to its two boundary
+    /// neighbours) with `v` at `q` pass within `tol` of the input, or no farther from it
+    /// than with `v` where it is (a chord over a bay of a hole's rim, which no input point
+    /// near the mesh sees). True for other vertices.
+    fn chords_fit(&self, v: u32, q: DVec3, pos: impl Fn(u32) -> DVec3, tol: f64) -> bool {
+        let (Some(sf), &[a, b]) = (self.surface, &self.ends[v as usize][..]) else {
+            return true;
+        };
+        if !self.topo.is_boundary_vertex(v) {
+            return true;
+        }
+        let worst = |p: DVec3| {
+            [a, b]
+                .into_iter()
+                .filter_map(|u| chord_far_point(sf, p, pos(u)))
+                .fold(0.0, |m, (d, _)| f64::max(m, d))
+        };
+        let after = worst(q);
+        after <= tol || after <= worst(pos(v))
     }
 }
 
