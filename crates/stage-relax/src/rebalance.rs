@@ -388,19 +388,16 @@ fn unturning_pair(
         let Some(col) = plan_unturning_collapse(mesh, edit, surface, side, cos_turn, floor) else {
             continue;
         };
-        let away_from_collapse = |&&(_, [c, d]): &&(f64, [u32; 2])| {
-            !edit
-                .edge_faces(c, d)
-                .iter()
-                .flat_map(|&g| edit.face(g))
-                .any(|w| w == col.keep || w == col.gone)
+        // Still an interior edge, and no face of it touches the collapse.
+        let splittable = |&&(_, [c, d]): &&(f64, [u32; 2])| {
+            let faces = edit.edge_faces(c, d);
+            faces.len() == 2
+                && !faces
+                    .iter()
+                    .flat_map(|&g| edit.face(g))
+                    .any(|w| w == col.keep || w == col.gone)
         };
-        for &(_, sab) in splits
-            .iter()
-            .filter(|&&(_, [c, d])| edit.edge_faces(c, d).len() == 2)
-            .filter(away_from_collapse)
-            .take(UNTURN_SPLIT_TRIES)
-        {
+        for &(_, sab) in splits.iter().filter(splittable).take(UNTURN_SPLIT_TRIES) {
             let [c, d] = sab;
             let Some(at) = surface.project(pos(c).lerp(pos(d), 0.5)) else {
                 continue;
