@@ -215,7 +215,7 @@ fn a_charted_cube_round_trips_through_glb_and_validates() {
 }
 
 #[test]
-fn spot_round_trips_through_glb_and_a_run_says_what_it_did_not_carry() {
+fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
     let Some(data) = shared_data() else {
         eprintln!("skipped: ../shared/data is absent (set COARSEN_DATA)");
         return;
@@ -264,21 +264,32 @@ fn spot_round_trips_through_glb_and_a_run_says_what_it_did_not_carry() {
     coarsen_io::write_path(&m, &textured, &Default::default()).unwrap();
     let back = read_mesh(&textured);
     assert_eq!(back.materials.images[0].bytes.as_deref(), Some(&png[..]));
-    let out_glb = dir.path().join("spot-qem.glb");
-    let (t, o) = (textured.to_string_lossy(), out_glb.to_string_lossy());
-    let run = run_cli(EXE, &["run", "qem", &t, "-o", &o, "--ratio", "0.7"]);
-    assert!(run.status.success(), "{}", stderr(&run));
-    let said = stdout(&run);
-    assert!(
-        said.contains("note: per-corner `uv` and `normal` ("),
-        "{said}"
-    );
-    assert!(
-        said.contains("note: textures of the materials not written"),
-        "{said}"
-    );
-    // The material itself (its name, its image) is still there.
-    let out = read_mesh(&out_glb);
-    assert_eq!(out.materials.images[0].bytes.as_deref(), Some(&png[..]));
-    validate(&[glb, textured, out_glb]);
+    let mut written = vec![glb, textured.clone()];
+    let t = textured.to_string_lossy().into_owned();
+    for ratio in ["0.7", "0.95"] {
+        let out_glb = dir.path().join(format!("spot-qem-{ratio}.glb"));
+        let o = out_glb.to_string_lossy();
+        let run = run_cli(EXE, &["run", "qem", &t, "-o", &o, "--ratio", ratio]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        // UVs and normals carried: nothing said about them, the texture written.
+        let said = format!("{}{}", stdout(&run), stderr(&run));
+        assert!(!said.contains("per-corner"), "{said}");
+        assert!(
+            !said.contains("textures of the materials not written"),
+            "{said}"
+        );
+        let out = read_mesh(&out_glb);
+        assert_eq!(out.materials.images[0].bytes.as_deref(), Some(&png[..]));
+        assert!(out.corner_column("normal").is_some());
+        // Seams kept, no face turned over in UV space, each UV within the geometric error
+        // of its vertex's place.
+        let report = coarsen_metrics::measure(Some(&m), &out, &Default::default()).unwrap();
+        let tex = report.texture.expect("both carry UVs");
+        let hausdorff = report.fidelity.unwrap().hausdorff_pct;
+        assert!(tex.seam_vertices > 40, "{ratio}: {tex:?}");
+        assert_eq!(tex.uv_flipped + tex.uv_degenerate, 0, "{ratio}: {tex:?}");
+        assert!(tex.distortion_max_pct <= hausdorff, "{ratio}: {tex:?}");
+        written.push(out_glb);
+    }
+    validate(&written);
 }

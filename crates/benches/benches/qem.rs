@@ -18,6 +18,13 @@
 //!   meshoptimizer times, and the figure is the median ratio over the rounds (a single
 //!   run's ratio moved by a tenth from one run to the next as the machine's speed drifted).
 //!
+//! * the textured spot (`cargo bench -p coarsen-benches --bench qem -- texture` runs only
+//!   this case): the `qem` pipeline and meshoptimizer's `simplifyWithAttributes` at 70 %
+//!   and 95 % removed, the UVs weighted [`UV_WEIGHT`] (meshoptimizer's positions are
+//!   scaled to unit extent, the UVs span about one unit), seams as meshoptimizer finds
+//!   them (vertices of equal position with other UVs); both outputs measured by
+//!   `coarsen_metrics::texture` and the Hausdorff distance (quality, not time).
+//!
 //! coarsen's time covers what a run does with the input (in the scale case, given a copy
 //! made before the clock starts): the renumbering along a Morton
 //! curve that the runner gives inputs of 2¹⁸ faces or more (`coarsen_pipeline::run`),
@@ -266,11 +273,106 @@ fn case(name: &str, mesh: &Mesh, target: Target, runs: usize, min: Duration) {
     );
 }
 
+/// The weight of the UVs against the positions in meshoptimizer's attribute-aware
+/// simplification.
+const UV_WEIGHT: f32 = 1.0;
+
+/// meshoptimizer's `simplifyWithAttributes` on `mesh` (its wedges as vertices, positions in
+/// `f32`) down to `faces`, as a mesh of the input's positions with the kept UVs per corner.
+fn meshopt_textured(mesh: &Mesh, faces: usize) -> Mesh {
+    use coarsen_mesh::{AttrValues, Attributes, Wedges};
+    let w = &mesh.wedges;
+    let uv = w.attrs().vec2("uv").expect("per-corner UVs");
+    let bytes: Vec<u8> = w
+        .vertices()
+        .iter()
+        .flat_map(|&v| mesh.positions[v as usize].as_vec3().to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let attrs: Vec<f32> = uv.iter().flat_map(|t| [t.x as f32, t.y as f32]).collect();
+    let adapter = meshopt::VertexDataAdapter::new(&bytes, 12, 0).expect("valid vertex buffer");
+    let locks = vec![false; w.len()];
+    let out = meshopt::simplify_with_attributes_and_locks(
+        w.corners(),
+        &adapter,
+        &attrs,
+        &[UV_WEIGHT, UV_WEIGHT],
+        8,
+        &locks,
+        faces * 3,
+        1.0,
+        meshopt::SimplifyOptions::None,
+        None,
+    );
+    let faces: Vec<[u32; 3]> = out
+        .chunks_exact(3)
+        .map(|c| [0, 1, 2].map(|k| w.vertices()[c[k] as usize]))
+        .collect();
+    let mut cols = Attributes::default();
+    cols.insert(
+        "uv",
+        AttrValues::Vec2(out.iter().map(|&c| uv[c as usize]).collect()),
+    );
+    let mut m = Mesh::new(mesh.positions.clone(), faces);
+    m.wedges = Wedges::from_corners(&m.faces, cols);
+    m
+}
+
+/// The textured case (module docs): spot by the `qem` pipeline and by meshoptimizer with
+/// UVs, measured alike.
+fn texture_case(data: &std::path::Path) {
+    let path = data.join("spot.obj");
+    if !path.exists() {
+        println!("textured spot skipped: {} is absent", path.display());
+        return;
+    }
+    let mesh = coarsen::read(&path).expect("spot loads");
+    println!(
+        "spot ({} faces, {} seam vertices), UV weight {UV_WEIGHT} for meshoptimizer",
+        mesh.n_faces(),
+        mesh.wedges.split_vertices()
+    );
+    println!(
+        "| removed | simplifier | faces | seam vertices | UV-flipped | distortion at vertices max % | mean % | inside faces max % | mean % | Hausdorff % |"
+    );
+    println!("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    for ratio in [0.7, 0.95] {
+        let target = Target::Ratio(ratio);
+        let (ours, _) = coarsen::Remesher::new()
+            .pipeline("qem")
+            .target(target)
+            .run(&mesh)
+            .expect("qem runs on spot");
+        let theirs = meshopt_textured(&mesh, target.faces_for(&mesh) as usize);
+        for (name, out) in [("coarsen qem", &ours), ("meshoptimizer", &theirs)] {
+            let m = coarsen_metrics::measure(Some(&mesh), out, &Default::default())
+                .expect("measurable");
+            let t = m.texture.expect("both carry UVs");
+            println!(
+                "| {:.0} % | {name} | {} | {} | {} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} |",
+                ratio * 100.0,
+                out.n_faces(),
+                t.seam_vertices,
+                t.uv_flipped,
+                t.distortion_max_pct,
+                t.distortion_mean_pct,
+                t.surface_distortion_max_pct,
+                t.surface_distortion_mean_pct,
+                m.fidelity.map_or(f64::NAN, |f| f.hausdorff_pct),
+            );
+        }
+    }
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; `cargo test --benches` does not: then run one quick case.
     let quick = !std::env::args().any(|a| a == "--bench");
     let only_scale = std::env::args().any(|a| a == "scale");
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if std::env::args().any(|a| a == "texture") {
+        texture_case(&data);
+        return;
+    }
     let bunny = data.join("stanford-bunny.obj");
     if bunny.exists() {
         let mesh = coarsen_io::read_path(&bunny, &Default::default())

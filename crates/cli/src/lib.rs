@@ -234,7 +234,7 @@ struct RunArgs {
     pipeline: String,
     /// The input mesh; the built-in demo mesh when omitted.
     input: Option<PathBuf>,
-    /// Where to write the result (.ply, .obj, .stl, .off).
+    /// Where to write the result (.ply, .obj, .stl, .off, .gltf, .glb).
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]

@@ -402,6 +402,9 @@ pub struct Refusals {
     pub boundary: u64,
     /// A locked vertex is involved.
     pub locked: u64,
+    /// The seam rules forbid the merge (per-corner attributes tracked: it would move a
+    /// seam vertex, remove a seam's corner, or cross a seam).
+    pub seam: u64,
     /// The cost model refused (or returned a non-finite plan).
     pub model: u64,
 }
@@ -417,6 +420,7 @@ impl Refusals {
             ("facing", self.facing),
             ("boundary", self.boundary),
             ("locked", self.locked),
+            ("seam", self.seam),
             ("model", self.model),
         ])
     }

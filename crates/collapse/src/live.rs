@@ -13,6 +13,7 @@ use coarsen_mesh::{CarryReport, FaceOrigins, Mesh, VertexOrigins};
 use rayon::prelude::*;
 
 mod parts;
+mod seams;
 
 pub use parts::{PartOptions, Parted};
 
@@ -51,6 +52,7 @@ enum Refusal {
     Facing,
     Boundary,
     Locked,
+    Seam,
     Model,
 }
 
@@ -64,6 +66,7 @@ impl Refusals {
         self.facing += other.facing;
         self.boundary += other.boundary;
         self.locked += other.locked;
+        self.seam += other.seam;
         self.model += other.model;
     }
 
@@ -76,6 +79,7 @@ impl Refusals {
             Refusal::Facing => &mut self.facing,
             Refusal::Boundary => &mut self.boundary,
             Refusal::Locked => &mut self.locked,
+            Refusal::Seam => &mut self.seam,
             Refusal::Model => &mut self.model,
         } += 1;
     }
@@ -180,6 +184,9 @@ pub struct LiveMesh {
     original_of: Option<Vec<Index>>,
     /// The faces the last collapse deleted (their corners as they were).
     last_deleted: Vec<Index>,
+    /// The per-corner attributes tracked through the collapses, when asked for
+    /// ([`LiveMesh::track_seams`]).
+    seams: Option<seams::SeamState>,
 }
 
 /// What [`LiveMesh::build`] derives from its mesh: per vertex its kind and the sums of
@@ -600,6 +607,7 @@ impl LiveMesh {
             region_area,
             history: None,
             last_deleted: Vec::new(),
+            seams: None,
             original_of,
             base_vertex: None,
             base_face: None,
@@ -1001,6 +1009,8 @@ impl LiveMesh {
         // Every input vertex is a source of the survivor it went to.
         let mut vo = VertexOrigins::with_capacities(survivors.len(), self.cluster_next.len());
         let mut members = Vec::new();
+        // Each survivor's merged input vertices, kept for the wedges when tracked.
+        let mut clusters: Vec<Vec<Index>> = Vec::new();
         for &v in &survivors {
             new_index[v as usize] = positions.len() as Index;
             positions.push(self.pos[v as usize]);
@@ -1015,16 +1025,37 @@ impl LiveMesh {
             } else {
                 vo.push_blend(members.iter().map(|&m| (m, 1.0)));
             }
+            if self.seams.is_some() {
+                clusters.push(members.clone());
+            }
         }
         let mut faces = Vec::with_capacity(self.n_faces);
+        let mut slots = Vec::new();
         let mut fo = FaceOrigins::with_capacity(self.n_faces);
         for (f, face) in self.faces.iter().enumerate() {
             if self.face_state[f] != DEAD {
                 faces.push(face.map(|v| new_index[v as usize]));
                 fo.push_parent(self.base_face.as_ref().map_or(f as Index, |b| b[f]));
+                if self.seams.is_some() {
+                    slots.push(f as Index);
+                }
             }
         }
-        attributes.rebuilt(positions, faces, &vo, &fo)
+        match self.output_wedges(&slots, &faces, &positions, &clusters) {
+            // The wedges are this engine's: the rest is carried as always.
+            Some(wedges) => {
+                let plain = Mesh {
+                    vertex_attrs: attributes.vertex_attrs.clone(),
+                    face_attrs: attributes.face_attrs.clone(),
+                    materials: attributes.materials.clone(),
+                    ..Mesh::default()
+                };
+                let (mut out, carry) = plain.rebuilt(positions, faces, &vo, &fo);
+                out.wedges = wedges;
+                (out, carry)
+            }
+            None => attributes.rebuilt(positions, faces, &vo, &fo),
+        }
     }
 
     /// Collapses until `opts.goal` is met, the next collapse would cost more than
@@ -1148,7 +1179,7 @@ impl LiveMesh {
             return Vetted::Skip;
         }
         let verts = &e.vertices[..e.vertices().len()];
-        let pinned = match self.rule(verts) {
+        let pin = match self.rule(verts) {
             Ok(p) => p,
             Err(r) => {
                 out.refused.count(r);
@@ -1157,7 +1188,7 @@ impl LiveMesh {
         };
         // Recomputed rather than stored: the same inputs give the same plan, and a
         // queue entry stays small.
-        let Some(plan) = self.plan(model, verts, pinned) else {
+        let Some((plan, pinned)) = self.plan_pinned(model, verts, pin) else {
             out.refused.count(Refusal::Model);
             q.park(e, NONE);
             return Vetted::Skip;
@@ -1189,6 +1220,12 @@ impl LiveMesh {
             q.park(e, NONE);
             return Vetted::Skip;
         }
+        if self.seams.is_some() && self.folds_uvs(verts, self.kept_of(verts, pinned), plan.position)
+        {
+            out.refused.count(Refusal::Seam);
+            q.park(e, NONE);
+            return Vetted::Skip;
+        }
         Vetted::Go { plan, pinned }
     }
 
@@ -1210,16 +1247,10 @@ impl LiveMesh {
         if opts.weighted_sve {
             out.sve_weighted += crate::weighted_sve(self, verts, plan.position);
         }
-        // A boundary vertex survives when there is one, so that kinds stay true.
-        let kept = pinned
-            .or_else(|| {
-                verts
-                    .iter()
-                    .copied()
-                    .find(|&v| self.kind[v as usize] == VertexKind::Boundary)
-            })
-            .unwrap_or(verts[0]);
+        let kept = self.kept_of(verts, pinned);
+        let moved = self.moved_uv(verts, kept, plan.position);
         self.merge(verts, kept, plan.position, &mut run.s);
+        self.carry_wedges(verts, kept, moved);
         model.merged(self, kept, verts);
         let mut removed = [NONE; 2];
         for (slot, &v) in removed.iter_mut().zip(verts.iter().filter(|&&v| v != kept)) {
@@ -1353,6 +1384,10 @@ impl LiveMesh {
         }
         keep_in_order(&mut self.face_state, &old_face);
         keep_in_order(&mut self.input_normal, &old_face);
+        if let Some(seams) = &mut self.seams {
+            keep_in_order(&mut seams.class, &old_vertex);
+            keep_in_order(&mut seams.wedge, &old_face);
+        }
         self.last_deleted.clear();
         Some(Renaming {
             old_vertex,
@@ -1390,9 +1425,52 @@ impl LiveMesh {
         self.stamp_sum(e.vertices()) == e.stamp
     }
 
+    /// The vertex a merge of `verts` keeps: the pinned one, else a boundary vertex when
+    /// there is one (so that kinds stay true), else the first.
+    #[inline]
+    fn kept_of(&self, verts: &[Index], pinned: Option<Index>) -> Index {
+        pinned
+            .or_else(|| {
+                verts
+                    .iter()
+                    .copied()
+                    .find(|&v| self.kind[v as usize] == VertexKind::Boundary)
+            })
+            .unwrap_or(verts[0])
+    }
+
+    /// The rules of the vertex kinds (crate docs' table) and of the seams (when tracked,
+    /// `seams.rs`): where the result is pinned, or why the merge is not allowed.
+    fn rule(&self, verts: &[Index]) -> Result<seams::Pin, Refusal> {
+        let pinned = self.boundary_rule(verts)?;
+        self.seam_rule(verts, pinned)
+    }
+
+    /// The model's plan under `pin`, and the vertex it keeps in place (of two allowed,
+    /// the cheaper; the first on a tie).
+    fn plan_pinned<M: CostModel>(
+        &self,
+        model: &M,
+        verts: &[Index],
+        pin: seams::Pin,
+    ) -> Option<(Plan, Option<Index>)> {
+        match pin {
+            seams::Pin::Free => Some((self.plan(model, verts, None)?, None)),
+            seams::Pin::At(v) => Some((self.plan(model, verts, Some(v))?, Some(v))),
+            seams::Pin::Either(a, b) => {
+                let at_a = self.plan(model, verts, Some(a)).map(|p| (p, Some(a)));
+                let at_b = self.plan(model, verts, Some(b)).map(|p| (p, Some(b)));
+                match (at_a, at_b) {
+                    (Some(x), Some(y)) => Some(if y.0.cost < x.0.cost { y } else { x }),
+                    (x, y) => x.or(y),
+                }
+            }
+        }
+    }
+
     /// The rules of the vertex kinds (crate docs' table): the vertex the result is pinned
     /// to, if any, or why the merge is not allowed.
-    fn rule(&self, verts: &[Index]) -> Result<Option<Index>, Refusal> {
+    fn boundary_rule(&self, verts: &[Index]) -> Result<Option<Index>, Refusal> {
         let mut boundary = [NONE; 3];
         let mut nb = 0;
         for &v in verts {
@@ -1531,12 +1609,12 @@ impl LiveMesh {
 
     /// What to do with a candidate: queue it at its cost, or count why not.
     fn rank<M: CostModel>(&self, model: &M, verts: &[Index]) -> Ranked {
-        let pinned = match self.rule(verts) {
+        let pin = match self.rule(verts) {
             Ok(p) => p,
             Err(r) => return Ranked::Refused(r),
         };
-        match self.plan(model, verts, pinned) {
-            Some(plan) => {
+        match self.plan_pinned(model, verts, pin) {
+            Some((plan, _)) => {
                 let mut v = [NONE; 3];
                 v[..verts.len()].copy_from_slice(verts);
                 Ranked::Queue {

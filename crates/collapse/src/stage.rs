@@ -14,6 +14,11 @@
 //! input wraps around a thin part, or they turn by more than 45°); the report gives how
 //! many (`facing_tests`).
 //!
+//! **Per-corner attributes** (UV seams, normals across hard edges): carried through the
+//! collapses with the seams as constraints ([`LiveMesh::track_seams`]); the report gives
+//! the vertices on seams before (`seam_vertices_in`: every vertex of a seam edge) and the
+//! output's vertices with two wedges or more (`seam_vertices`).
+//!
 //! **Squared volume error** (paper 2's, metrics.md `sve`): each collapse's Σ Vᵢ² over the
 //! faces around the merged vertices, Vᵢ the volume swept by face i; the report gives the
 //! sum (`sve`), the largest (`sve_max`) and, when the stage asks for it, the sum weighted
@@ -150,7 +155,8 @@ where
 }
 
 /// The contract of a collapse stage: a target, and pinched vertices split per face fan
-/// (the engine locks what is not manifold; split, they let it work there).
+/// (the engine locks what is not manifold; split, they let it work there); per-corner
+/// attributes carried (their seams kept, [`LiveMesh::track_seams`]).
 pub fn contract() -> Contract {
     Contract {
         needs: Needs {
@@ -158,6 +164,7 @@ pub fn contract() -> Contract {
             split_fans: true,
             ..Needs::default()
         },
+        carries_wedges: true,
         ..Contract::default()
     }
 }
@@ -176,6 +183,7 @@ pub fn run(
     let goal = stage.goal(count);
     let mut live =
         LiveMesh::new_renumbered(&mesh).map_err(|e| StageError::Input(format!("`{kind}`: {e}")))?;
+    let on_seams = live.track_seams(&mesh);
     let corners = stage.kept_corners().map(|angle| {
         let corners = corners_of(&mesh, angle);
         (corners.len(), live.lock(&corners))
@@ -195,6 +203,11 @@ pub fn run(
         **slot = live.take_progressive(&out).map(|p| Box::new(p) as Handback);
     }
     report(cx.report, stage, &target, &done, &before, &after);
+    if live.tracks_seams() {
+        cx.report.figure("seam_vertices_in", on_seams);
+        cx.report
+            .figure("seam_vertices", out.wedges.split_vertices());
+    }
     if let Some((found, locked)) = corners {
         cx.report.figure("corners", found);
         cx.report.figure("corners_locked", locked);

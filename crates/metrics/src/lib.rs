@@ -46,6 +46,7 @@ mod prepare;
 pub mod quality;
 #[cfg(test)]
 mod test_meshes;
+pub mod texture;
 pub mod validity;
 
 pub use error::{MAX_COORDINATE, MetricsError, Role};
@@ -54,6 +55,7 @@ pub use fidelity::{Fidelity, FidelityOptions, MIN_FACE_SAMPLES, SAMPLES_PER_FACE
 pub use fields::{Fields, MeshFields, shape_fields};
 pub use grid::{GridFacing, LazyGridFacing};
 pub use quality::{Quality, quality};
+pub use texture::{Texture, texture};
 pub use validity::{Facing, SurfaceIndex, SurfaceParts, Validity, validity};
 
 use coarsen_mesh::Mesh;
@@ -82,6 +84,10 @@ pub struct MetricsReport {
     /// an input.
     #[serde(default)]
     pub features: Option<FeatureEdges>,
+    /// Seams, UV flips and texture distortion against the input; `None` unless both
+    /// carry a `uv` column.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture: Option<Texture>,
 }
 
 /// Measures `output`, against `input` when given (fidelity and flipped faces need it).
@@ -124,8 +130,8 @@ fn measure_and_record(
     let (out, input) = (out?, input?);
     let out_topology = validity::topology(&out, Role::Output)?;
     let quality = quality::quality_of(&out);
-    let (fidelity, n_flipped, fields, features) = match &input {
-        None => (None, None, None, None),
+    let (fidelity, n_flipped, fields, features, texture) = match &input {
+        None => (None, None, None, None, None),
         Some(inp) => {
             let floor = fidelity::rounding_floor(inp, &out)?;
             // The input's topology (for its closedness and the flip test's edge normals)
@@ -163,7 +169,8 @@ fn measure_and_record(
                 let n = validity::count_flipped(&out, inp, &sampled.input_bvh, in_topology);
                 (n, None)
             };
-            (Some(fid), Some(n_flipped), fields, Some(edges))
+            let tex = texture::texture(inp.mesh, out.mesh, fid.bbox_diagonal);
+            (Some(fid), Some(n_flipped), fields, Some(edges), tex)
         }
     };
     let validity = validity::validity_of(&out, &out_topology.summary(output), n_flipped);
@@ -172,6 +179,7 @@ fn measure_and_record(
         fidelity,
         validity,
         features,
+        texture,
     };
     Ok((report, fields))
 }
@@ -233,6 +241,30 @@ impl MetricsReport {
             v.n_flipped
                 .map_or("n/a (no input)".into(), |n| n.to_string()),
         ));
+        if let Some(t) = &self.texture {
+            rows.push((
+                "seam vertices",
+                format!("{} (input {})", t.seam_vertices, t.seam_vertices_in),
+            ));
+            rows.push((
+                "UV-flipped faces",
+                format!("{} ({} of zero UV area)", t.uv_flipped, t.uv_degenerate),
+            ));
+            rows.push((
+                "texture distortion",
+                format!(
+                    "max {:.3} %, mean {:.4} % ({} UVs outside the input's)",
+                    t.distortion_max_pct, t.distortion_mean_pct, t.uv_outside
+                ),
+            ));
+            rows.push((
+                "texture distortion inside faces",
+                format!(
+                    "max {:.3} %, mean {:.4} %",
+                    t.surface_distortion_max_pct, t.surface_distortion_mean_pct
+                ),
+            ));
+        }
         let mut out = String::from("| figure | value |\n| --- | --- |\n");
         for (name, value) in rows {
             let _ = writeln!(out, "| {name} | {value} |");

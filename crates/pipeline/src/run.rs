@@ -309,9 +309,10 @@ impl Pipeline {
 
 impl Pipeline {
     /// `input` as the stages take it: per-corner columns that are per vertex after all
-    /// become vertex columns (carried like every vertex column); the others are taken off,
-    /// as no stage carries wedges yet, and said so. The materials are taken off too, for
-    /// [`keep_materials`] to put back on the output.
+    /// become vertex columns (carried like every vertex column); the others stay as wedges
+    /// when every stage carries them (`Contract::carries_wedges`), else they are taken off
+    /// and said so. The materials are taken off too, for [`keep_materials`] to put back on
+    /// the output.
     fn without_wedges(&self, mut input: Mesh) -> (Mesh, Materials, Vec<String>) {
         let mut notes = Vec::new();
         let per_vertex = input
@@ -320,7 +321,13 @@ impl Pipeline {
         for (name, values) in per_vertex.iter() {
             input.vertex_attrs.insert(name, values.clone());
         }
-        if !input.wedges.is_empty() {
+        let dropping = self
+            .stages
+            .iter()
+            .find(|s| !s.stage.contract().carries_wedges);
+        if let Some(first) = dropping
+            && !input.wedges.is_empty()
+        {
             let names: Vec<String> = input
                 .wedges
                 .attrs()
@@ -328,10 +335,11 @@ impl Pipeline {
                 .map(|n| format!("`{n}`"))
                 .collect();
             notes.push(format!(
-                "per-corner {} ({} vertices on seams or hard edges) not carried: pipeline `{}` \
-                 cannot carry per-corner attributes yet, so the output has none",
+                "per-corner {} ({} vertices on seams or hard edges) not carried: stage `{}` of \
+                 pipeline `{}` cannot carry per-corner attributes yet, so the output has none",
                 names.join(" and "),
                 input.wedges.split_vertices(),
+                first.kind,
                 self.name
             ));
             input.wedges = Wedges::default();

@@ -35,6 +35,7 @@ impl Stage for Mark {
     fn contract(&self) -> Contract {
         Contract {
             writes: vec![AttrRef::vertex(self.0.name.clone(), AttrKind::Scalar)],
+            carries_wedges: true,
             ..Default::default()
         }
     }
@@ -700,7 +701,7 @@ fn a_cancelled_run_stops_inside_the_stage_or_before_the_next() {
 }
 
 #[test]
-fn per_corner_columns_become_vertex_columns_or_a_note_that_they_were_not_carried() {
+fn per_corner_columns_become_vertex_columns_stay_or_are_said_to_be_dropped() {
     use coarsen_mesh::{Attributes, DVec2};
     let mut cols = Attributes::default();
     // Vertex 0 takes two UVs (a seam); every corner the same normal.
@@ -710,17 +711,23 @@ fn per_corner_columns_become_vertex_columns_or_a_note_that_they_were_not_carried
     let mesh = square().with_corner_attributes(cols);
     assert_eq!(mesh.wedges.split_vertices(), 1);
     let p = parse(GOOD, &Overrides::default()).unwrap();
-    let (out, report) = p.run(mesh, RunOptions::default()).unwrap();
+    let (out, report) = p.run(mesh.clone(), RunOptions::default()).unwrap();
     assert!(out.wedges.is_empty());
     assert!(out.vertex_attrs.vec3("normal").is_some());
     assert_eq!(
         report.notes,
         [
-            "per-corner `uv` (1 vertices on seams or hard edges) not carried: pipeline `demo` \
-          cannot carry per-corner attributes yet, so the output has none"
+            "per-corner `uv` (1 vertices on seams or hard edges) not carried: stage \
+          `test.drop-high` of pipeline `demo` cannot carry per-corner attributes yet, so the \
+          output has none"
         ]
     );
     assert!(report.summary().contains("note: per-corner `uv`"));
+    // Through stages that all carry them, they stay, and nothing is said.
+    let keeps = parse("[[stage]]\nkind = \"test.mark\"\n", &Overrides::default()).unwrap();
+    let (out, report) = keeps.run(mesh.clone(), RunOptions::default()).unwrap();
+    assert_eq!(out.wedges, mesh.wedges);
+    assert!(report.notes.is_empty());
     // Without wedges, nothing is said and the JSON has no `notes`.
     let (_, report) = p.run(square(), RunOptions::default()).unwrap();
     assert!(report.notes.is_empty() && !report.to_json().contains("\"notes\""));

@@ -268,6 +268,7 @@ impl Stage for ClusterCvt {
                 target: p.clusters == 0,
                 ..Needs::default()
             },
+            carries_wedges: false,
         }
     }
 

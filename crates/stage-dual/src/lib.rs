@@ -950,6 +950,7 @@ impl Stage for DualStage {
                 manifold: true,
                 ..Needs::default()
             },
+            carries_wedges: false,
         }
     }
 

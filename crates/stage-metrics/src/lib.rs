@@ -72,7 +72,10 @@ impl Stage for MetricsStage {
 
     fn contract(&self) -> Contract {
         if !self.0.fields {
-            return Contract::default();
+            return Contract {
+                carries_wedges: true,
+                ..Contract::default()
+            };
         }
         let mut writes = vec![AttrRef::vertex(VERTEX_DISTANCE, AttrKind::Scalar)];
         for name in [FACE_DISTANCE, FACE_MIN_ANGLE, FACE_QUALITY] {
@@ -81,6 +84,7 @@ impl Stage for MetricsStage {
         writes.push(AttrRef::face(FACE_FLIPPED, AttrKind::Label));
         Contract {
             writes,
+            carries_wedges: true,
             ..Contract::default()
         }
     }

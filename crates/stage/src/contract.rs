@@ -67,4 +67,8 @@ pub struct Contract {
     pub clears: Vec<Domain>,
     /// Requirements on the input and the run.
     pub needs: Needs,
+    /// Whether the stage carries per-corner attributes (`Mesh::wedges`: UVs across seams,
+    /// normals across hard edges) to its output; the runner keeps them only through a
+    /// pipeline whose every stage does.
+    pub carries_wedges: bool,
 }

@@ -99,8 +99,9 @@ struct PartRun<G> {
     /// The input vertices merged into each surviving free vertex that merged any, the
     /// vertex itself first, in the order it merged them.
     clusters: Vec<Vec<Index>>,
-    /// Each surviving face at a free vertex: index and corners.
-    faces: Vec<(Index, [Index; 3])>,
+    /// Each surviving face at a free vertex: index, corners and (seams tracked) their
+    /// wedges.
+    faces: Vec<(Index, [Index; 3], Option<[Index; 3]>)>,
     /// Vertices and faces removed.
     removed_vertices: usize,
     removed_faces: usize,
@@ -432,9 +433,12 @@ impl LiveMesh {
                 self.region_normal[v] = normal;
                 self.region_area[v] = area;
             }
-            for &(f, corners) in &run.faces {
+            for &(f, corners, wedges) in &run.faces {
                 self.face_state[f as usize] = LIVE;
                 self.faces[f as usize] = corners;
+                if let (Some(seams), Some(w)) = (&mut self.seams, wedges) {
+                    seams.wedge[f as usize] = w;
+                }
             }
             for members in &run.clusters {
                 // As `merge` links them: each merged vertex's own list after the kept one's.
@@ -489,8 +493,8 @@ impl LiveMesh {
                 };
                 cands.into_iter().flatten().filter_map(move |c| {
                     let verts = &c[..if unit == Unit::Edge { 2 } else { 3 }];
-                    let pinned = self.rule(verts).ok()?;
-                    self.plan(model, verts, pinned).map(|p| p.cost)
+                    let pin = self.rule(verts).ok()?;
+                    self.plan_pinned(model, verts, pin).map(|(p, _)| p.cost)
                 })
             })
             .collect();
@@ -563,7 +567,15 @@ impl LiveMesh {
                 .map(|&v| self.region_area[v as usize])
                 .collect(),
         };
-        let mesh = LiveMesh::build_with(positions, local_faces, Some(verts.clone()), Some(derived));
+        let mut mesh =
+            LiveMesh::build_with(positions, local_faces, Some(verts.clone()), Some(derived));
+        mesh.seams = self.seams.as_ref().map(|s| super::seams::SeamState {
+            class: verts.iter().map(|&v| s.class[v as usize]).collect(),
+            wedge: faces.iter().map(|&f| s.wedge[f as usize]).collect(),
+            seam_of: s.seam_of.clone(),
+            uv: None,
+            source: None,
+        });
         Part {
             vertices_before: mesh.n_vertices,
             model: model.for_part(&mesh),
@@ -756,6 +768,7 @@ impl<M: CostModel, G: FaceGuard> Part<M, G> {
                 kept_faces.push((
                     faces[input_face as usize],
                     face.map(|v| part.input_index(v)),
+                    part.seams.as_ref().map(|s| s.wedge[j]),
                 ));
             }
         }
@@ -773,7 +786,7 @@ impl<M: CostModel, G: FaceGuard> Part<M, G> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::fixtures::*;
     use crate::{NoGuard, QemOptions, QuadricModel};
@@ -802,7 +815,7 @@ mod tests {
     };
 
     /// An icosphere with bumps, so that costs vary over it.
-    pub(super) fn bumpy(levels: u32) -> Mesh {
+    pub(in crate::live) fn bumpy(levels: u32) -> Mesh {
         let mut m = icosphere(levels);
         for p in &mut m.positions {
             *p *= 1.0 + 0.05 * (5.0 * p.x).sin() * (4.0 * p.y).sin() * (3.0 * p.z).sin();
