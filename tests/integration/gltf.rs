@@ -269,8 +269,17 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
     for ratio in ["0.7", "0.95"] {
         let out_glb = dir.path().join(format!("spot-qem-{ratio}.glb"));
         let o = out_glb.to_string_lossy();
-        let run = run_cli(EXE, &["run", "qem", &t, "-o", &o, "--ratio", ratio]);
+        let html = dir.path().join("report.html");
+        let h = html.to_string_lossy();
+        let run = run_cli(
+            EXE,
+            &["run", "qem", &t, "-o", &o, "--ratio", ratio, "--html", &h],
+        );
         assert!(run.status.success(), "{}", stderr(&run));
+        // The report shows the texture and its figures.
+        let page = std::fs::read_to_string(&html).unwrap();
+        assert!(page.contains("texture: input and output from four sides"));
+        assert!(page.contains("texture distortion inside the faces"));
         // UVs and normals carried: nothing said about them, the texture written.
         let said = format!("{}{}", stdout(&run), stderr(&run));
         assert!(!said.contains("per-corner"), "{said}");
@@ -291,5 +300,36 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
         assert!(tex.distortion_max_pct <= hausdorff, "{ratio}: {tex:?}");
         written.push(out_glb);
     }
+    // `render --texture`: the embedded PNG, or a checkerboard; a mesh without UVs is refused.
+    let picture = |args: &[&str]| {
+        let png = dir.path().join("p.png");
+        let mut all = vec!["render"];
+        all.extend_from_slice(args);
+        all.extend(["-o", png.to_str().unwrap(), "--size", "64x64"]);
+        let out = run_cli(EXE, &all);
+        (out, std::fs::read(&png).unwrap_or_default())
+    };
+    let last = written.last().unwrap().to_string_lossy().into_owned();
+    let (plain, grey) = picture(&[&last]);
+    let (textured, image) = picture(&[&last, "--texture"]);
+    let (checker, squares) = picture(&[&last, "--texture", "checker"]);
+    for out in [&plain, &textured, &checker] {
+        assert!(out.status.success(), "{}", stderr(out));
+    }
+    assert!(grey != image && image != squares && grey != squares);
+    let bare = dir.path().join("bare.ply");
+    coarsen_io::write_path(
+        &Mesh::new(m.positions.clone(), m.faces.clone()),
+        &bare,
+        &Default::default(),
+    )
+    .unwrap();
+    let (refused, _) = picture(&[bare.to_str().unwrap(), "--texture", "checker"]);
+    assert_eq!(refused.status.code(), Some(1));
+    assert!(
+        stderr(&refused).contains("no `uv` column"),
+        "{}",
+        stderr(&refused)
+    );
     validate(&written);
 }

@@ -113,6 +113,21 @@ impl Recorder {
         self.keep(title, coarsen_render::render(meshes, &opts));
     }
 
+    /// Renders `meshes` side by side (the input first) with their texture (a UV
+    /// checkerboard when they have none) from four sides, and keeps the picture.
+    pub fn texture(&self, title: String, meshes: &[&Mesh]) {
+        let size = self.size * 3 / 5;
+        let opts = RenderOptions {
+            width: size,
+            height: size,
+            view: self.view,
+            views: 4,
+            texture: coarsen_render::Texturing::Image,
+            ..Default::default()
+        };
+        self.keep(title, coarsen_render::render(meshes, &opts));
+    }
+
     /// Renders `meshes` side by side (the input first) coloured by a measured `field`,
     /// with its colour bar, and keeps the picture; `worst` highlights that percent of
     /// each mesh's worst faces; `sheet` draws four views (a 2×2 sheet).
@@ -250,7 +265,8 @@ pub(crate) fn carry_labels(
 
 /// The report's maps of the output against the input: the distance of each to the other
 /// (far in red: where the output left the surface, e.g. rounded feature edges), the
-/// smallest angles (the worst 1 % of faces in magenta) and the sharp features of both.
+/// smallest angles (the worst 1 % of faces in magenta), the sharp features of both and,
+/// when both carry texture coordinates, their texture.
 pub fn maps_of(r: &Recorder, input: &Mesh, output: &Mesh, fields: &coarsen_metrics::Fields) {
     let (mut a, mut b) = (input.clone(), output.clone());
     fields.input.attach(&mut a);
@@ -272,6 +288,13 @@ pub fn maps_of(r: &Recorder, input: &Mesh, output: &Mesh, fields: &coarsen_metri
                  blue, of three or more faces purple, corners yellow)"
         .to_string();
     r.features(title, &[input, output]);
+    let textured = |m: &Mesh| coarsen_metrics::texture::corner_uvs(m).is_some();
+    if textured(input) && textured(output) {
+        let title = "texture: input and output from four sides (a UV checkerboard when the \
+                     material has no PNG texture: squares that meet across a seam show it held)"
+            .to_string();
+        r.texture(title, &[input, output]);
+    }
 }
 
 fn escape(s: &str) -> String {
@@ -469,6 +492,30 @@ fn write_metrics(h: &mut String, m: &MetricsReport, input_quality: Option<&Quali
                 .unwrap_or_else(|| "—".into())
         ),
     );
+    if let Some(t) = &m.texture {
+        row(
+            "seam vertices (input → output)",
+            format!("{} → {}", t.seam_vertices_in, t.seam_vertices),
+        );
+        row(
+            "faces turned over / flat in UV space",
+            format!("{} / {}", t.uv_flipped, t.uv_degenerate),
+        );
+        row(
+            "texture distortion at the vertices (max / mean)",
+            format!(
+                "{:.3} % / {:.4} % of the diagonal",
+                t.distortion_max_pct, t.distortion_mean_pct
+            ),
+        );
+        row(
+            "texture distortion inside the faces (max / mean)",
+            format!(
+                "{:.3} % / {:.4} % of the diagonal",
+                t.surface_distortion_max_pct, t.surface_distortion_mean_pct
+            ),
+        );
+    }
     h.push_str("</table><h3>Smallest angle of each triangle</h3>");
     let input_bins = input_quality.map(|q| q.min_angle_histogram.as_slice());
     h.push_str(&histogram_svg(&q.min_angle_histogram, input_bins));

@@ -157,6 +157,12 @@ enum Command {
         /// red; boundary: blue; of three or more faces: purple; corners: yellow dots).
         #[arg(long)]
         features: bool,
+        /// Draw the texture on meshes with texture coordinates: `image` (the default: the
+        /// material's PNG texture, else the checkerboard) or `checker` (a UV checkerboard,
+        /// which shows where seams hold).
+        #[arg(long, value_name = "KIND", num_args = 0..=1, default_missing_value = "image",
+              value_parser = parse_texture)]
+        texture: Option<coarsen_render::Texturing>,
     },
     /// Rebuild a level of detail from a coarse mesh and its progressive record (`run
     /// --progressive`) by undoing collapses: level 0 is the coarse mesh, the last level the input.
@@ -185,6 +191,14 @@ enum Command {
         #[arg(long, value_name = "FILE.ply")]
         input_fields: Option<PathBuf>,
     },
+}
+
+fn parse_texture(s: &str) -> Result<coarsen_render::Texturing, String> {
+    match s.trim() {
+        "image" => Ok(coarsen_render::Texturing::Image),
+        "checker" => Ok(coarsen_render::Texturing::Checker),
+        _ => Err(format!("expected `image` or `checker`, got `{s}`")),
+    }
 }
 
 fn parse_views(s: &str) -> Result<u32, String> {
@@ -455,6 +469,7 @@ where
             size,
             supersample,
             features,
+            texture,
         } => {
             let opts = coarsen_render::RenderOptions {
                 width: size.0,
@@ -467,6 +482,7 @@ where
                 scale: None,
                 supersample,
                 features,
+                texture: texture.unwrap_or_default(),
             };
             commands::render(&meshes, &output, opts, worst)
         }

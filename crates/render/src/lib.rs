@@ -27,8 +27,10 @@ mod camera;
 mod colormap;
 mod raster;
 mod text;
+mod texture;
 
 pub use colormap::{HIGHLIGHT, badness_color, label_color, scalar_color};
+pub use texture::{CHECKER_SQUARES, Texturing};
 
 use coarsen_geom::DVec3;
 use coarsen_mesh::{AttrValues, Domain, Mesh};
@@ -106,6 +108,9 @@ pub struct RenderOptions {
     /// edges and those the input marks red, boundary edges blue, edges of three or more
     /// faces purple, corners yellow.
     pub features: bool,
+    /// Draw the texture (or a UV checkerboard) on meshes with a `uv` column, instead of
+    /// the plain or attribute colours.
+    pub texture: Texturing,
 }
 
 impl Default for RenderOptions {
@@ -121,6 +126,7 @@ impl Default for RenderOptions {
             scale: None,
             supersample: 3,
             features: false,
+            texture: Texturing::Off,
         }
     }
 }
@@ -143,6 +149,9 @@ pub enum RenderError {
     /// Supersampling out of range.
     #[error("supersampling {0} is out of range (1..=4)")]
     Supersample(u32),
+    /// A texture was asked for, but no mesh has texture coordinates.
+    #[error("no `uv` column on the mesh: a texture needs texture coordinates")]
+    NoTexCoords,
     /// A face names a vertex that does not exist.
     #[error("the mesh is invalid: {0}")]
     Mesh(#[from] coarsen_mesh::IndexError),
@@ -370,6 +379,13 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
     {
         return Err(RenderError::NoAttribute(name.into()));
     }
+    let surfaces: Vec<Option<texture::Surface>> = meshes
+        .iter()
+        .map(|m| texture::Surface::of(m, opts.texture))
+        .collect();
+    if opts.texture != Texturing::Off && surfaces.iter().all(Option::is_none) {
+        return Err(RenderError::NoTexCoords);
+    }
     let overlays: Vec<raster::Overlay> = meshes
         .iter()
         .map(|m| match opts.features {
@@ -409,7 +425,11 @@ pub fn render(meshes: &[&Mesh], opts: &RenderOptions) -> Result<Image, RenderErr
     for (c, frame) in frames.iter().enumerate() {
         let (cx, cy) = ((c % cols) * cell_w, (c / cols) * ph);
         for (i, (mesh, colors)) in meshes.iter().zip(&colors).enumerate() {
-            let panel = panel(meshes, mesh, colors.as_deref(), &overlays[i], *frame, opts);
+            let paint = raster::Paint {
+                colors: colors.as_deref(),
+                surface: surfaces[i].as_ref(),
+            };
+            let panel = panel(meshes, mesh, &paint, &overlays[i], *frame, opts);
             for y in 0..ph {
                 let dst = ((cy + y) * total_w + cx + i * pw) * 3;
                 image.rgb[dst..dst + pw * 3].copy_from_slice(&panel[y * pw * 3..(y + 1) * pw * 3]);
@@ -479,7 +499,7 @@ fn separate_cells(img: &mut Image, cell_w: usize, cell_h: usize, grid_h: usize) 
 fn panel(
     all: &[&Mesh],
     mesh: &Mesh,
-    colors: Option<&[[[f32; 3]; 3]]>,
+    paint: &raster::Paint<'_>,
     overlay: &raster::Overlay,
     frame: camera::Frame,
     opts: &RenderOptions,
@@ -502,7 +522,7 @@ fn panel(
         outline: opts.wireframe,
         ambient: if opts.scale.is_some() { 0.6 } else { 0.28 },
     };
-    let fine = raster::draw(mesh, colors, &cam, &pass, overlay);
+    let fine = raster::draw(mesh, paint, &cam, &pass, overlay);
     let mut out = Vec::with_capacity(w * h * 3);
     let n = (s * s) as f32;
     for y in 0..h {

@@ -9,6 +9,13 @@ pub(crate) const BACKGROUND: [f32; 3] = [0.97, 0.97, 0.96];
 const BASE: [f32; 3] = [0.78, 0.78, 0.80];
 const WIRE: [f32; 3] = [0.08, 0.08, 0.10];
 
+/// What colours a mesh's faces: per-corner colours, or a texture sampled at each pixel.
+#[derive(Default)]
+pub(crate) struct Paint<'a> {
+    pub colors: Option<&'a [[[f32; 3]; 3]]>,
+    pub surface: Option<&'a crate::texture::Surface>,
+}
+
 /// How one panel is drawn, in the pixels it is drawn at (supersampled).
 pub(crate) struct Pass {
     pub width: usize,
@@ -60,7 +67,7 @@ pub(crate) struct Overlay {
 /// bottom.
 pub(crate) fn draw(
     mesh: &Mesh,
-    colors: Option<&[[[f32; 3]; 3]]>,
+    paint: &Paint<'_>,
     cam: &Camera,
     pass: &Pass,
     overlay: &Overlay,
@@ -91,7 +98,7 @@ pub(crate) fn draw(
         } else {
             [face_normal; 3]
         };
-        let corner_colors = colors.map(|c| c[f]).unwrap_or([BASE; 3]);
+        let corner_colors = paint.colors.map(|c| c[f]).unwrap_or([BASE; 3]);
         // Edge lengths in pixels, for the wireframe's distance to each edge.
         let len = [
             (c - b).truncate().length(),
@@ -126,10 +133,16 @@ pub(crate) fn draw(
                 // Two-sided lighting, so open meshes and their insides stay visible.
                 let shade = pass.ambient + (1.0 - pass.ambient) * n.dot(light).abs() as f32;
                 let mut rgb = [0.0f32; 3];
+                let texel = paint.surface.map(|s| s.sample(f, [w0, w1, w2]));
                 for (k, out) in rgb.iter_mut().enumerate() {
-                    let base = corner_colors[0][k] * w0 as f32
-                        + corner_colors[1][k] * w1 as f32
-                        + corner_colors[2][k] * w2 as f32;
+                    let base = match texel {
+                        Some(t) => t[k],
+                        None => {
+                            corner_colors[0][k] * w0 as f32
+                                + corner_colors[1][k] * w1 as f32
+                                + corner_colors[2][k] * w2 as f32
+                        }
+                    };
                     *out = base * shade;
                 }
                 if pass.wire > 0.0 {
