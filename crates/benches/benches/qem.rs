@@ -23,7 +23,10 @@
 //!   and 95 % removed, the UVs weighted [`UV_WEIGHT`] (meshoptimizer's positions are
 //!   scaled to unit extent, the UVs span about one unit), seams as meshoptimizer finds
 //!   them (vertices of equal position with other UVs); both outputs measured by
-//!   `coarsen_metrics::texture` and the Hausdorff distance (quality, not time).
+//!   `coarsen_metrics::texture` and the Hausdorff distance (quality, not time); then the
+//!   price of carrying them: `simplify.qem` on the 4.4M-face bunny with procedural UVs
+//!   (longitude and height, a seam where the longitude wraps) and normals, beside the same
+//!   without, in rounds as the scale case.
 //!
 //! coarsen's time covers what a run does with the input (in the scale case, given a copy
 //! made before the clock starts): the renumbering along a Morton
@@ -364,6 +367,92 @@ fn texture_case(data: &std::path::Path) {
     }
 }
 
+/// `mesh` with procedural texture coordinates per corner: longitude and height around its
+/// centroid's vertical axis, a seam where the longitude wraps (and wherever a face
+/// straddles the axis), and its area-weighted vertex normals.
+fn charted(mesh: &Mesh) -> Mesh {
+    use coarsen_mesh::{AttrValues, Attributes, DVec2, DVec3};
+    let centre = mesh.positions.iter().sum::<DVec3>() / mesh.n_vertices() as f64;
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+            (lo.min(p.y), hi.max(p.y))
+        });
+    let tau = std::f64::consts::TAU;
+    let lon = |p: DVec3| ((p.z - centre.z).atan2(p.x - centre.x) / tau).rem_euclid(1.0);
+    let mut uv = Vec::with_capacity(3 * mesh.n_faces());
+    for face in &mesh.faces {
+        let ps = face.map(|v| mesh.positions[v as usize]);
+        let mut u = ps.map(lon);
+        let (min, max) = (
+            u.iter().copied().fold(1.0, f64::min),
+            u.iter().copied().fold(0.0, f64::max),
+        );
+        if max - min > 0.5 {
+            u.iter_mut().filter(|x| **x < 0.5).for_each(|x| *x += 1.0);
+        }
+        for k in 0..3 {
+            uv.push(DVec2::new(u[k], (ps[k].y - lo) / (hi - lo)));
+        }
+    }
+    let mut normal = vec![DVec3::ZERO; mesh.n_vertices()];
+    for face in &mesh.faces {
+        let [a, b, c] = face.map(|v| mesh.positions[v as usize]);
+        let n = (b - a).cross(c - a);
+        for &v in face {
+            normal[v as usize] += n;
+        }
+    }
+    let corner_normals = mesh
+        .faces
+        .iter()
+        .flatten()
+        .map(|&v| normal[v as usize].normalize_or_zero())
+        .collect();
+    let mut cols = Attributes::default();
+    cols.insert("uv", AttrValues::Vec2(uv));
+    cols.insert("normal", AttrValues::Vec3(corner_normals));
+    let mut m = Mesh::new(mesh.positions.clone(), mesh.faces.clone());
+    m.wedges = coarsen_mesh::Wedges::from_corners(&m.faces, cols);
+    m
+}
+
+/// QEM with UVs and normals beside QEM without, on `big` to 60 000 faces, in rounds (the
+/// plain run before and after; the figure is the median ratio of the textured run to
+/// their mean, by CPU and by wall time).
+fn texture_speed(big: &Mesh) {
+    let target = Target::Faces(60_000);
+    let textured = charted(big);
+    let mut ratios: [Vec<f64>; 2] = Default::default();
+    for round in 1..=SCALE_ROUNDS {
+        let qem = || SimplifyQem::new(QemParams::default());
+        let (before, before_wall, _) = timed_stage(qem(), big, target);
+        let (with, with_wall, faces) = timed_stage(qem(), &textured, target);
+        let (after, after_wall, _) = timed_stage(qem(), big, target);
+        let r = [
+            with / (0.5 * (before + after)),
+            with_wall / (0.5 * (before_wall + after_wall)),
+        ];
+        println!(
+            "round {round}: CPU time (wall): plain {before:.2} s ({before_wall:.2} s) and \
+             {after:.2} s ({after_wall:.2} s), with UVs and normals {with:.2} s ({with_wall:.2} \
+             s, {faces} faces); ratio {:.2} by CPU time, {:.2} by wall time",
+            r[0], r[1]
+        );
+        ratios[0].push(r[0]);
+        ratios[1].push(r[1]);
+    }
+    let [cpu, wall] = ratios.map(median);
+    println!(
+        "subdivided bunny {} → 60K faces, {} seam vertices: QEM with UVs and normals against \
+         QEM without, median over {SCALE_ROUNDS} rounds: {cpu:.2} by CPU time, {wall:.2} by \
+         wall time",
+        big.n_faces(),
+        textured.wedges.split_vertices()
+    );
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; `cargo test --benches` does not: then run one quick case.
     let quick = !std::env::args().any(|a| a == "--bench");
@@ -371,6 +460,13 @@ fn main() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     if std::env::args().any(|a| a == "texture") {
         texture_case(&data);
+        let bunny = data.join("stanford-bunny.obj");
+        if bunny.exists() && !quick {
+            let mesh = coarsen_io::read_path(&bunny, &Default::default())
+                .expect("the bunny loads")
+                .mesh;
+            texture_speed(&subdivided(&mesh));
+        }
         return;
     }
     let bunny = data.join("stanford-bunny.obj");

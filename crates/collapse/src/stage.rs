@@ -176,18 +176,18 @@ pub fn contract() -> Contract {
 pub fn run(
     kind: &'static str,
     stage: &mut impl Simplifier,
-    mesh: Mesh,
+    mut mesh: Mesh,
     cx: &mut Context<'_>,
 ) -> Result<Mesh, StageError> {
     let (target, count) = cx.target_count(kind)?;
     let goal = stage.goal(count);
     let mut live =
         LiveMesh::new_renumbered(&mesh).map_err(|e| StageError::Input(format!("`{kind}`: {e}")))?;
-    let on_seams = live.track_seams(&mesh);
     let corners = stage.kept_corners().map(|angle| {
         let corners = corners_of(&mesh, angle);
         (corners.len(), live.lock(&corners))
     });
+    let on_seams = live.track_seams(&mut mesh);
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
     if cx.progressive.is_some() {

@@ -157,8 +157,11 @@ pub fn along_curve(mesh: Mesh) -> Mesh {
     let CurveOrder {
         vertices,
         faces: face_order,
-        ..
+        vertex_rank,
     } = order;
+    // The wedges keep their numbers: only their corners and vertices are renamed.
+    let mut mesh = mesh;
+    let wedges = std::mem::take(&mut mesh.wedges).permuted(&face_order, &vertex_rank);
     // Pure copies: every column carries.
     let mut out = mesh
         .rebuilt(
@@ -168,6 +171,7 @@ pub fn along_curve(mesh: Mesh) -> Mesh {
             &FaceOrigins::from_parents(face_order),
         )
         .0;
+    out.wedges = wedges;
     out.marked_edges = marked_edges;
     out
 }
@@ -249,6 +253,21 @@ mod tests {
         }
         let (a, b) = (Topology::build(&mesh), Topology::build(&ordered));
         assert_eq!(a.summary(&mesh), b.summary(&ordered));
+        // Per-corner values (each corner's own) follow their faces.
+        let mut cols = crate::Attributes::default();
+        let corner_ids = (0..3 * mesh.n_faces() as u32).collect();
+        cols.insert("corner", AttrValues::Label(corner_ids));
+        let cornered = mesh.clone().with_corner_attributes(cols);
+        let moved = along_curve(cornered.clone());
+        moved.wedges.check(&moved.faces).unwrap();
+        let Some(AttrValues::Label(c)) = moved.corner_column("corner") else {
+            panic!("corner ids")
+        };
+        for (f, &old) in fid.iter().enumerate() {
+            for k in 0..3 {
+                assert_eq!(c[3 * f + k], 3 * old + k as u32);
+            }
+        }
         // In order now: ordering again changes nothing.
         assert!(CurveOrder::of(&ordered).unwrap().is_identity());
         assert_eq!(along_curve(ordered.clone()), ordered);

@@ -144,6 +144,27 @@ impl Wedges {
         self.regrouped(&corners, new_faces)
     }
 
+    /// The same wedges on the faces renumbered: new face `i` is old face `faces[i]` (every
+    /// old face once), its vertices renamed by `vertex_rank` (old vertex → new). The wedges
+    /// keep their numbers and values.
+    pub fn permuted(&self, faces: &[Index], vertex_rank: &[Index]) -> Wedges {
+        if self.is_empty() {
+            return Wedges::default();
+        }
+        Wedges {
+            corners: faces
+                .iter()
+                .flat_map(|&f| (0..3).map(move |k| self.corners[3 * f as usize + k]))
+                .collect(),
+            vertex: self
+                .vertex
+                .iter()
+                .map(|&v| vertex_rank[v as usize])
+                .collect(),
+            attrs: self.attrs.clone(),
+        }
+    }
+
     /// Wedges for `new_faces` whose corner `c` takes the values of old corner
     /// `old_corners[c]`, regrouped by the new vertices.
     pub(crate) fn regrouped(&self, old_corners: &[Index], new_faces: &[[Index; 3]]) -> Wedges {

@@ -37,7 +37,7 @@ use crate::{Index, NONE, VertexKind};
 use coarsen_geom::{DVec2, DVec3};
 use coarsen_mesh::{AttrValues, Attributes, Mesh, Wedges};
 use coarsen_spatial::closest_point_on_triangle;
-use std::collections::HashMap;
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// A vertex on no seam.
@@ -72,6 +72,33 @@ pub(crate) struct Source {
     wedges: Wedges,
 }
 
+/// The sides of one merge: which wedge each side (a `seam_of` class of a vertex that
+/// goes) takes, a few pairs in place.
+#[derive(Default)]
+pub(crate) struct Sides {
+    pairs: [(Index, Index); 16],
+    len: usize,
+}
+
+impl Sides {
+    /// The wedge side `side` takes, if named.
+    fn find(&self, side: Index) -> Option<Index> {
+        self.pairs[..self.len]
+            .iter()
+            .find(|p| p.0 == side)
+            .map(|p| p.1)
+    }
+
+    /// Names the wedge of `side` unless it is named already (or the pairs are full: a
+    /// merge touches a handful of faces).
+    fn insert(&mut self, side: Index, wedge: Index) {
+        if self.len < self.pairs.len() && self.find(side).is_none() {
+            self.pairs[self.len] = (side, wedge);
+            self.len += 1;
+        }
+    }
+}
+
 /// Where a merge must put its vertex, by the boundary and seam rules.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Pin {
@@ -86,9 +113,10 @@ pub(crate) enum Pin {
 impl LiveMesh {
     /// Tracks `mesh`'s per-corner attributes (its wedges) through the collapses, with its
     /// seams as constraints (module docs); call before any collapse, with the mesh this
-    /// live mesh was built from. Returns how many vertices lie on seams (0, tracking
-    /// nothing, when the mesh has no wedges).
-    pub fn track_seams(&mut self, mesh: &Mesh) -> usize {
+    /// live mesh was built from, whose positions, faces and wedges it takes (the output's
+    /// wedge values come from them). Returns how many vertices lie on seams (0, tracking
+    /// nothing and taking nothing, when the mesh has no wedges).
+    pub fn track_seams(&mut self, mesh: &mut Mesh) -> usize {
         if mesh.wedges.is_empty()
             || mesh.n_faces() != self.faces.len()
             || self.base_face.is_some()
@@ -104,16 +132,18 @@ impl LiveMesh {
             wedge,
             seam_of: Arc::new(seam_of(&mesh.wedges)),
             uv: mesh.wedges.attrs().vec2("uv").map(<[DVec2]>::to_vec),
-            source: Some(Box::new(Source {
-                positions: mesh.positions.clone(),
-                faces: mesh.faces.clone(),
-                wedges: mesh.wedges.clone(),
-            })),
+            source: None,
         };
         state.class = (0..self.pos.len() as Index)
+            .into_par_iter()
             .map(|v| self.seam_class(&state, v))
             .collect();
         let on_seams = state.class.iter().filter(|&&c| c != FREE).count();
+        state.source = Some(Box::new(Source {
+            positions: std::mem::take(&mut mesh.positions),
+            faces: std::mem::take(&mut mesh.faces),
+            wedges: std::mem::take(&mut mesh.wedges),
+        }));
         self.seams = Some(state);
         on_seams
     }
@@ -130,20 +160,27 @@ impl LiveMesh {
             VertexKind::Locked => return CORNER,
             VertexKind::Interior | VertexKind::Boundary => {}
         }
-        // (neighbour, wedge at v, wedge at the neighbour) for each face edge at v.
-        let mut sides: Vec<(Index, Index, Index)> = Vec::new();
-        let mut at_v: Vec<Index> = Vec::new();
-        for &f in self.lists.get(v) {
+        // (neighbour, side at v, side at the neighbour) for each face edge at v, in place
+        // (a vertex of more faces than that is kept as a corner).
+        const MOST: usize = 32;
+        let around = self.lists.get(v);
+        if around.len() > MOST {
+            return CORNER;
+        }
+        let mut sides = [(NONE, NONE, NONE); 2 * MOST];
+        let mut at_v = [NONE; MOST];
+        for (i, &f) in around.iter().enumerate() {
             let face = self.faces[f as usize];
             let k = super::corner_of(face, v);
             let w = state.wedge[f as usize].map(|w| state.seam_of[w as usize]);
-            at_v.push(w[k]);
-            for j in [(k + 1) % 3, (k + 2) % 3] {
-                sides.push((face[j], w[k], w[j]));
-            }
+            at_v[i] = w[k];
+            sides[2 * i] = (face[(k + 1) % 3], w[k], w[(k + 1) % 3]);
+            sides[2 * i + 1] = (face[(k + 2) % 3], w[k], w[(k + 2) % 3]);
         }
+        let at_v = &mut at_v[..around.len()];
         at_v.sort_unstable();
-        at_v.dedup();
+        let distinct = 1 + at_v.windows(2).filter(|p| p[0] != p[1]).count();
+        let sides = &mut sides[..2 * around.len()];
         sides.sort_unstable();
         let mut seam_edges = 0;
         for run in sides.chunk_by(|a, b| a.0 == b.0) {
@@ -153,7 +190,7 @@ impl LiveMesh {
                 return CORNER;
             }
         }
-        match (at_v.len(), seam_edges) {
+        match (distinct.min(around.len()), seam_edges) {
             (0 | 1, 0) => FREE,
             (2, 2) if self.kind[v as usize] == VertexKind::Interior => CURVE,
             _ => CORNER,
@@ -256,8 +293,8 @@ impl LiveMesh {
                 let k = super::corner_of(face, v);
                 let mut after = before;
                 let side = state.seam_of[before[k] as usize];
-                if let Some(g) = group.iter().find(|g| g.0 == side) {
-                    after[k] = g.1;
+                if let Some(g) = group.find(side) {
+                    after[k] = g;
                 }
                 let (a0, a1) = (area(before, false), area(after, true));
                 if a0 * a1 < 0.0 || (a1 == 0.0 && a0 != 0.0) {
@@ -331,36 +368,31 @@ impl LiveMesh {
         deleted: impl Iterator<Item = Index>,
         verts: &[Index],
         kept: Index,
-    ) -> Vec<(Index, Index)> {
-        let mut group: Vec<(Index, Index)> = Vec::new();
-        let mut members: Vec<Index> = Vec::new();
+    ) -> Sides {
+        let mut group = Sides::default();
         for f in deleted {
             let face = self.faces[f as usize];
             let w = state.wedge[f as usize];
-            members.clear();
+            let mut members = [NONE; 3];
             let mut keeper = NONE;
             for k in 0..3 {
                 if face[k] == kept {
                     keeper = w[k];
                 } else if verts.contains(&face[k]) {
-                    members.push(state.seam_of[w[k] as usize]);
+                    members[k] = state.seam_of[w[k] as usize];
                 }
             }
+            let members = members.into_iter().filter(|&m| m != NONE);
             // A face without a corner at `kept` (the outer faces of a triangle collapse)
             // joins the side of a wedge named before.
             if keeper == NONE {
-                keeper = members
-                    .iter()
-                    .find_map(|m| group.iter().find(|g| g.0 == *m).map(|g| g.1))
-                    .unwrap_or(NONE);
+                keeper = members.clone().find_map(|m| group.find(m)).unwrap_or(NONE);
             }
             if keeper == NONE {
                 continue;
             }
-            for &m in &members {
-                if !group.iter().any(|g| g.0 == m) {
-                    group.push((m, keeper));
-                }
+            for m in members {
+                group.insert(m, keeper);
             }
         }
         group
@@ -387,8 +419,8 @@ impl LiveMesh {
             let k = super::corner_of(self.faces[f as usize], kept);
             let w = &mut state.wedge[f as usize][k];
             let side = state.seam_of[*w as usize];
-            if let Some(g) = group.iter().find(|g| g.0 == side) {
-                *w = g.1;
+            if let Some(g) = group.find(side) {
+                *w = g;
             }
         }
         if let (Some((w, at)), Some(uv)) = (moved, &mut state.uv) {
@@ -424,11 +456,11 @@ impl LiveMesh {
                 corner_key.push(i);
             }
         }
-        let around = vertex_faces(&source.faces, source.positions.len());
+        let around = vertex_faces(&source.positions, &source.faces);
         // Per output wedge, where its values come from: an input wedge as it is, or a
         // point in an input face (barycentric weights).
         let from: Vec<From> = keys
-            .iter()
+            .par_iter()
             .map(|&(w, v)| {
                 let p = positions[v as usize];
                 let own = input.vertices()[w as usize];
@@ -464,28 +496,51 @@ fn seam_of(wedges: &Wedges) -> Vec<Index> {
         .filter(|(name, _)| *name != "normal")
         .map(|(_, v)| v)
         .collect();
-    let mut first: HashMap<(Index, Vec<u64>), Index> = HashMap::new();
-    (0..wedges.len())
+    // Each vertex's wedges in order (CSR), then each wedge against the earlier ones.
+    let vertex = wedges.vertices();
+    let n = vertex.iter().map(|&v| v as usize + 1).max().unwrap_or(0);
+    let mut start = vec![0usize; n + 1];
+    for &v in vertex {
+        start[v as usize + 1] += 1;
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut list = vec![0 as Index; vertex.len()];
+    for (w, &v) in vertex.iter().enumerate() {
+        list[fill[v as usize]] = w as Index;
+        fill[v as usize] += 1;
+    }
+    let same = |a: Index, b: Index| {
+        columns
+            .iter()
+            .all(|c| bits(c, a as usize) == bits(c, b as usize))
+    };
+    (0..vertex.len())
+        .into_par_iter()
         .map(|w| {
-            let key: Vec<u64> = columns.iter().flat_map(|c| bits(c, w)).collect();
-            *first
-                .entry((wedges.vertices()[w], key))
-                .or_insert(w as Index)
+            let v = vertex[w] as usize;
+            let w = w as Index;
+            list[start[v]..start[v + 1]]
+                .iter()
+                .copied()
+                .find(|&e| e == w || same(e, w))
+                .unwrap_or(w)
         })
         .collect()
 }
 
 /// The bits of value `i` of a column.
-fn bits(values: &AttrValues, i: usize) -> Vec<u64> {
+fn bits(values: &AttrValues, i: usize) -> [u64; 3] {
     match values {
-        AttrValues::Scalar(v) => vec![v[i].to_bits()],
-        AttrValues::Vec2(v) => vec![v[i].x.to_bits(), v[i].y.to_bits()],
-        AttrValues::Vec3(v) => v[i].to_array().map(f64::to_bits).to_vec(),
-        AttrValues::Label(v) => vec![u64::from(v[i])],
-        AttrValues::Color(v) => vec![v[i].map(u64::from).iter().fold(0, |a, &c| a << 8 | c)],
+        AttrValues::Scalar(v) => [v[i].to_bits(), 0, 0],
+        AttrValues::Vec2(v) => [v[i].x.to_bits(), v[i].y.to_bits(), 0],
+        AttrValues::Vec3(v) => v[i].to_array().map(f64::to_bits),
+        AttrValues::Label(v) => [u64::from(v[i]), 0, 0],
+        AttrValues::Color(v) => [v[i].map(u64::from).iter().fold(0, |a, &c| a << 8 | c), 0, 0],
     }
 }
-
 /// Where an output wedge's values come from.
 enum From {
     /// The input wedge, as it is.
@@ -494,8 +549,30 @@ enum From {
     Point(Index, [f64; 3]),
 }
 
+/// Each input vertex's faces (CSR: offsets, then faces) and the longest edge of those
+/// faces.
+struct Around {
+    start: Vec<usize>,
+    list: Vec<Index>,
+    reach: Vec<f64>,
+}
+
+/// Each input vertex's faces and their longest edge.
+fn vertex_faces(positions: &[DVec3], faces: &[[Index; 3]]) -> Around {
+    let (start, list) = vertex_face_lists(faces, positions.len());
+    let mut reach = vec![0.0f64; positions.len()];
+    for face in faces {
+        let [a, b, c] = face.map(|v| positions[v as usize]);
+        let longest = a.distance(b).max(b.distance(c)).max(c.distance(a));
+        for &v in face {
+            reach[v as usize] = reach[v as usize].max(longest);
+        }
+    }
+    Around { start, list, reach }
+}
+
 /// Each input vertex's faces (CSR: offsets, then faces).
-fn vertex_faces(faces: &[[Index; 3]], n: usize) -> (Vec<usize>, Vec<Index>) {
+fn vertex_face_lists(faces: &[[Index; 3]], n: usize) -> (Vec<usize>, Vec<Index>) {
     let mut start = vec![0usize; n + 1];
     for &v in faces.iter().flatten() {
         start[v as usize + 1] += 1;
@@ -516,14 +593,31 @@ fn vertex_faces(faces: &[[Index; 3]], n: usize) -> (Vec<usize>, Vec<Index>) {
 
 /// The input face around `members` nearest `p`, with the barycentric weights of the
 /// nearest point (the first face of the least distance).
+///
+/// A member farther from `p` than the best distance so far and its faces' longest edge
+/// cannot hold a nearer point on its faces (every point of a face lies within its longest
+/// edge of each corner): the nearest member's faces first, then only the members near
+/// enough.
 fn nearest_around(
     source: &Source,
-    (start, list): &(Vec<usize>, Vec<Index>),
+    around: &Around,
     members: &[Index],
     p: DVec3,
 ) -> Option<(Index, [f64; 3])> {
+    let Around { start, list, reach } = around;
+    let gap = |m: Index| source.positions[m as usize].distance(p);
+    let first = members
+        .iter()
+        .copied()
+        .min_by(|&a, &b| gap(a).total_cmp(&gap(b)))?;
     let mut best: Option<(f64, Index, [f64; 3])> = None;
-    for &m in members {
+    let order = std::iter::once(first).chain(members.iter().copied().filter(|&m| m != first));
+    for m in order {
+        if let Some((d2, _, _)) = best
+            && gap(m) - reach[m as usize] > d2.sqrt()
+        {
+            continue;
+        }
         let m = m as usize;
         for &f in &list[start[m]..start[m + 1]] {
             let [a, b, c] = source.faces[f as usize].map(|v| source.positions[v as usize]);
@@ -646,7 +740,7 @@ mod tests {
     /// QEM on `mesh` to `goal` with its seams tracked (in parts first with `parts`).
     fn qem(mesh: &Mesh, goal: Goal, parts: &PartOptions) -> (Mesh, usize) {
         let mut live = LiveMesh::new_renumbered(mesh).unwrap();
-        let on_seams = live.track_seams(mesh);
+        let on_seams = live.track_seams(&mut mesh.clone());
         let mut model = QuadricModel::new(&live, &QemOptions::default());
         let opts = Options::new(goal);
         live.collapse_parted(&mut model, || NoGuard, &opts, parts, &mut |_| {});
@@ -690,7 +784,7 @@ mod tests {
     fn classes_follow_the_seams() {
         let m = charted_sphere(3);
         let mut live = LiveMesh::new(&m).unwrap();
-        let on_seams = live.track_seams(&m);
+        let on_seams = live.track_seams(&mut m.clone());
         // Every split vertex, and the ends of seam edges beyond them (around a pole, each
         // face has a wedge of its own: the pole's neighbours end seam edges).
         assert!(on_seams > m.wedges.split_vertices(), "{on_seams}");
@@ -706,7 +800,7 @@ mod tests {
         // A mesh without wedges tracks nothing.
         let plain = Mesh::new(m.positions.clone(), m.faces.clone());
         let mut live = LiveMesh::new(&plain).unwrap();
-        assert_eq!(live.track_seams(&plain), 0);
+        assert_eq!(live.track_seams(&mut plain.clone()), 0);
         assert!(!live.tracks_seams());
     }
 
@@ -718,7 +812,7 @@ mod tests {
         assert_seams_kept(&m, &out);
         // Every corner of the input's seams is still a vertex.
         let mut live = LiveMesh::new(&m).unwrap();
-        live.track_seams(&m);
+        live.track_seams(&mut m.clone());
         let state = live.seams.as_ref().unwrap();
         let kept: HashSet<[u64; 3]> = out
             .positions
