@@ -6,8 +6,10 @@
 //! * **Seam vertices**: vertices with two or more wedges, in each mesh (UV seams and any
 //!   other per-corner column's splits).
 //! * **UV flips**: output faces whose triangle in UV space winds the other way than the
-//!   input face nearest their centroid does (faces of zero UV area are counted apart, as
-//!   are input faces of zero UV area, which say nothing).
+//!   input face under its UV centroid (the input face nearest its 3-D centroid when no
+//!   input UV triangle holds that point) does: a chart mirrored in UV space stays
+//!   mirrored. Faces of zero UV area are counted apart; input faces of zero UV area say
+//!   nothing.
 //! * **Texture distortion**: for each output corner's (vertex, UV) pair, the 3-D distance
 //!   between the vertex and the point its UV maps to on the input — the point of the input
 //!   face whose UV triangle holds that UV (of several, the nearest the vertex; of none, the
@@ -101,10 +103,12 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
     let in_area: Vec<f64> = (0..input.faces.len())
         .map(|f| uv_area(uv_in[3 * f], uv_in[3 * f + 1], uv_in[3 * f + 2]))
         .collect();
+    let grid = UvGrid::new(&uv_in, input.faces.len());
     let mut uv_flipped = 0;
     let mut uv_degenerate = 0;
     for (f, face) in output.faces.iter().enumerate() {
-        let area = uv_area(uv_out[3 * f], uv_out[3 * f + 1], uv_out[3 * f + 2]);
+        let t = [uv_out[3 * f], uv_out[3 * f + 1], uv_out[3 * f + 2]];
+        let area = uv_area(t[0], t[1], t[2]);
         if area == 0.0 {
             uv_degenerate += 1;
             continue;
@@ -114,11 +118,16 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
             .map(|&v| output.positions[v as usize])
             .sum::<DVec3>()
             / 3.0;
-        if let Some(near) = bvh.closest_point(centroid) {
-            let reference = in_area[near.face as usize];
-            if reference * area < 0.0 {
-                uv_flipped += 1;
-            }
+        // The input face under the face's UV centroid, else the one nearest in 3-D.
+        let at = grid.locate((t[0] + t[1] + t[2]) / 3.0, centroid, input, &uv_in);
+        let reference = match at.inside {
+            true => Some(at.face),
+            false => bvh.closest_point(centroid).map(|n| n.face as usize),
+        };
+        if let Some(r) = reference
+            && in_area[r] * area < 0.0
+        {
+            uv_flipped += 1;
         }
     }
     // Each output (vertex, UV) pair once.
@@ -131,14 +140,15 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
         .collect();
     pairs.sort_unstable();
     pairs.dedup();
-    let grid = UvGrid::new(&uv_in, input.faces.len());
     let mut max = 0.0f64;
     let mut sum = 0.0;
     let mut outside = 0;
     for &(v, [u, w]) in &pairs {
         let uv = DVec2::new(f64::from_bits(u), f64::from_bits(w));
         let p = output.positions[v as usize];
-        let (q, inside) = grid.locate(uv, p, input, &uv_in);
+        let Located {
+            point: q, inside, ..
+        } = grid.locate(uv, p, input, &uv_in);
         outside += usize::from(!inside);
         let d = q.distance(p);
         max = max.max(d);
@@ -151,7 +161,7 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
         for w in FACE_POINTS {
             let p = w[0] * a + w[1] * b + w[2] * c;
             let uv = w[0] * uv_out[3 * f] + w[1] * uv_out[3 * f + 1] + w[2] * uv_out[3 * f + 2];
-            let (q, _) = grid.locate(uv, p, input, &uv_in);
+            let q = grid.locate(uv, p, input, &uv_in).point;
             let d = q.distance(p);
             surface_max = surface_max.max(d);
             surface_sum += 0.25 * area * d;
@@ -178,6 +188,13 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
         },
         uv_outside: outside,
     })
+}
+
+/// Where a UV lands on the input: the point, its face, and whether a UV triangle holds it.
+struct Located {
+    point: DVec3,
+    face: usize,
+    inside: bool,
 }
 
 /// A uniform grid over the input's UV triangles.
@@ -254,7 +271,7 @@ impl UvGrid {
 
     /// The 3-D point `uv` maps to on `input` (module docs) seen from `p`, and whether some
     /// UV triangle holds `uv`.
-    fn locate(&self, uv: DVec2, p: DVec3, input: &Mesh, uvs: &[DVec2]) -> (DVec3, bool) {
+    fn locate(&self, uv: DVec2, p: DVec3, input: &Mesh, uvs: &[DVec2]) -> Located {
         let point = |f: usize, w: [f64; 3]| -> DVec3 {
             (0..3)
                 .map(|k| w[k] * input.positions[input.faces[f][k] as usize])
@@ -262,33 +279,42 @@ impl UvGrid {
         };
         let (cx, cy) = self.cell_of(uv);
         let cell = cy * self.n + cx;
-        let mut best: Option<(f64, DVec3)> = None;
+        let mut best: Option<(f64, DVec3, usize)> = None;
         for &f in &self.faces[self.start[cell]..self.start[cell + 1]] {
             let f = f as usize;
             if let Some(w) = inside(uv, uvs[3 * f], uvs[3 * f + 1], uvs[3 * f + 2]) {
                 let q = point(f, w);
                 let d = q.distance_squared(p);
-                if best.is_none_or(|(bd, _)| d < bd) {
-                    best = Some((d, q));
+                if best.is_none_or(|(bd, _, _)| d < bd) {
+                    best = Some((d, q, f));
                 }
             }
         }
-        if let Some((_, q)) = best {
-            return (q, true);
+        if let Some((_, point, face)) = best {
+            return Located {
+                point,
+                face,
+                inside: true,
+            };
         }
         // Outside every UV triangle: the nearest one in UV space, over all faces.
-        let mut near: Option<(f64, DVec3)> = None;
+        let mut near: Option<(f64, DVec3, usize)> = None;
         for f in 0..input.faces.len() {
             let t = [uvs[3 * f], uvs[3 * f + 1], uvs[3 * f + 2]];
             if !t.iter().all(|x| x.is_finite()) {
                 continue;
             }
             let (d, w) = nearest_in_triangle(uv, t);
-            if near.is_none_or(|(bd, _)| d < bd) {
-                near = Some((d, point(f, w)));
+            if near.is_none_or(|(bd, _, _)| d < bd) {
+                near = Some((d, point(f, w), f));
             }
         }
-        (near.map_or(p, |(_, q)| q), false)
+        let (point, face) = near.map_or((p, 0), |(_, q, f)| (q, f));
+        Located {
+            point,
+            face,
+            inside: false,
+        }
     }
 }
 

@@ -236,14 +236,12 @@ impl LiveMesh {
         let pin = match n {
             0 => return Ok(pinned.map_or(Pin::Free, Pin::At)),
             1 => Pin::At(on[0]),
-            2 if verts.len() == 2 && self.is_seam_edge(state, on[0], on[1]) => {
-                match (class(on[0]), class(on[1])) {
-                    (CURVE, CURVE) => Pin::Either(on[0], on[1]),
-                    (CORNER, CURVE) => Pin::At(on[0]),
-                    (CURVE, CORNER) => Pin::At(on[1]),
-                    _ => return Err(super::Refusal::Seam),
-                }
-            }
+            2 if self.is_seam_edge(state, on[0], on[1]) => match (class(on[0]), class(on[1])) {
+                (CURVE, CURVE) => Pin::Either(on[0], on[1]),
+                (CORNER, CURVE) => Pin::At(on[0]),
+                (CURVE, CORNER) => Pin::At(on[1]),
+                _ => return Err(super::Refusal::Seam),
+            },
             _ => return Err(super::Refusal::Seam),
         };
         match (pinned, pin) {
