@@ -187,6 +187,7 @@ pub fn run(
         let corners = corners_of(&mesh, angle);
         (corners.len(), live.lock(&corners))
     });
+    let folded = fold_into_wedges(&mut mesh);
     let on_seams = live.track_seams(&mut mesh);
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
@@ -196,9 +197,15 @@ pub fn run(
     let before = live.summary();
     let done = collapse_with_progress(kind, stage, &mut live, goal, &before, cx);
     let after = live.summary();
-    let (out, carry) = live
+    let (mut out, carry) = live
         .to_mesh_with_attributes(&attributes)
         .map_err(|e| StageError::Internal(e.to_string()))?;
+    if folded {
+        let per_vertex = out.wedges.take_per_vertex(&out.faces, out.n_vertices());
+        for (name, values) in per_vertex.iter() {
+            out.vertex_attrs.insert(name, values.clone());
+        }
+    }
     if let Some(slot) = cx.progressive.as_mut() {
         **slot = live.take_progressive(&out).map(|p| Box::new(p) as Handback);
     }
@@ -219,6 +226,39 @@ pub fn run(
         cx.report.warn(w);
     }
     Ok(out)
+}
+
+/// The vertex columns that [`LiveMesh::track_seams`] carries better than a blend of the
+/// merged vertices' values: a moved vertex takes the value at its nearest point on the
+/// input, as a wedge's does.
+const AS_WEDGES: [&str; 3] = ["uv", "normal", "color"];
+
+/// Moves `mesh`'s vertex columns [`AS_WEDGES`] into its wedges (one wedge per vertex where
+/// it had none); true when it moved any. The output's wedges that agree at every vertex
+/// become vertex columns again.
+fn fold_into_wedges(mesh: &mut Mesh) -> bool {
+    let corners: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
+    let mut columns = mesh.wedges.corner_values();
+    let mut moved = false;
+    for name in AS_WEDGES {
+        let fits = matches!(
+            (name, mesh.vertex_attrs.get(name)),
+            ("uv", Some(coarsen_mesh::AttrValues::Vec2(_)))
+                | ("normal", Some(coarsen_mesh::AttrValues::Vec3(_)))
+                | ("color", Some(coarsen_mesh::AttrValues::Color(_)))
+        );
+        if fits
+            && columns.get(name).is_none()
+            && let Some(values) = mesh.vertex_attrs.remove(name)
+        {
+            columns.insert(name, values.gather(&corners));
+            moved = true;
+        }
+    }
+    if moved {
+        mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
+    }
+    moved
 }
 
 /// The corners of `mesh`'s sharp features at `angle_deg` (`coarsen_features`, boundary

@@ -277,6 +277,38 @@ mod tests {
     }
 
     #[test]
+    fn per_vertex_uvs_take_the_value_where_each_vertex_lands() {
+        // A bumpy sheet whose UV is its (x, y): a vertex's UV must name its own place.
+        let mut mesh = plane_grid(30, 30, 1.0).unwrap();
+        for p in &mut mesh.positions {
+            p.z = 0.05 * (6.0 * p.x).sin() * (5.0 * p.y).cos();
+        }
+        let uv = mesh.positions.iter().map(|p| p.truncate()).collect();
+        mesh.vertex_attrs
+            .insert("uv", coarsen_mesh::AttrValues::Vec2(uv));
+        let (out, report) = run(&mesh, Some(Target::Vertices(80)), QemParams::default());
+        let out = out.unwrap();
+        assert!(out.wedges.is_empty(), "per vertex in, per vertex out");
+        let uv = out.vertex_attrs.vec2("uv").expect("uv carried");
+        let t = coarsen_metrics::texture(&mesh, &out, 2f64.sqrt()).unwrap();
+        assert_eq!(t.uv_flipped + t.uv_degenerate, 0, "{t:?}");
+        // Each UV lands within the vertex's distance from the sheet (far under a blend of
+        // the merged vertices' UVs, a cluster's width).
+        let h = coarsen_metrics::measure(Some(&mesh), &out, &Default::default())
+            .unwrap()
+            .fidelity
+            .unwrap()
+            .hausdorff_pct;
+        assert!(t.distortion_max_pct <= h, "{t:?}, Hausdorff {h}");
+        assert!(
+            uv.iter()
+                .zip(&out.positions)
+                .all(|(t, p)| t.distance(p.truncate()) < 0.02)
+        );
+        assert_eq!(report.get("seam_vertices_in"), Some(&0.into()));
+    }
+
+    #[test]
     fn hands_back_its_progressive_record_only_when_asked() {
         let mesh = icosphere(1.0, 2).unwrap();
         let mut report = StageReport::default();
