@@ -445,8 +445,8 @@ impl LiveMesh {
         let mut corner_key: Vec<Index> = Vec::with_capacity(3 * faces.len());
         let mut index_of = std::collections::HashMap::new();
         for (&slot, face) in slots.iter().zip(faces) {
-            for k in 0..3 {
-                let key = (state.wedge[slot as usize][k], face[k]);
+            for (&w, &v) in state.wedge[slot as usize].iter().zip(face) {
+                let key = (w, v);
                 let i = *index_of.entry(key).or_insert_with(|| {
                     keys.push(key);
                     keys.len() as Index - 1
