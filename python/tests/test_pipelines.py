@@ -15,6 +15,6 @@ def test_every_shipped_pipeline_runs(name, demo):
     assert report["pipeline"] == name
     assert len(F2) > 0 and F2.max() < len(V2)
     assert len(report["stages"]) == report["stages"][-1]["index"]
-    exact = ("adaptive-cvt", "adaptive-cvt-r05", "cad", "uniform-cvt", "goal", "qem", "svec")
+    exact = ("adaptive-cvt", "adaptive-cvt-r05", "cad", "uniform-cvt", "goal", "lod", "qem", "svec")
     if name in exact + ("svec-then-cvt",):
         assert len(V2) == 500

@@ -300,6 +300,36 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
         assert!(tex.distortion_max_pct <= hausdorff, "{ratio}: {tex:?}");
         written.push(out_glb);
     }
+    // `lod`: the same, with normals recomputed for the coarse faces (unit, near their
+    // faces' own on the whole: a smooth group may bend further than the crease edge by edge).
+    let lod = dir.path().join("spot-lod.glb");
+    let run = run_cli(
+        EXE,
+        &[
+            "run",
+            "lod",
+            &t,
+            "-o",
+            lod.to_str().unwrap(),
+            "--ratio",
+            "0.9",
+            "-q",
+        ],
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    let out = read_mesh(&lod);
+    let Some(AttrValues::Vec3(n)) = out.corner_column("normal") else {
+        panic!("normals written");
+    };
+    assert!(n.iter().all(|n| (n.length() - 1.0).abs() < 1e-6));
+    let agree: f64 = n
+        .iter()
+        .enumerate()
+        .map(|(c, n)| n.dot(out.face_normal(c / 3)))
+        .sum::<f64>()
+        / n.len() as f64;
+    assert!(agree > 0.9, "mean cosine to the face normal {agree}");
+    written.push(lod);
     // `render --texture`: the embedded PNG, or a checkerboard; a mesh without UVs is refused.
     let picture = |args: &[&str]| {
         let png = dir.path().join("p.png");
