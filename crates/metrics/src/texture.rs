@@ -365,20 +365,7 @@ mod tests {
 
     /// A unit square of two faces in the plane z = 0 with UV = (x, y), per corner.
     fn square() -> Mesh {
-        let mut m = Mesh::new(
-            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
-            vec![[0, 1, 2], [0, 2, 3]],
-        );
-        let uv: Vec<DVec2> = m
-            .faces
-            .iter()
-            .flatten()
-            .map(|&v| m.positions[v as usize].truncate())
-            .collect();
-        let mut cols = Attributes::default();
-        cols.insert(UV, AttrValues::Vec2(uv));
-        m.wedges = Wedges::from_corners(&m.faces, cols);
-        m
+        coarsen_shapes::uv_square()
     }
 
     #[test]

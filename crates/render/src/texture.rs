@@ -78,21 +78,10 @@ impl Surface {
 
 /// Each face's corner UVs, from the wedges or a vertex column `uv`.
 fn corner_uvs(mesh: &Mesh) -> Option<Vec<[DVec2; 3]>> {
-    if let Some(AttrValues::Vec2(uv)) = mesh.wedges.attrs().get("uv") {
-        let c = mesh.wedges.corners();
-        return Some(
-            (0..mesh.n_faces())
-                .map(|f| std::array::from_fn(|k| uv[c[3 * f + k] as usize]))
-                .collect(),
-        );
-    }
-    let uv = mesh.vertex_attrs.vec2("uv")?;
-    Some(
-        mesh.faces
-            .iter()
-            .map(|t| t.map(|v| uv.get(v as usize).copied().unwrap_or(DVec2::ZERO)))
-            .collect(),
-    )
+    let AttrValues::Vec2(uv) = mesh.corner_column("uv")? else {
+        return None;
+    };
+    Some(uv.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 /// The pixels of a PNG file's bytes (8 or 16 bits, grey or colour, with or without
@@ -124,24 +113,11 @@ fn decode_png(bytes: &[u8]) -> Option<Pixels> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use coarsen_mesh::{Attributes, DVec3, Image, Wedges};
+    use coarsen_mesh::Image;
 
     /// A unit square in the plane z = 0 with UV = (x, y).
     fn square() -> Mesh {
-        let mut m = Mesh::new(
-            vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
-            vec![[0, 1, 2], [0, 2, 3]],
-        );
-        let uv = m
-            .faces
-            .iter()
-            .flatten()
-            .map(|&v| m.positions[v as usize].truncate())
-            .collect();
-        let mut cols = Attributes::default();
-        cols.insert("uv", AttrValues::Vec2(uv));
-        m.wedges = Wedges::from_corners(&m.faces, cols);
-        m
+        coarsen_shapes::uv_square()
     }
 
     #[test]
