@@ -330,6 +330,27 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
         / n.len() as f64;
     assert!(agree > 0.9, "mean cosine to the face normal {agree}");
     written.push(lod);
+    // The CVT pipelines lay the input's UVs onto their output (the `texture` stage): seams
+    // kept, few faces turned over in UV space (faces across a seam the output does not
+    // follow have their far corners held to it), and files that validate.
+    for pipeline in ["uniform-cvt", "goal"] {
+        let out_glb = dir.path().join(format!("spot-{pipeline}.glb"));
+        let o = out_glb.to_string_lossy();
+        let run = run_cli(
+            EXE,
+            &["run", pipeline, &t, "-o", &o, "--vertices", "1000", "-q"],
+        );
+        assert!(run.status.success(), "{}", stderr(&run));
+        let said = format!("{}{}", stdout(&run), stderr(&run));
+        assert!(!said.contains("per-corner"), "{said}");
+        let out = read_mesh(&out_glb);
+        let report = coarsen_metrics::measure(Some(&m), &out, &Default::default()).unwrap();
+        let tex = report.texture.expect("UVs laid on");
+        assert!(tex.seam_vertices > 40, "{pipeline}: {tex:?}");
+        assert!(tex.uv_flipped * 200 < out.n_faces(), "{pipeline}: {tex:?}");
+        assert!(tex.distortion_mean_pct < 0.3, "{pipeline}: {tex:?}");
+        written.push(out_glb);
+    }
     // `render --texture`: the embedded PNG, or a checkerboard; a mesh without UVs is refused.
     let picture = |args: &[&str]| {
         let png = dir.path().join("p.png");

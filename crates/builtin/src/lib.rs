@@ -24,6 +24,7 @@ pub fn builtin_stages() -> Vec<StageDescriptor> {
         coarsen_stage_relax::descriptor(),
         coarsen_stage_subdivide::descriptor(),
         coarsen_stage_svec::descriptor(),
+        coarsen_stage_texture::descriptor(),
     ]
 }
 

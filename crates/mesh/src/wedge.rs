@@ -117,6 +117,42 @@ impl Wedges {
         self.attrs.gather(&self.corners)
     }
 
+    /// The seam edges of `faces` (smaller vertex first, sorted): edges of two faces whose
+    /// corners disagree at either end on a column other than `normal` (UV seams; a hard
+    /// edge of normals alone is no seam).
+    pub fn seam_edges(&self, faces: &[[Index; 3]]) -> Vec<[Index; 2]> {
+        if self.is_empty() || self.corners.len() != 3 * faces.len() {
+            return Vec::new();
+        }
+        let columns: Vec<&AttrValues> = self
+            .attrs
+            .iter()
+            .filter(|(name, _)| *name != "normal")
+            .map(|(_, v)| v)
+            .collect();
+        let same = |a: Index, b: Index| columns.iter().all(|c| equal_at(c, a as usize, b as usize));
+        // (edge, corner at its smaller end, corner at its larger end) for every face edge.
+        let mut sides: Vec<([Index; 2], Index, Index)> = Vec::with_capacity(3 * faces.len());
+        for (f, face) in faces.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (face[k], face[(k + 1) % 3]);
+                let (ca, cb) = (3 * f + k, 3 * f + (k + 1) % 3);
+                let (wa, wb) = (self.corners[ca], self.corners[cb]);
+                sides.push(if a < b {
+                    ([a, b], wa, wb)
+                } else {
+                    ([b, a], wb, wa)
+                });
+            }
+        }
+        sides.sort_unstable();
+        sides
+            .chunk_by(|x, y| x.0 == y.0)
+            .filter(|run| run.len() == 2 && !(same(run[0].1, run[1].1) && same(run[0].2, run[1].2)))
+            .map(|run| run[0].0)
+            .collect()
+    }
+
     /// How many vertices have two wedges or more (seam and hard-edge vertices).
     pub fn split_vertices(&self) -> usize {
         let mut seen: Vec<u8> = Vec::new();
@@ -351,6 +387,20 @@ mod tests {
         cols.insert("uv", AttrValues::Vec2(uv));
         cols.insert("normal", AttrValues::Vec3(vec![DVec3::Z; 6]));
         (m, cols)
+    }
+
+    #[test]
+    fn seam_edges_are_those_whose_faces_disagree_but_not_on_normals_alone() {
+        let (m, cols) = seamed();
+        let w = Wedges::from_corners(&m.faces, cols.clone());
+        assert_eq!(w.seam_edges(&m.faces), vec![[1, 2]]);
+        // Normals that differ across the edge (a hard edge) make no seam.
+        let mut normals = Attributes::default();
+        let n = [DVec3::Z, DVec3::Z, DVec3::Z, DVec3::X, DVec3::X, DVec3::X];
+        normals.insert("normal", AttrValues::Vec3(n.to_vec()));
+        let hard = Wedges::from_corners(&m.faces, normals);
+        assert!(hard.seam_edges(&m.faces).is_empty());
+        assert!(Wedges::default().seam_edges(&m.faces).is_empty());
     }
 
     #[test]

@@ -27,6 +27,7 @@ use crate::{Pipeline, PipelineStage, RunReport, StageRecord};
 use coarsen_mesh::material::MATERIAL;
 use coarsen_mesh::repair::{self, Readied, RepairError};
 use coarsen_mesh::{Materials, Mesh, Wedges, sanity};
+use coarsen_stage::Contract;
 use coarsen_stage::{Context, Handback, NoProgress, Progress, StageError, StageReport, Target};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -231,9 +232,12 @@ impl Pipeline {
     pub fn run(&self, input: Mesh, opts: RunOptions<'_>) -> Result<(Mesh, RunReport), RunError> {
         let start = Instant::now();
         let had_material_column = input.face_attrs.label(MATERIAL).is_some();
-        let (input, materials, notes) = self.without_wedges(input);
         let input = opts.prepare(input);
-        let original = input.clone();
+        let (input, materials, notes, taken) = self.without_wedges(input);
+        // The original keeps the wedges the stages do not see, for a stage that restores
+        // them.
+        let mut original = input.clone();
+        original.wedges = taken;
         let mut mesh = input;
         // The marked edges stay on the original, where stages read them; the mesh the
         // stages change carries none (a stage editing in place would leave them stale).
@@ -311,9 +315,10 @@ impl Pipeline {
     /// `input` as the stages take it: per-corner columns that are per vertex after all
     /// become vertex columns (carried like every vertex column); the others stay as wedges
     /// when every stage carries them (`Contract::carries_wedges`), else they are taken off
-    /// and said so. The materials are taken off too, for [`keep_materials`] to put back on
-    /// the output.
-    fn without_wedges(&self, mut input: Mesh) -> (Mesh, Materials, Vec<String>) {
+    /// (and returned) and, unless a stage after the last that cannot carry them restores
+    /// them from the run's input (`Contract::restores_wedges`), said so. The materials are
+    /// taken off too, for [`keep_materials`] to put back on the output.
+    fn without_wedges(&self, mut input: Mesh) -> (Mesh, Materials, Vec<String>, Wedges) {
         let mut notes = Vec::new();
         let per_vertex = input
             .wedges
@@ -321,12 +326,19 @@ impl Pipeline {
         for (name, values) in per_vertex.iter() {
             input.vertex_attrs.insert(name, values.clone());
         }
-        let dropping = self
-            .stages
+        let contracts: Vec<Contract> = self.stages.iter().map(|s| s.stage.contract()).collect();
+        let dropping = contracts
             .iter()
-            .find(|s| !s.stage.contract().carries_wedges);
-        if let Some(first) = dropping
+            .position(|c| !c.carries_wedges && !c.restores_wedges);
+        let last_dropping = contracts
+            .iter()
+            .rposition(|c| !c.carries_wedges && !c.restores_wedges);
+        let restored = last_dropping
+            .is_some_and(|last| contracts[last + 1..].iter().any(|c| c.restores_wedges));
+        let mut taken = Wedges::default();
+        if let Some(first) = dropping.map(|i| &self.stages[i])
             && !input.wedges.is_empty()
+            && !restored
         {
             let names: Vec<String> = input
                 .wedges
@@ -342,10 +354,12 @@ impl Pipeline {
                 first.kind,
                 self.name
             ));
-            input.wedges = Wedges::default();
+        }
+        if dropping.is_some() {
+            taken = std::mem::take(&mut input.wedges);
         }
         let materials = std::mem::take(&mut input.materials);
-        (input, materials, notes)
+        (input, materials, notes, taken)
     }
 }
 

@@ -538,6 +538,42 @@ impl Lattice {
     }
 }
 
+/// `mesh` with texture coordinates per corner from longitude and latitude about the z axis
+/// through the origin: u = longitude / 2π, v = colatitude / π. A face across the meridian
+/// where the longitude wraps takes its corners past 1 there, so that meridian is a UV seam;
+/// a vertex on the axis takes each face's own longitude (at its centroid).
+pub fn with_spherical_uvs(mesh: Mesh) -> Mesh {
+    let lon = |p: DVec3| (p.y.atan2(p.x) / TAU).rem_euclid(1.0);
+    let mut uv = Vec::with_capacity(3 * mesh.n_faces());
+    for face in &mesh.faces {
+        let ps = face.map(|v| mesh.positions[v as usize]);
+        let centroid = (ps[0] + ps[1] + ps[2]) / 3.0;
+        let mut u = ps.map(|p| {
+            if p.x.hypot(p.y) < 1e-12 {
+                lon(centroid)
+            } else {
+                lon(p)
+            }
+        });
+        let (lo, hi) = u
+            .iter()
+            .fold((1.0f64, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        if hi - lo > 0.5 {
+            u.iter_mut().filter(|x| **x < 0.5).for_each(|x| *x += 1.0);
+        }
+        for (k, p) in ps.iter().enumerate() {
+            let colatitude = (p.z / p.length().max(f64::MIN_POSITIVE))
+                .clamp(-1.0, 1.0)
+                .acos();
+            uv.push(coarsen_mesh::DVec2::new(u[k], colatitude / PI));
+        }
+    }
+    let mut cols = coarsen_mesh::Attributes::default();
+    cols.insert("uv", coarsen_mesh::AttrValues::Vec2(uv));
+    let wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, cols);
+    Mesh { wedges, ..mesh }
+}
+
 /// The unit square in the z = 0 plane as two triangles (corners 0, x, x + y, y), with
 /// texture coordinates per corner equal to each corner's (x, y): the smallest textured mesh.
 pub fn uv_square() -> Mesh {

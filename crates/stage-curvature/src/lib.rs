@@ -174,6 +174,7 @@ impl Stage for Curvature {
             writes: [GAUSSIAN, MEAN, HYBRID]
                 .map(|name| AttrRef::vertex(name, AttrKind::Scalar))
                 .to_vec(),
+            carries_wedges: true,
             ..Contract::default()
         }
     }

@@ -269,6 +269,7 @@ impl Stage for ClusterCvt {
                 ..Needs::default()
             },
             carries_wedges: false,
+            restores_wedges: false,
         }
     }
 

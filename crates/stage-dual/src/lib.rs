@@ -951,6 +951,7 @@ impl Stage for DualStage {
                 ..Needs::default()
             },
             carries_wedges: false,
+            restores_wedges: false,
         }
     }
 

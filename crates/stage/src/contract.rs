@@ -69,6 +69,11 @@ pub struct Contract {
     pub needs: Needs,
     /// Whether the stage carries per-corner attributes (`Mesh::wedges`: UVs across seams,
     /// normals across hard edges) to its output; the runner keeps them only through a
-    /// pipeline whose every stage does.
+    /// pipeline whose every stage does (or that restores them after the last that does
+    /// not).
     pub carries_wedges: bool,
+    /// Whether the stage writes the run input's per-corner attributes onto the mesh it
+    /// returns (from `Context::original`, which keeps them when the stages before could
+    /// not carry them).
+    pub restores_wedges: bool,
 }

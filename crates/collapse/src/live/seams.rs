@@ -704,35 +704,7 @@ mod tests {
     /// A bumpy icosphere charted by longitude and latitude: one seam along the meridian
     /// where the longitude wraps, corners where faces at the poles disagree.
     fn charted_sphere(levels: u32) -> Mesh {
-        let mut m = crate::live::parts::tests::bumpy(levels);
-        let tau = std::f64::consts::TAU;
-        let lon = |p: DVec3| (p.y.atan2(p.x) / tau).rem_euclid(1.0);
-        let mut uv = Vec::new();
-        for face in &m.faces {
-            let ps = face.map(|v| m.positions[v as usize]);
-            let centroid = (ps[0] + ps[1] + ps[2]) / 3.0;
-            let mut u = ps.map(|p| {
-                if p.x.hypot(p.y) < 1e-9 {
-                    lon(centroid)
-                } else {
-                    lon(p)
-                }
-            });
-            if u.iter().copied().fold(0.0, f64::max) - u.iter().copied().fold(1.0, f64::min) > 0.5 {
-                u.iter_mut().filter(|x| **x < 0.5).for_each(|x| *x += 1.0);
-            }
-            for k in 0..3 {
-                let p = ps[k].normalize();
-                uv.push(DVec2::new(
-                    u[k],
-                    p.z.clamp(-1.0, 1.0).acos() / std::f64::consts::PI,
-                ));
-            }
-        }
-        let mut cols = Attributes::default();
-        cols.insert("uv", AttrValues::Vec2(uv));
-        m.wedges = Wedges::from_corners(&m.faces, cols);
-        m
+        coarsen_shapes::with_spherical_uvs(crate::live::parts::tests::bumpy(levels))
     }
 
     /// QEM on `mesh` to `goal` with its seams tracked (in parts first with `parts`).

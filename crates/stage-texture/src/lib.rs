@@ -1,0 +1,447 @@
+//! The `texture` stage: lays the run input's per-corner attributes (UVs across seams,
+//! normals, colours) onto the current mesh, for pipelines whose stages rebuild the surface
+//! and so cannot carry them (clustering, the dual, relaxation). The runner keeps them on
+//! the run's input for it (`Contract::restores_wedges`).
+//!
+//! Each output face takes one *side* of the input: an input face and the faces reached
+//! from it without crossing a seam (an edge whose faces disagree on a UV or other
+//! per-corner value but the normal). Each of its corners takes the values at the point of
+//! that side nearest the corner's vertex, found by a best-first walk from that face (the
+//! faces nearer the vertex than the best point so far, at most [`MAX_WALK`] of them): a
+//! face straddling a seam the output does not follow has its far corners held to the
+//! seam, on its own side, rather than reaching into another chart. The side is the one of
+//! the input face nearest the face's centroid; when that turns the face over in UV space
+//! (against that input face's winding), the first side of the input faces nearest each
+//! corner that does not is taken instead.
+//! The values are those of the input face's corners, weighted barycentrically (normals made
+//! unit again); a vertex's corners whose UVs agree to within 10⁻⁷ of the UV extent share one
+//! wedge. Without per-corner attributes on the run's input, the mesh passes unchanged.
+
+use coarsen_geom::{DVec2, DVec3};
+use coarsen_mesh::{AttrValues, Attributes, Index, Mesh, Wedges};
+use coarsen_spatial::{Bvh, closest_point_on_triangle};
+use coarsen_stage::{Context, Contract, Params, Stage, StageError, params};
+use rayon::prelude::*;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+params! {
+    /// Parameters of `texture` (none).
+    pub struct TextureParams {}
+}
+
+impl Params for TextureParams {}
+
+/// The most input faces one corner's walk visits.
+pub const MAX_WALK: usize = 4096;
+
+/// The `texture` stage.
+pub struct TextureStage;
+
+impl Stage for TextureStage {
+    type Params = TextureParams;
+    const KIND: &'static str = "texture";
+    const SUMMARY: &'static str = "The run input's UVs, normals and colours laid onto the current mesh, each face on one side of the input's UV seams.";
+
+    fn new(_: TextureParams) -> Self {
+        TextureStage
+    }
+
+    fn contract(&self) -> Contract {
+        Contract {
+            carries_wedges: true,
+            restores_wedges: true,
+            ..Contract::default()
+        }
+    }
+
+    fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
+        let input = cx.original;
+        if input.wedges.is_empty() || mesh.faces.is_empty() {
+            cx.report.figure("textured", false);
+            return Ok(mesh);
+        }
+        let sides = Sides::of(input);
+        let bvh = Bvh::build(&input.positions, &input.faces);
+        let uv = input.wedges.attrs().vec2("uv");
+        let found: Vec<[Option<Found>; 3]> = mesh
+            .faces
+            .par_iter()
+            .map_init(
+                || Walk::new(input.n_faces()),
+                |walk, face| {
+                    let corners = face.map(|v| mesh.positions[v as usize]);
+                    let on_side = |walk: &mut Walk, start: Index| {
+                        corners.map(|p| walk.nearest(input, &sides, start, p))
+                    };
+                    let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+                    let Some(first) = bvh.closest_point(centroid).map(|n| n.face) else {
+                        return [None; 3];
+                    };
+                    let mut best = on_side(walk, first);
+                    if !turns_over(input, uv, first, &best) {
+                        return best;
+                    }
+                    let mut tried = vec![first];
+                    for p in corners {
+                        let Some(start) = bvh.closest_point(p).map(|n| n.face) else {
+                            continue;
+                        };
+                        if tried.contains(&start) {
+                            continue;
+                        }
+                        tried.push(start);
+                        let other = on_side(walk, start);
+                        if !turns_over(input, uv, start, &other) {
+                            best = other;
+                            break;
+                        }
+                    }
+                    best
+                },
+            )
+            .collect();
+        // A corner held to a seam: its side's nearest point is farther than the input's.
+        let held = mesh
+            .faces
+            .par_iter()
+            .zip(&found)
+            .map(|(face, found)| {
+                face.iter()
+                    .zip(found)
+                    .filter(|(v, f)| {
+                        let p = mesh.positions[**v as usize];
+                        let all = bvh.closest_point(p).map_or(0.0, |n| n.distance_squared);
+                        f.is_some_and(|f| f.d2 > all * (1.0 + 1e-9) + 1e-300)
+                    })
+                    .count()
+            })
+            .sum::<usize>();
+        let mut columns = Attributes::default();
+        for (name, values) in input.wedges.attrs().iter() {
+            columns.insert(name, interpolate(input, values, name, &found));
+        }
+        let columns = share_wedges(&mesh, columns);
+        let mut out = mesh;
+        out.wedges = Wedges::default();
+        let out = out.with_corner_attributes(columns);
+        cx.report.figure("textured", true);
+        cx.report
+            .figure("seam_vertices", out.wedges.split_vertices());
+        cx.report.figure("corners_held_to_a_seam", held);
+        Ok(out)
+    }
+}
+
+/// Whether a face's corners `found` on the side of input face `start` turn it over in UV
+/// space against `start`'s own winding.
+fn turns_over(
+    input: &Mesh,
+    uv: Option<&[DVec2]>,
+    start: Index,
+    found: &[Option<Found>; 3],
+) -> bool {
+    let Some(uv) = uv else {
+        return false;
+    };
+    let at = |f: &Found| -> DVec2 {
+        (0..3)
+            .map(|k| f.bary[k] * uv[input.wedges.corner(f.face as usize, k) as usize])
+            .sum()
+    };
+    let wind = |t: [DVec2; 3]| (t[1] - t[0]).perp_dot(t[2] - t[0]);
+    let [Some(a), Some(b), Some(c)] = found else {
+        return false;
+    };
+    let own = wind(std::array::from_fn(|k| {
+        uv[input.wedges.corner(start as usize, k) as usize]
+    }));
+    wind([at(a), at(b), at(c)]) * own < 0.0
+}
+
+/// The input's faces joined across the edges that are no seam.
+struct Sides {
+    /// Per face, the faces across its edges `k → k + 1` on the same side (or `NONE`).
+    next: Vec<[Index; 3]>,
+}
+
+const NONE: Index = Index::MAX;
+
+impl Sides {
+    fn of(input: &Mesh) -> Sides {
+        let seams = input.wedges.seam_edges(&input.faces);
+        let mut edges: Vec<([Index; 2], Index, u8)> = Vec::with_capacity(3 * input.n_faces());
+        for (f, face) in input.faces.iter().enumerate() {
+            for k in 0..3u8 {
+                let (a, b) = (face[k as usize], face[(k as usize + 1) % 3]);
+                edges.push(([a.min(b), a.max(b)], f as Index, k));
+            }
+        }
+        edges.sort_unstable();
+        let mut next = vec![[NONE; 3]; input.n_faces()];
+        for run in edges.chunk_by(|x, y| x.0 == y.0) {
+            if let [(e, f, k), (_, g, j)] = run
+                && seams.binary_search(e).is_err()
+            {
+                next[*f as usize][*k as usize] = *g;
+                next[*g as usize][*j as usize] = *f;
+            }
+        }
+        Sides { next }
+    }
+}
+
+/// Where a corner's values come from: an input face and the weights of its corners.
+#[derive(Clone, Copy, Debug)]
+struct Found {
+    face: Index,
+    bary: [f64; 3],
+    /// Squared distance from the corner's vertex.
+    d2: f64,
+}
+
+/// A face in the walk's queue, nearest first (ties: the smaller face).
+#[derive(PartialEq)]
+struct Queued(f64, Index);
+
+impl Eq for Queued {}
+
+impl Ord for Queued {
+    fn cmp(&self, other: &Self) -> Ordering {
+        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
+    }
+}
+
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// One thread's walk: the faces seen, marked by generation.
+struct Walk {
+    seen: Vec<u32>,
+    generation: u32,
+    queue: BinaryHeap<Queued>,
+}
+
+impl Walk {
+    fn new(n_faces: usize) -> Walk {
+        Walk {
+            seen: vec![0; n_faces],
+            generation: 0,
+            queue: BinaryHeap::new(),
+        }
+    }
+
+    /// The point of `start`'s side nearest `p` (module docs).
+    fn nearest(&mut self, input: &Mesh, sides: &Sides, start: Index, p: DVec3) -> Option<Found> {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.seen.fill(0);
+            self.generation = 1;
+        }
+        self.queue.clear();
+        let near = |f: Index| {
+            let [a, b, c] = input.faces[f as usize].map(|v| input.positions[v as usize]);
+            let (q, bary) = closest_point_on_triangle(p, a, b, c);
+            (q.distance_squared(p), bary)
+        };
+        let mut best: Option<(f64, Found)> = None;
+        self.seen[start as usize] = self.generation;
+        self.queue.push(Queued(near(start).0, start));
+        let mut visited = 0;
+        while let Some(Queued(d, f)) = self.queue.pop() {
+            if best.is_some_and(|(bd, _)| d > bd) || visited >= MAX_WALK {
+                break;
+            }
+            visited += 1;
+            let (d, bary) = near(f);
+            for &g in &sides.next[f as usize] {
+                if g == NONE {
+                    continue;
+                }
+                if self.seen[g as usize] != self.generation {
+                    self.seen[g as usize] = self.generation;
+                    self.queue.push(Queued(near(g).0, g));
+                }
+            }
+            if best.is_none_or(|(bd, b)| d < bd || (d == bd && f < b.face)) {
+                best = Some((
+                    d,
+                    Found {
+                        face: f,
+                        bary,
+                        d2: d,
+                    },
+                ));
+            }
+        }
+        best.map(|(_, f)| f)
+    }
+}
+
+/// The values of input wedge column `values` at each output corner's point.
+fn interpolate(
+    input: &Mesh,
+    values: &AttrValues,
+    name: &str,
+    found: &[[Option<Found>; 3]],
+) -> AttrValues {
+    let wedge = |f: Index, k: usize| input.wedges.corner(f as usize, k) as usize;
+    let corners = found.iter().flatten();
+    match values {
+        AttrValues::Scalar(v) => AttrValues::Scalar(
+            corners
+                .map(|c| {
+                    c.map_or(0.0, |c| {
+                        (0..3).map(|k| c.bary[k] * v[wedge(c.face, k)]).sum()
+                    })
+                })
+                .collect(),
+        ),
+        AttrValues::Vec2(v) => AttrValues::Vec2(
+            corners
+                .map(|c| {
+                    c.map_or(DVec2::ZERO, |c| {
+                        (0..3).map(|k| c.bary[k] * v[wedge(c.face, k)]).sum()
+                    })
+                })
+                .collect(),
+        ),
+        AttrValues::Vec3(v) => AttrValues::Vec3(
+            corners
+                .map(|c| {
+                    let x: DVec3 = c.map_or(DVec3::ZERO, |c| {
+                        (0..3).map(|k| c.bary[k] * v[wedge(c.face, k)]).sum()
+                    });
+                    if name == "normal" {
+                        x.normalize_or_zero()
+                    } else {
+                        x
+                    }
+                })
+                .collect(),
+        ),
+        AttrValues::Label(v) => AttrValues::Label(
+            corners
+                .map(|c| {
+                    c.map_or(0, |c| {
+                        let k = (0..3).fold(0, |b, k| if c.bary[k] > c.bary[b] { k } else { b });
+                        v[wedge(c.face, k)]
+                    })
+                })
+                .collect(),
+        ),
+        AttrValues::Color(v) => AttrValues::Color(
+            corners
+                .map(|c| {
+                    c.map_or([0; 3], |c| {
+                        std::array::from_fn(|ch| {
+                            let x: f64 = (0..3)
+                                .map(|k| c.bary[k] * f64::from(v[wedge(c.face, k)][ch]))
+                                .sum();
+                            x.round().clamp(0.0, 255.0) as u8
+                        })
+                    })
+                })
+                .collect(),
+        ),
+    }
+}
+
+/// `columns` (per output corner) with the corners of each vertex whose UVs agree to within
+/// 10⁻⁷ of the UV extent given the first such corner's values in every column.
+fn share_wedges(mesh: &Mesh, columns: Attributes) -> Attributes {
+    let Some(AttrValues::Vec2(uv)) = columns.get("uv") else {
+        return columns;
+    };
+    let (lo, hi) = uv.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), t| (lo.min(*t), hi.max(*t)),
+    );
+    let tolerance = 1e-7 * (hi - lo).length().max(f64::MIN_POSITIVE);
+    // Each vertex's corners, in corner order.
+    let mut by_vertex: Vec<(Index, Index)> = mesh
+        .faces
+        .iter()
+        .flatten()
+        .enumerate()
+        .map(|(c, &v)| (v, c as Index))
+        .collect();
+    by_vertex.sort_unstable();
+    let mut source: Vec<Index> = (0..uv.len() as Index).collect();
+    for run in by_vertex.chunk_by(|a, b| a.0 == b.0) {
+        for (i, &(_, c)) in run.iter().enumerate() {
+            if let Some(&(_, first)) = run[..i].iter().find(|&&(_, d)| {
+                source[d as usize] == d && uv[d as usize].distance(uv[c as usize]) <= tolerance
+            }) {
+                source[c as usize] = first;
+            }
+        }
+    }
+    columns.gather(&source)
+}
+
+coarsen_stage::export_stage!(TextureStage);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coarsen_stage::StageReport;
+
+    /// Runs the stage on `mesh` with `input` as the run's input.
+    fn run(input: &Mesh, mesh: Mesh) -> (Mesh, StageReport) {
+        let mut report = StageReport::default();
+        let mut cx = Context::new(input, &mut report);
+        let out = TextureStage::new(TextureParams {})
+            .run(mesh, &mut cx)
+            .unwrap();
+        (out, report)
+    }
+
+    /// A latitude–longitude sphere turned about z by `turn` radians, so that its own
+    /// meridians miss the input's seam.
+    fn turned_sphere(turn: f64) -> Mesh {
+        let mut m = coarsen_shapes::uv_sphere(1.0, 16, 24).unwrap();
+        let (s, c) = turn.sin_cos();
+        for p in &mut m.positions {
+            *p = DVec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+        }
+        m
+    }
+
+    #[test]
+    fn a_remeshed_sphere_takes_the_input_uvs_on_each_side_of_the_seam() {
+        let input = coarsen_shapes::with_spherical_uvs(coarsen_shapes::icosphere(1.0, 4).unwrap());
+        // The input's seam zigzags along its edges near the meridian; the output's faces
+        // across it (more of them when the output is turned by 0.1 radians) have their far
+        // corners held to the seam on the face's side, as far off as an edge is long.
+        for (turn, mean_pct, max_pct) in [(0.0, 0.1, 2.0), (0.1, 0.25, 8.0)] {
+            let (out, report) = run(&input, turned_sphere(turn));
+            out.wedges.check(&out.faces).unwrap();
+            assert_eq!(report.get("textured"), Some(&true.into()));
+            let held = report
+                .get("corners_held_to_a_seam")
+                .and_then(|h| h.as_u64());
+            assert!(held.is_some_and(|h| h > 0), "{held:?}");
+            let t = coarsen_metrics::texture(&input, &out, 2.0 * 3f64.sqrt()).unwrap();
+            // The seam is kept (a meridian of split vertices), nothing turns over, and the
+            // UVs name points near their vertices (the spheres' faces are flat; the most
+            // at the poles, where the longitude is no coordinate).
+            assert!(t.seam_vertices >= 15, "turn {turn}: {t:?}");
+            assert_eq!(t.uv_flipped + t.uv_degenerate, 0, "turn {turn}: {t:?}");
+            assert!(t.distortion_mean_pct < mean_pct, "turn {turn}: {t:?}");
+            assert!(t.distortion_max_pct < max_pct, "turn {turn}: {t:?}");
+        }
+    }
+
+    #[test]
+    fn without_per_corner_attributes_the_mesh_passes_unchanged() {
+        let input = coarsen_shapes::icosphere(1.0, 2).unwrap();
+        let mesh = turned_sphere(0.1);
+        let (out, report) = run(&input, mesh.clone());
+        assert_eq!(out, mesh);
+        assert_eq!(report.get("textured"), Some(&false.into()));
+    }
+}
