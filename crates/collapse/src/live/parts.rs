@@ -984,7 +984,7 @@ pub(super) mod tests {
 }
 
 #[cfg(test)]
-mod properties {
+pub(super) mod properties {
     use super::tests::{assert_input_vertices_merged_once, bumpy};
     use super::*;
     use crate::{NoGuard, QemOptions, QuadricModel};
@@ -992,7 +992,7 @@ mod properties {
     use proptest::prelude::*;
 
     /// A sphere, a torus or a disc with two holes, each vertex moved by up to `noise`.
-    fn shape(kind: u8, seed: u64, noise: f64) -> Mesh {
+    pub(in crate::live) fn shape(kind: u8, seed: u64, noise: f64) -> Mesh {
         let mut m = match kind % 3 {
             0 => bumpy(4),
             1 => coarsen_shapes::torus(1.0, 0.35, 64, 32).unwrap(),
