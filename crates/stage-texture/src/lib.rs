@@ -444,4 +444,46 @@ mod tests {
         assert_eq!(out, mesh);
         assert_eq!(report.get("textured"), Some(&false.into()));
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 24,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x7E47_0000_0000_0048),
+            ..proptest::test_runner::Config::default()
+        })]
+
+        /// Any charts on the input, any surface to lay them on: every corner gets a value
+        /// and the wedges are valid.
+        #[test]
+        fn any_charts_on_any_surface_give_valid_wedges(
+            charts in 1u32..30,
+            stride in 1u32..97,
+            turn in 0.0f64..6.3,
+            levels in 1u32..4,
+        ) {
+            let mut input = coarsen_shapes::icosphere(1.0, 3).unwrap();
+            let uv: Vec<DVec2> = input
+                .faces
+                .iter()
+                .enumerate()
+                .flat_map(|(f, face)| {
+                    let island = (f as u32).wrapping_mul(stride) % charts;
+                    let ps = face.map(|v| input.positions[v as usize]);
+                    ps.map(|p| DVec2::new(p.x + 3.0 * island as f64, p.y))
+                })
+                .collect();
+            let mut cols = Attributes::default();
+            cols.insert("uv", AttrValues::Vec2(uv));
+            input.wedges = Wedges::from_corners(&input.faces, cols);
+            let mut mesh = coarsen_shapes::icosphere(1.1, levels).unwrap();
+            let (s, c) = turn.sin_cos();
+            for p in &mut mesh.positions {
+                *p = DVec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+            }
+            let (out, _) = run(&input, mesh);
+            let uv = out.corner_column("uv");
+            proptest::prop_assert!(uv.is_some());
+            out.wedges.check(&out.faces).unwrap();
+        }
+    }
 }
