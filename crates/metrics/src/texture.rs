@@ -297,25 +297,44 @@ impl UvGrid {
                 inside: true,
             };
         }
-        // Outside every UV triangle: the nearest one in UV space, over all faces.
-        let mut near: Option<(f64, DVec3, usize)> = None;
-        for f in 0..input.faces.len() {
-            let t = [uvs[3 * f], uvs[3 * f + 1], uvs[3 * f + 2]];
-            if !t.iter().all(|x| x.is_finite()) {
-                continue;
+        // Outside every UV triangle: the nearest one in UV space, ring of cells after ring
+        // around `uv`'s cell, until no farther ring can hold a nearer one (a face in ring
+        // `r` is at least `(r - 1)` cells away; ties: the smaller face).
+        let mut near: Option<(f64, usize, [f64; 3])> = None;
+        let step = self.cell.x.min(self.cell.y);
+        for r in 0..self.n {
+            for (x, y) in ring((cx, cy), r, self.n) {
+                let cell = y * self.n + x;
+                for &f in &self.faces[self.start[cell]..self.start[cell + 1]] {
+                    let f = f as usize;
+                    let t = [uvs[3 * f], uvs[3 * f + 1], uvs[3 * f + 2]];
+                    let (d, w) = nearest_in_triangle(uv, t);
+                    if near.is_none_or(|(bd, bf, _)| d < bd || (d == bd && f < bf)) {
+                        near = Some((d, f, w));
+                    }
+                }
             }
-            let (d, w) = nearest_in_triangle(uv, t);
-            if near.is_none_or(|(bd, _, _)| d < bd) {
-                near = Some((d, point(f, w), f));
+            if near.is_some_and(|(d, _, _)| d.sqrt() <= r as f64 * step) {
+                break;
             }
         }
-        let (point, face) = near.map_or((p, 0), |(_, q, f)| (q, f));
+        let (point, face) = near.map_or((p, 0), |(_, f, w)| (point(f, w), f));
         Located {
             point,
             face,
             inside: false,
         }
     }
+}
+
+/// The cells of an `n × n` grid at Chebyshev distance `r` from `(cx, cy)`.
+fn ring((cx, cy): (usize, usize), r: usize, n: usize) -> impl Iterator<Item = (usize, usize)> {
+    let (cx, cy, r, n) = (cx as i64, cy as i64, r as i64, n as i64);
+    (cy - r..=cy + r)
+        .flat_map(move |y| (cx - r..=cx + r).map(move |x| (x, y)))
+        .filter(move |&(x, y)| (x - cx).abs().max((y - cy).abs()) == r)
+        .filter(move |&(x, y)| (0..n).contains(&x) && (0..n).contains(&y))
+        .map(|(x, y)| (x as usize, y as usize))
 }
 
 /// Barycentric weights of `p` in UV triangle `a b c` when it lies inside (edges
@@ -395,6 +414,35 @@ mod tests {
         out.wedges = Wedges::from_corners(&out.faces, cols);
         let t = texture(&input, &out, 1.0).unwrap();
         assert_eq!(t.uv_flipped, 1, "{t:?}");
+    }
+
+    #[test]
+    fn a_uv_outside_every_triangle_lands_on_the_nearest_one() {
+        // A 40 × 40 grid with UV = (x, y); one output corner's UV pushed to (1.3, 0.5),
+        // right of the whole map: it lands on the right border at (1, 0.5).
+        let mut input = coarsen_shapes::plane_grid(40, 40, 1.0).unwrap();
+        let lo = input.positions.iter().fold(DVec3::MAX, |a, p| a.min(*p));
+        let uv = input
+            .faces
+            .iter()
+            .flatten()
+            .map(|&v| (input.positions[v as usize] - lo).truncate());
+        let mut cols = Attributes::default();
+        cols.insert(UV, AttrValues::Vec2(uv.collect()));
+        input.wedges = Wedges::from_corners(&input.faces, cols.clone());
+        let grid = UvGrid::new(&corner_uvs(&input).unwrap(), input.n_faces());
+        let at = grid.locate(
+            DVec2::new(1.3, 0.5),
+            DVec3::ZERO,
+            &input,
+            &corner_uvs(&input).unwrap(),
+        );
+        assert!(!at.inside);
+        assert!(
+            (at.point - (lo + DVec3::new(1.0, 0.5, 0.0))).length() < 1e-12,
+            "{:?}",
+            at.point
+        );
     }
 
     #[test]
