@@ -109,6 +109,46 @@ impl AttrValues {
         }
     }
 
+    /// A new column of weighted mixes, one per `(indices, weights)` of `mixes`: the sum of
+    /// `weights[k] · self[indices[k]]` (labels: the value of the heaviest; colours rounded
+    /// to the nearest 8-bit value).
+    pub fn blend(&self, mixes: &[([u32; 3], [f64; 3])]) -> AttrValues {
+        fn mix<T, S: std::iter::Sum<T>>(
+            v: &[T],
+            mixes: &[([u32; 3], [f64; 3])],
+            term: impl Fn(f64, &T) -> T,
+        ) -> Vec<S> {
+            mixes
+                .iter()
+                .map(|(i, w)| (0..3).map(|k| term(w[k], &v[i[k] as usize])).sum())
+                .collect()
+        }
+        let heaviest = |w: &[f64; 3]| (0..3).fold(0, |b, k| if w[k] > w[b] { k } else { b });
+        match self {
+            AttrValues::Scalar(v) => AttrValues::Scalar(mix(v, mixes, |w, x| w * x)),
+            AttrValues::Vec2(v) => AttrValues::Vec2(mix(v, mixes, |w, x| w * *x)),
+            AttrValues::Vec3(v) => AttrValues::Vec3(mix(v, mixes, |w, x| w * *x)),
+            AttrValues::Label(v) => AttrValues::Label(
+                mixes
+                    .iter()
+                    .map(|(i, w)| v[i[heaviest(w)] as usize])
+                    .collect(),
+            ),
+            AttrValues::Color(v) => AttrValues::Color(
+                mixes
+                    .iter()
+                    .map(|(i, w)| {
+                        std::array::from_fn(|c| {
+                            let x: f64 =
+                                (0..3).map(|k| w[k] * f64::from(v[i[k] as usize][c])).sum();
+                            x.round().clamp(0.0, 255.0) as u8
+                        })
+                    })
+                    .collect(),
+            ),
+        }
+    }
+
     /// The first index whose value is NaN or infinite, if any.
     pub fn first_non_finite(&self) -> Option<usize> {
         match self {
@@ -248,6 +288,20 @@ impl Attributes {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn blend_mixes_by_weight_and_labels_take_the_heaviest() {
+        let mixes = [([0, 1, 2], [0.5, 0.25, 0.25]), ([2, 2, 2], [1.0, 0.0, 0.0])];
+        let scalar = AttrValues::Scalar(vec![0.0, 4.0, 8.0]);
+        assert_eq!(scalar.blend(&mixes), AttrValues::Scalar(vec![3.0, 8.0]));
+        let labels = AttrValues::Label(vec![7, 8, 9]);
+        assert_eq!(labels.blend(&mixes), AttrValues::Label(vec![7, 9]));
+        let colors = AttrValues::Color(vec![[0, 0, 0], [255, 255, 255], [10, 20, 30]]);
+        assert_eq!(
+            colors.blend(&mixes),
+            AttrValues::Color(vec![[66, 69, 71], [10, 20, 30]])
+        );
+    }
 
     #[test]
     fn insert_replaces_by_name_and_keeps_order() {

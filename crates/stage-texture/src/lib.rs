@@ -281,72 +281,30 @@ impl Walk {
     }
 }
 
-/// The values of input wedge column `values` at each output corner's point.
+/// The values of input wedge column `values` at each output corner's point (zero where
+/// none was found; normals made unit again).
 fn interpolate(
     input: &Mesh,
     values: &AttrValues,
     name: &str,
     found: &[[Option<Found>; 3]],
 ) -> AttrValues {
-    let wedge = |f: Index, k: usize| input.wedges.corner(f as usize, k) as usize;
-    let corners = found.iter().flatten();
-    match values {
-        AttrValues::Scalar(v) => AttrValues::Scalar(
-            corners
-                .map(|c| {
-                    c.map_or(0.0, |c| {
-                        (0..3).map(|k| c.bary[k] * v[wedge(c.face, k)]).sum()
-                    })
-                })
-                .collect(),
-        ),
-        AttrValues::Vec2(v) => AttrValues::Vec2(
-            corners
-                .map(|c| {
-                    c.map_or(DVec2::ZERO, |c| {
-                        (0..3).map(|k| c.bary[k] * v[wedge(c.face, k)]).sum()
-                    })
-                })
-                .collect(),
-        ),
-        AttrValues::Vec3(v) => AttrValues::Vec3(
-            corners
-                .map(|c| {
-                    let x: DVec3 = c.map_or(DVec3::ZERO, |c| {
-                        (0..3).map(|k| c.bary[k] * v[wedge(c.face, k)]).sum()
-                    });
-                    if name == "normal" {
-                        x.normalize_or_zero()
-                    } else {
-                        x
-                    }
-                })
-                .collect(),
-        ),
-        AttrValues::Label(v) => AttrValues::Label(
-            corners
-                .map(|c| {
-                    c.map_or(0, |c| {
-                        let k = (0..3).fold(0, |b, k| if c.bary[k] > c.bary[b] { k } else { b });
-                        v[wedge(c.face, k)]
-                    })
-                })
-                .collect(),
-        ),
-        AttrValues::Color(v) => AttrValues::Color(
-            corners
-                .map(|c| {
-                    c.map_or([0; 3], |c| {
-                        std::array::from_fn(|ch| {
-                            let x: f64 = (0..3)
-                                .map(|k| c.bary[k] * f64::from(v[wedge(c.face, k)][ch]))
-                                .sum();
-                            x.round().clamp(0.0, 255.0) as u8
-                        })
-                    })
-                })
-                .collect(),
-        ),
+    let mixes: Vec<([Index; 3], [f64; 3])> = found
+        .iter()
+        .flatten()
+        .map(|c| match c {
+            Some(c) => (
+                std::array::from_fn(|k| input.wedges.corner(c.face as usize, k)),
+                c.bary,
+            ),
+            None => ([0; 3], [0.0; 3]),
+        })
+        .collect();
+    match (name, values.blend(&mixes)) {
+        ("normal", AttrValues::Vec3(n)) => {
+            AttrValues::Vec3(n.into_iter().map(DVec3::normalize_or_zero).collect())
+        }
+        (_, v) => v,
     }
 }
 

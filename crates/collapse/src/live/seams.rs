@@ -639,58 +639,14 @@ fn interpolate(
     from: &[From],
     corner: impl Fn(Index, usize) -> Index,
 ) -> AttrValues {
-    let pick = |i: &From| -> ([Index; 3], [f64; 3]) {
-        match *i {
+    let mixes: Vec<([Index; 3], [f64; 3])> = from
+        .iter()
+        .map(|i| match *i {
             From::Wedge(w) => ([w; 3], [1.0, 0.0, 0.0]),
             From::Point(f, bary) => (std::array::from_fn(|k| corner(f, k)), bary),
-        }
-    };
-    match values {
-        AttrValues::Scalar(v) => AttrValues::Scalar(
-            from.iter()
-                .map(|i| {
-                    let (w, t) = pick(i);
-                    (0..3).map(|k| t[k] * v[w[k] as usize]).sum()
-                })
-                .collect(),
-        ),
-        AttrValues::Vec2(v) => AttrValues::Vec2(
-            from.iter()
-                .map(|i| {
-                    let (w, t) = pick(i);
-                    (0..3).map(|k| t[k] * v[w[k] as usize]).sum()
-                })
-                .collect(),
-        ),
-        AttrValues::Vec3(v) => AttrValues::Vec3(
-            from.iter()
-                .map(|i| {
-                    let (w, t) = pick(i);
-                    (0..3).map(|k| t[k] * v[w[k] as usize]).sum()
-                })
-                .collect(),
-        ),
-        AttrValues::Label(v) => AttrValues::Label(
-            from.iter()
-                .map(|i| {
-                    let (w, t) = pick(i);
-                    let k = (0..3).fold(0, |b, k| if t[k] > t[b] { k } else { b });
-                    v[w[k] as usize]
-                })
-                .collect(),
-        ),
-        AttrValues::Color(v) => AttrValues::Color(
-            from.iter()
-                .map(|i| {
-                    let (w, t) = pick(i);
-                    std::array::from_fn(|c| {
-                        let x: f64 = (0..3).map(|k| t[k] * f64::from(v[w[k] as usize][c])).sum();
-                        x.round().clamp(0.0, 255.0) as u8
-                    })
-                })
-                .collect(),
-        ),
-    }
+        })
+        .collect();
+    values.blend(&mixes)
 }
 
 #[cfg(test)]
