@@ -574,6 +574,29 @@ pub fn with_spherical_uvs(mesh: Mesh) -> Mesh {
     Mesh { wedges, ..mesh }
 }
 
+/// `mesh` with texture coordinates per corner cut into `charts` islands by face (face `f`
+/// in island `(f · stride) mod charts`, each island its own (x, y + z/2) shifted along u):
+/// seams of any shape, islands of single faces, seams that meet and end anywhere — a test
+/// of whatever keeps seams.
+pub fn with_uv_islands(mesh: Mesh, charts: u32, stride: u32) -> Mesh {
+    let charts = charts.max(1);
+    let mut uv = Vec::with_capacity(3 * mesh.n_faces());
+    for (f, face) in mesh.faces.iter().enumerate() {
+        let island = (f as u32).wrapping_mul(stride) % charts;
+        for &v in face {
+            let p = mesh.positions[v as usize];
+            uv.push(coarsen_mesh::DVec2::new(
+                p.x + 3.0 * island as f64,
+                p.y + 0.5 * p.z,
+            ));
+        }
+    }
+    let mut cols = coarsen_mesh::Attributes::default();
+    cols.insert("uv", coarsen_mesh::AttrValues::Vec2(uv));
+    let wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, cols);
+    Mesh { wedges, ..mesh }
+}
+
 /// The unit square in the z = 0 plane as two triangles (corners 0, x, x + y, y), with
 /// texture coordinates per corner equal to each corner's (x, y): the smallest textured mesh.
 pub fn uv_square() -> Mesh {

@@ -358,15 +358,19 @@ mod tests {
         (out, report)
     }
 
-    /// A latitude–longitude sphere turned about z by `turn` radians, so that its own
-    /// meridians miss the input's seam.
-    fn turned_sphere(turn: f64) -> Mesh {
-        let mut m = coarsen_shapes::uv_sphere(1.0, 16, 24).unwrap();
+    /// `m` turned about z by `turn` radians.
+    fn turned(mut m: Mesh, turn: f64) -> Mesh {
         let (s, c) = turn.sin_cos();
         for p in &mut m.positions {
             *p = DVec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
         }
         m
+    }
+
+    /// A latitude–longitude sphere turned about z by `turn` radians, so that its own
+    /// meridians miss the input's seam.
+    fn turned_sphere(turn: f64) -> Mesh {
+        turned(coarsen_shapes::uv_sphere(1.0, 16, 24).unwrap(), turn)
     }
 
     #[test]
@@ -419,25 +423,12 @@ mod tests {
             turn in 0.0f64..6.3,
             levels in 1u32..4,
         ) {
-            let mut input = coarsen_shapes::icosphere(1.0, 3).unwrap();
-            let uv: Vec<DVec2> = input
-                .faces
-                .iter()
-                .enumerate()
-                .flat_map(|(f, face)| {
-                    let island = (f as u32).wrapping_mul(stride) % charts;
-                    let ps = face.map(|v| input.positions[v as usize]);
-                    ps.map(|p| DVec2::new(p.x + 3.0 * island as f64, p.y))
-                })
-                .collect();
-            let mut cols = Attributes::default();
-            cols.insert("uv", AttrValues::Vec2(uv));
-            input.wedges = Wedges::from_corners(&input.faces, cols);
-            let mut mesh = coarsen_shapes::icosphere(1.1, levels).unwrap();
-            let (s, c) = turn.sin_cos();
-            for p in &mut mesh.positions {
-                *p = DVec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
-            }
+            let input = coarsen_shapes::with_uv_islands(
+                coarsen_shapes::icosphere(1.0, 3).unwrap(),
+                charts,
+                stride,
+            );
+            let mesh = turned(coarsen_shapes::icosphere(1.1, levels).unwrap(), turn);
             let (out, _) = run(&input, mesh);
             let uv = out.corner_column("uv");
             proptest::prop_assert!(uv.is_some());

@@ -792,24 +792,6 @@ mod tests {
         assert_eq!(run(3), one);
     }
 
-    /// `mesh` with UVs per corner cut into `charts` islands by face (face `f` in island
-    /// `(f · stride) mod charts`, each island shifted in UV): seams of any shape, islands
-    /// of single faces, seams that meet and end anywhere.
-    fn random_charts(mesh: Mesh, charts: u32, stride: u32) -> Mesh {
-        let mut uv = Vec::with_capacity(3 * mesh.n_faces());
-        for (f, face) in mesh.faces.iter().enumerate() {
-            let island = (f as u32).wrapping_mul(stride) % charts;
-            for &v in face {
-                let p = mesh.positions[v as usize];
-                uv.push(DVec2::new(p.x + 3.0 * island as f64, p.y + 0.5 * p.z));
-            }
-        }
-        let mut cols = Attributes::default();
-        cols.insert("uv", AttrValues::Vec2(uv));
-        let wedges = Wedges::from_corners(&mesh.faces, cols);
-        Mesh { wedges, ..mesh }
-    }
-
     proptest::proptest! {
         #![proptest_config(proptest::test_runner::Config {
             cases: 24,
@@ -829,7 +811,7 @@ mod tests {
             frac in 0.02f64..0.6,
             parted in proptest::bool::ANY,
         ) {
-            let mesh = random_charts(crate::live::parts::properties::shape(kind, seed, 0.002), charts, stride);
+            let mesh = coarsen_shapes::with_uv_islands(crate::live::parts::properties::shape(kind, seed, 0.002), charts, stride);
             let target = ((mesh.n_vertices() as f64 * frac) as usize).max(20);
             let parts = if parted {
                 PartOptions { min_faces: 0, faces_per_part: 512, ..PartOptions::default() }
