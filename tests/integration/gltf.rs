@@ -1,5 +1,5 @@
 //! glTF and GLB through the command: OBJ → GLB → OBJ keeps UVs and normals across seams
-//! and hard edges bit for bit (at `f32`, what glTF stores), and the written files pass the
+//! and hard edges bit for bit (at `f32`, as glTF stores them), and the written files pass the
 //! Khronos glTF validator when it is installed (`npm install --prefix target/node
 //! gltf-validator`, or `COARSEN_GLTF_VALIDATOR=/path/to/node_modules`).
 
@@ -48,7 +48,8 @@ fn charted_cube() -> Mesh {
     Mesh::new(positions, faces).with_corner_attributes(cols)
 }
 
-/// Every corner's position, UV and normal as `f32` bits (what glTF stores).
+/// Every corner's position, UV and normal as `f32` bits, as glTF stores them (`v` counted
+/// from the image's top: `1 − v`).
 fn corners_f32(m: &Mesh) -> Vec<[u32; 8]> {
     let uv = m.corner_column("uv");
     let normal = m.corner_column("normal");
@@ -67,7 +68,7 @@ fn corners_f32(m: &Mesh) -> Vec<[u32; 8]> {
                 b(p.y),
                 b(p.z),
                 b(t.x),
-                b(t.y),
+                b(1.0 - t.y),
                 b(n.x),
                 b(n.y),
                 b(n.z),

@@ -11,6 +11,9 @@
 //! that the surface is connected; a glTF vertex becomes a wedge of its mesh vertex (see
 //! `coarsen_mesh::wedge`), and `uv`, `normal` and `color` (and `alpha`, 0–255 as in PLY,
 //! from a four-component `COLOR_0`) are per vertex where no seam or hard edge splits them.
+//! `TEXCOORD_0`'s `v` is turned to the `uv` column's convention, `1 − v` (glTF puts the
+//! image's origin at its top left; OBJ, PLY and coarsen at its bottom left). Turned back on
+//! writing, every `f32` comes back bit for bit but nonzero ones below 2⁻²⁹ in magnitude.
 //! The materials, textures, samplers and images are kept in `Mesh::materials` (image
 //! bytes read from the GLB, a data URI or a file beside a `.gltf` read by path), and the
 //! face label column `material` says which material each face uses when they are not all
@@ -594,6 +597,12 @@ fn add_triangles(
     }
 }
 
+/// A texture coordinate's `v` between glTF's origin (the image's top left) and the `uv`
+/// column's (its bottom left), either way.
+pub(crate) fn flip_v(v: f64) -> f64 {
+    1.0 - v
+}
+
 /// Records one corner's values (zero where the primitive lacks the attribute).
 fn corner(
     g: &mut Gathered,
@@ -612,7 +621,7 @@ fn corner(
     };
     mark(UV, uvs.is_some(), g);
     g.uv.push(uvs.as_ref().map_or(DVec2::ZERO, |a| {
-        DVec2::new(a.values[2 * i], a.values[2 * i + 1])
+        DVec2::new(a.values[2 * i], flip_v(a.values[2 * i + 1]))
     }));
     mark(NORMAL, normals.is_some(), g);
     g.normal.push(normals.as_ref().map_or(DVec3::ZERO, |a| {

@@ -3,8 +3,9 @@
 //!
 //! A glTF vertex is a wedge (or a vertex, without wedges): `POSITION` (`f32`, with its
 //! bounds), `NORMAL` (`f32`, made unit length as the format requires), `TEXCOORD_0`
-//! (`f32`) and `COLOR_0` (normalized `u8`, RGB or RGBA with an `alpha` column) from the
-//! columns `normal`, `uv`, `color`. Indices are `u16` below 65,535 glTF vertices, else
+//! (`f32`, `v` turned to glTF's origin at the image's top left: `1 − v`) and `COLOR_0`
+//! (normalized `u8`, RGB or RGBA with an `alpha` column) from the columns `normal`, `uv`,
+//! `color`. Indices are `u16` below 65,535 glTF vertices, else
 //! `u32`. The materials, textures, samplers and images the mesh carries are written back
 //! as they were read: image bytes embedded in a GLB (or kept as the same relative URI
 //! when only that is known), in a `.gltf` the same URI or a data URI.
@@ -121,7 +122,10 @@ pub(crate) fn write(
         attributes.insert("NORMAL".into(), json!(doc.floats(&n, false)));
     }
     if let Some(AttrValues::Vec2(t)) = column(mesh, "uv", &sources) {
-        let t: Vec<[f32; 2]> = t.iter().map(|t| t.to_array().map(|x| x as f32)).collect();
+        let t: Vec<[f32; 2]> = t
+            .iter()
+            .map(|t| [t.x as f32, crate::gltf_read::flip_v(t.y) as f32])
+            .collect();
         attributes.insert("TEXCOORD_0".into(), json!(doc.floats(&t, false)));
     }
     if let Some(AttrValues::Color(c)) = column(mesh, "color", &sources) {
@@ -493,6 +497,53 @@ mod tests {
             );
             // Written again, the same bytes.
             assert_eq!(bytes(&back, f), bytes(&m, f), "{f}");
+        }
+    }
+
+    #[test]
+    fn texture_v_counts_from_the_image_top_in_the_file() {
+        let m = seamed();
+        let glb = bytes(&m, Format::Glb);
+        let file = gltf::Gltf::from_slice(&glb).unwrap();
+        let blob = file.blob.as_deref().unwrap();
+        let prim = file.document.meshes().next().unwrap();
+        let prim = prim.primitives().next().unwrap();
+        let acc = prim.get(&gltf::Semantic::TexCoords(0)).unwrap();
+        let view = acc.view().unwrap();
+        let at = view.offset() + acc.offset();
+        let stored: Vec<[f32; 2]> = blob[at..at + 8 * acc.count()]
+            .chunks_exact(8)
+            .map(|c| {
+                let f = |k: usize| f32::from_le_bytes(c[k..k + 4].try_into().unwrap());
+                [f(0), f(4)]
+            })
+            .collect();
+        let Some(AttrValues::Vec2(uv)) = m.corner_column("uv") else {
+            unreachable!()
+        };
+        // Each stored (u, v) is a corner's (u, 1 − v); the seam makes six glTF vertices.
+        assert_eq!(stored.len(), 6);
+        for t in &uv {
+            let want = [t.x as f32, (1.0 - t.y) as f32];
+            assert!(stored.contains(&want), "{want:?} not in {stored:?}");
+        }
+        assert!(!stored.contains(&[0.0, 1.0]), "v written unturned");
+    }
+
+    #[test]
+    fn turning_v_twice_gives_back_every_f32_but_the_tiniest() {
+        // Every 4099th bit pattern of the finite f32s, both signs.
+        for bits in (0..0x7f80_0000u32).step_by(4099) {
+            for v in [f32::from_bits(bits), -f32::from_bits(bits)] {
+                let back = crate::gltf_read::flip_v(crate::gltf_read::flip_v(v as f64)) as f32;
+                if v == 0.0 {
+                    assert_eq!(back, 0.0); // −0 comes back +0
+                } else if v.abs() >= 2f32.powi(-29) {
+                    assert_eq!(back.to_bits(), v.to_bits(), "{v:e}");
+                } else {
+                    assert!((back - v).abs() <= f32::EPSILON / 4.0, "{v:e}");
+                }
+            }
         }
     }
 

@@ -6,7 +6,8 @@
 //! UV seam or a hard edge has one wedge per side. [`Wedges`] holds, for every face corner
 //! (`3 · face + k`), the wedge it uses, for every wedge its vertex, and the per-wedge
 //! columns. Nothing read from a file is lost: a glTF vertex, an OBJ `v/vt/vn` triple, is
-//! a wedge.
+//! a wedge. A `uv` column counts `v` up from the image's bottom row, as OBJ and PLY do
+//! (the glTF reader and writer turn glTF's `v`, which counts down from its top).
 //!
 //! A column whose wedges agree at every vertex is no different from a per-vertex column;
 //! [`Mesh::with_corner_attributes`] keeps such columns per vertex (where every stage
