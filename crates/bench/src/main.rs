@@ -20,6 +20,7 @@ mod pyacvd;
 mod readings;
 mod scale;
 mod speed;
+mod texture;
 
 use anyhow::{Context as _, Result, bail};
 use cases::{Case, Published, TableId};
@@ -75,6 +76,16 @@ enum Command {
     },
     /// Run paper 2's readings (issue #53) and rewrite only that section of the results.
     Readings {
+        /// Folder of the test meshes.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
+        data: PathBuf,
+        /// The results file whose section is rewritten ("-" for standard output only).
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/results.md"))]
+        out: PathBuf,
+    },
+    /// Run the textured rows (issue #54: spot with its UVs) and rewrite only that section of
+    /// the results.
+    Texture {
         /// Folder of the test meshes.
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
         data: PathBuf,
@@ -177,6 +188,7 @@ fn main() -> ExitCode {
         ),
         Command::Features { data } => feature_section(&data).map(|s| print!("{s}")),
         Command::Readings { data, out } => readings_section(&data, &out),
+        Command::Texture { data, out } => texture_section(&data, &out),
         Command::Fingerprints {
             data,
             big,
@@ -283,11 +295,15 @@ fn tables(data: &Path, out: &Path, with: Sections) -> Result<()> {
     };
     if with.readings {
         let section = readings::section(&registry, &loaded)?;
-        text = readings::splice(&text, &section, "## Other tools");
+        text = splice(&text, &section, "## Other tools");
     }
     text.push_str(&features::section(&registry, &loaded(features::MESH)?)?);
     text.push_str(&features::cad_section(&registry)?);
     text.push_str(&levers::section(&registry, &loaded(levers::MESH)?)?);
+    text.push_str(&texture::section(
+        &registry,
+        &texture::load(&data.join(texture::MESH))?,
+    )?);
     if with.speed {
         text.push_str(&speed::section(&data.join("stanford-bunny.obj"))?);
     }
@@ -319,6 +335,20 @@ fn pyacvd_section(data: &Path) -> Result<String> {
     pyacvd::section(&bunny, || Ok(Cow::Owned(scale::big_mesh(&load(&bunny)?)?)))
 }
 
+/// The textured rows (issue #54) on spot of `data`, spliced into the results file `out` in
+/// place of their section (or printed, for "-").
+fn texture_section(data: &Path, out: &Path) -> Result<()> {
+    let registry = coarsen_builtin::registry();
+    let section = texture::section(&registry, &texture::load(&data.join(texture::MESH))?)?;
+    print!("{section}");
+    if out != Path::new("-") {
+        let text = std::fs::read_to_string(out).with_context(|| out.display().to_string())?;
+        write_atomically(out, &splice(&text, &section, "## Speed"))?;
+        eprintln!("wrote {}", out.display());
+    }
+    Ok(())
+}
+
 /// Paper 2's readings (issue #53) on the meshes of `data`, spliced into the results file
 /// `out` in place of its section (or printed, for "-").
 fn readings_section(data: &Path, out: &Path) -> Result<()> {
@@ -327,7 +357,7 @@ fn readings_section(data: &Path, out: &Path) -> Result<()> {
     print!("{section}");
     if out != Path::new("-") {
         let text = std::fs::read_to_string(out).with_context(|| out.display().to_string())?;
-        write_atomically(out, &readings::splice(&text, &section, "## Other tools"))?;
+        write_atomically(out, &splice(&text, &section, "## Other tools"))?;
         eprintln!("wrote {}", out.display());
     }
     Ok(())
@@ -632,7 +662,7 @@ fn render(rows: &[(Case, usize)], outcomes: &[Outcome]) -> String {
          wall time, and the total including loading the OBJ (release build). Rows marked *published* are copied \
          from the papers or from metrics.md, not measured here. The inputs are geometry alone, as the papers \
          simplify them: spot's UVs are taken off first (a run keeping them holds the collapse stages to spot's UV \
-         seams).\n"
+         seams; the *Textured* section keeps them).\n"
     );
     for table in TableId::ALL {
         let (title, about) = table.heading();
@@ -776,9 +806,52 @@ fn write_atomically(path: &Path, text: &str) -> Result<()> {
     Ok(coarsen_io::write_bytes(path, text.as_bytes())?)
 }
 
+/// `text` (a results.md) with the section headed as `section`'s first line replaced by
+/// `section`, or inserted before `before` (a heading) when it has none.
+fn splice(text: &str, section: &str, before: &str) -> String {
+    let heading = section.lines().next().unwrap_or_default();
+    let start = text.find(&format!("{heading}\n"));
+    let (head, tail) = match start {
+        Some(i) => {
+            let rest = &text[i + heading.len()..];
+            let end = rest
+                .find("\n## ")
+                .map_or(text.len(), |j| i + heading.len() + j + 1);
+            (&text[..i], &text[end..])
+        }
+        // `before` opens a line (the rest of the heading may follow).
+        None => match text.find(&format!("\n{before}")) {
+            Some(i) => (&text[..i + 1], &text[i + 1..]),
+            None => (text, ""),
+        },
+    };
+    format!("{head}{section}{tail}")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_section_is_replaced_in_place_or_put_before_the_heading() {
+        // The heading named by its first words, as "## Other tools" names its own.
+        let doc = "# R\n\n## A\n\na\n\n## B — more\n\nb\n";
+        let with = splice(doc, "## Paper 2's readings\n\nnew\n\n", "## B");
+        assert_eq!(
+            with,
+            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnew\n\n## B — more\n\nb\n"
+        );
+        let again = splice(&with, "## Paper 2's readings\n\nnewer\n\n", "## B");
+        assert_eq!(
+            again,
+            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnewer\n\n## B — more\n\nb\n"
+        );
+        // No such heading: at the end.
+        assert_eq!(
+            splice("# R\n", "## Paper 2's readings\n", "## C"),
+            "# R\n## Paper 2's readings\n"
+        );
+    }
     use cases::{Case, TableId};
     use coarsen_stage::Target;
 

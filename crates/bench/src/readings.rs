@@ -507,51 +507,9 @@ fn rows_table(s: &mut String, grid: &Grid, shown: &[usize]) {
     s.push('\n');
 }
 
-/// `text` (a results.md) with its readings section replaced by `section`, or inserted
-/// before `before` (a heading) when it has none.
-pub fn splice(text: &str, section: &str, before: &str) -> String {
-    let start = text.find(&format!("{HEADING}\n"));
-    let (head, tail) = match start {
-        Some(i) => {
-            let rest = &text[i + HEADING.len()..];
-            let end = rest
-                .find("\n## ")
-                .map_or(text.len(), |j| i + HEADING.len() + j + 1);
-            (&text[..i], &text[end..])
-        }
-        // `before` opens a line (the rest of the heading may follow).
-        None => match text.find(&format!("\n{before}")) {
-            Some(i) => (&text[..i + 1], &text[i + 1..]),
-            None => (text, ""),
-        },
-    };
-    format!("{head}{section}{tail}")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_section_is_replaced_in_place_or_put_before_the_heading() {
-        // The heading named by its first words, as "## Other tools" names its own.
-        let doc = "# R\n\n## A\n\na\n\n## B — more\n\nb\n";
-        let with = splice(doc, "## Paper 2's readings\n\nnew\n\n", "## B");
-        assert_eq!(
-            with,
-            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnew\n\n## B — more\n\nb\n"
-        );
-        let again = splice(&with, "## Paper 2's readings\n\nnewer\n\n", "## B");
-        assert_eq!(
-            again,
-            "# R\n\n## A\n\na\n\n## Paper 2's readings\n\nnewer\n\n## B — more\n\nb\n"
-        );
-        // No such heading: at the end.
-        assert_eq!(
-            splice("# R\n", "## Paper 2's readings\n", "## C"),
-            "# R\n## Paper 2's readings\n"
-        );
-    }
 
     #[test]
     fn every_combination_sets_every_reading_explicitly() {

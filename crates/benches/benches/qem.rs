@@ -18,15 +18,12 @@
 //!   meshoptimizer times, and the figure is the median ratio over the rounds (a single
 //!   run's ratio moved by a tenth from one run to the next as the machine's speed drifted).
 //!
-//! * the textured spot (`cargo bench -p coarsen-benches --bench qem -- texture` runs only
-//!   this case): the `qem` pipeline and meshoptimizer's `simplifyWithAttributes` at 70 %
-//!   and 95 % removed, the UVs weighted [`UV_WEIGHT`] (meshoptimizer's positions are
-//!   scaled to unit extent, the UVs span about one unit), seams as meshoptimizer finds
-//!   them (vertices of equal position with other UVs); both outputs measured by
-//!   `coarsen_metrics::texture` and the Hausdorff distance (quality, not time); then the
-//!   price of carrying them: `simplify.qem` on the 4.4M-face bunny with procedural UVs
-//!   (longitude and height, a seam where the longitude wraps) and normals, beside the same
-//!   without, in rounds as the scale case.
+//! * the price of carrying UVs and normals (`cargo bench -p coarsen-benches --bench qem --
+//!   texture` runs only this case): `simplify.qem` on the 4.4M-face bunny with procedural
+//!   UVs (longitude and height, a seam where the longitude wraps) and normals, beside the
+//!   same without, in rounds as the scale case. The quality of textured outputs beside
+//!   meshoptimizer's `simplifyWithAttributes` is measured by `coarsen-bench texture`
+//!   (docs/results.md, *Textured*).
 //!
 //! coarsen's time covers what a run does with the input (in the scale case, given a copy
 //! made before the clock starts): the renumbering along a Morton
@@ -276,97 +273,6 @@ fn case(name: &str, mesh: &Mesh, target: Target, runs: usize, min: Duration) {
     );
 }
 
-/// The weight of the UVs against the positions in meshoptimizer's attribute-aware
-/// simplification.
-const UV_WEIGHT: f32 = 1.0;
-
-/// meshoptimizer's `simplifyWithAttributes` on `mesh` (its wedges as vertices, positions in
-/// `f32`) down to `faces`, as a mesh of the input's positions with the kept UVs per corner.
-fn meshopt_textured(mesh: &Mesh, faces: usize) -> Mesh {
-    use coarsen_mesh::{AttrValues, Attributes, Wedges};
-    let w = &mesh.wedges;
-    let uv = w.attrs().vec2("uv").expect("per-corner UVs");
-    let bytes: Vec<u8> = w
-        .vertices()
-        .iter()
-        .flat_map(|&v| mesh.positions[v as usize].as_vec3().to_array())
-        .flat_map(f32::to_le_bytes)
-        .collect();
-    let attrs: Vec<f32> = uv.iter().flat_map(|t| [t.x as f32, t.y as f32]).collect();
-    let adapter = meshopt::VertexDataAdapter::new(&bytes, 12, 0).expect("valid vertex buffer");
-    let locks = vec![false; w.len()];
-    let out = meshopt::simplify_with_attributes_and_locks(
-        w.corners(),
-        &adapter,
-        &attrs,
-        &[UV_WEIGHT, UV_WEIGHT],
-        8,
-        &locks,
-        faces * 3,
-        1.0,
-        meshopt::SimplifyOptions::None,
-        None,
-    );
-    let faces: Vec<[u32; 3]> = out
-        .chunks_exact(3)
-        .map(|c| [0, 1, 2].map(|k| w.vertices()[c[k] as usize]))
-        .collect();
-    let mut cols = Attributes::default();
-    cols.insert(
-        "uv",
-        AttrValues::Vec2(out.iter().map(|&c| uv[c as usize]).collect()),
-    );
-    let mut m = Mesh::new(mesh.positions.clone(), faces);
-    m.wedges = Wedges::from_corners(&m.faces, cols);
-    m
-}
-
-/// The textured case (module docs): spot by the `qem` pipeline and by meshoptimizer with
-/// UVs, measured alike.
-fn texture_case(data: &std::path::Path) {
-    let path = data.join("spot.obj");
-    if !path.exists() {
-        println!("textured spot skipped: {} is absent", path.display());
-        return;
-    }
-    let mesh = coarsen::read(&path).expect("spot loads");
-    println!(
-        "spot ({} faces, {} seam vertices), UV weight {UV_WEIGHT} for meshoptimizer",
-        mesh.n_faces(),
-        mesh.wedges.split_vertices()
-    );
-    println!(
-        "| removed | simplifier | faces | seam vertices | UV-flipped | distortion at vertices max % | mean % | inside faces max % | mean % | Hausdorff % |"
-    );
-    println!("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
-    for ratio in [0.7, 0.95] {
-        let target = Target::Ratio(ratio);
-        let (ours, _) = coarsen::Remesher::new()
-            .pipeline("qem")
-            .target(target)
-            .run(&mesh)
-            .expect("qem runs on spot");
-        let theirs = meshopt_textured(&mesh, target.faces_for(&mesh) as usize);
-        for (name, out) in [("coarsen qem", &ours), ("meshoptimizer", &theirs)] {
-            let m = coarsen_metrics::measure(Some(&mesh), out, &Default::default())
-                .expect("measurable");
-            let t = m.texture.expect("both carry UVs");
-            println!(
-                "| {:.0} % | {name} | {} | {} | {} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} |",
-                ratio * 100.0,
-                out.n_faces(),
-                t.seam_vertices,
-                t.uv_flipped,
-                t.distortion_max_pct,
-                t.distortion_mean_pct,
-                t.surface_distortion_max_pct,
-                t.surface_distortion_mean_pct,
-                m.fidelity.map_or(f64::NAN, |f| f.hausdorff_pct),
-            );
-        }
-    }
-}
-
 /// `mesh` with procedural texture coordinates per corner: longitude and height around its
 /// centroid's vertical axis, a seam where the longitude wraps (and wherever a face
 /// straddles the axis), and its area-weighted vertex normals.
@@ -459,7 +365,6 @@ fn main() {
     let only_scale = std::env::args().any(|a| a == "scale");
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     if std::env::args().any(|a| a == "texture") {
-        texture_case(&data);
         let bunny = data.join("stanford-bunny.obj");
         if bunny.exists() && !quick {
             let mesh = coarsen_io::read_path(&bunny, &Default::default())
