@@ -109,7 +109,8 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
          {UV_WEIGHT} against positions it scales to unit extent, seams where it finds equal \
          positions with other UVs; it keeps input vertices where they are. The collapse \
          pipelines hold seam vertices in place and merge along seams only; the CVT \
-         pipelines lay the UVs back on with their `texture` stage. *seam v*: output vertices \
+         pipelines lay the UVs back on with their `texture` stage, which mends faces laid \
+         turned over in UV space. *seam v*: output vertices \
          on a seam. *flipped*: faces whose UV triangle winds against the input face under \
          its UV centroid; *degenerate*: faces of zero UV area. *distortion*: for each \
          output vertex and UV, the 3-D distance from the vertex to where its UV lies on the \

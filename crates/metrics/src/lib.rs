@@ -55,7 +55,7 @@ pub use fidelity::{Fidelity, FidelityOptions, MIN_FACE_SAMPLES, SAMPLES_PER_FACE
 pub use fields::{Fields, MeshFields, shape_fields};
 pub use grid::{GridFacing, LazyGridFacing};
 pub use quality::{Quality, quality};
-pub use texture::{Texture, texture};
+pub use texture::{Texture, UvJudge, UvWinding, texture};
 pub use validity::{Facing, SurfaceIndex, SurfaceParts, Validity, validity};
 
 use coarsen_mesh::Mesh;

@@ -99,37 +99,18 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
     if input.faces.is_empty() || output.faces.is_empty() || diagonal <= 0.0 {
         return None;
     }
-    let bvh = Bvh::build(&input.positions, &input.faces);
-    let in_area: Vec<f64> = (0..input.faces.len())
-        .map(|f| uv_area(uv_in[3 * f], uv_in[3 * f + 1], uv_in[3 * f + 2]))
-        .collect();
-    let grid = UvGrid::new(&uv_in, input.faces.len());
+    let judge = UvJudge::new(input, uv_in);
     let mut uv_flipped = 0;
     let mut uv_degenerate = 0;
     for (f, face) in output.faces.iter().enumerate() {
         let t = [uv_out[3 * f], uv_out[3 * f + 1], uv_out[3 * f + 2]];
-        let area = uv_area(t[0], t[1], t[2]);
-        if area == 0.0 {
-            uv_degenerate += 1;
-            continue;
-        }
-        let centroid = face
-            .iter()
-            .map(|&v| output.positions[v as usize])
-            .sum::<DVec3>()
-            / 3.0;
-        // The input face under the face's UV centroid, else the one nearest in 3-D.
-        let at = grid.locate((t[0] + t[1] + t[2]) / 3.0, centroid, input, &uv_in);
-        let reference = match at.inside {
-            true => Some(at.face),
-            false => bvh.closest_point(centroid).map(|n| n.face as usize),
-        };
-        if let Some(r) = reference
-            && in_area[r] * area < 0.0
-        {
-            uv_flipped += 1;
+        match judge.judge(t, face.map(|v| output.positions[v as usize])) {
+            UvWinding::Degenerate => uv_degenerate += 1,
+            UvWinding::Turned => uv_flipped += 1,
+            UvWinding::Right => {}
         }
     }
+    let (grid, uv_in) = (&judge.grid, &judge.uv);
     // Each output (vertex, UV) pair once.
     let mut pairs: Vec<(u32, [u64; 2])> = output
         .faces
@@ -148,7 +129,7 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
         let p = output.positions[v as usize];
         let Located {
             point: q, inside, ..
-        } = grid.locate(uv, p, input, &uv_in);
+        } = grid.locate(uv, p, input, uv_in);
         outside += usize::from(!inside);
         let d = q.distance(p);
         max = max.max(d);
@@ -161,7 +142,7 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
         for w in FACE_POINTS {
             let p = w[0] * a + w[1] * b + w[2] * c;
             let uv = w[0] * uv_out[3 * f] + w[1] * uv_out[3 * f + 1] + w[2] * uv_out[3 * f + 2];
-            let q = grid.locate(uv, p, input, &uv_in).point;
+            let q = grid.locate(uv, p, input, uv_in).point;
             let d = q.distance(p);
             surface_max = surface_max.max(d);
             surface_sum += 0.25 * area * d;
@@ -188,6 +169,63 @@ pub fn texture(input: &Mesh, output: &Mesh, diagonal: f64) -> Option<Texture> {
         },
         uv_outside: outside,
     })
+}
+
+/// How a face's UV triangle winds against the input's under it (module docs: UV flips).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UvWinding {
+    /// As the input's (or the input face has no UV area).
+    Right,
+    /// The other way.
+    Turned,
+    /// Zero UV area.
+    Degenerate,
+}
+
+/// Judges faces' UV windings against an input's (module docs: UV flips).
+pub struct UvJudge<'a> {
+    input: &'a Mesh,
+    uv: Vec<DVec2>,
+    area: Vec<f64>,
+    grid: UvGrid,
+    bvh: Bvh,
+}
+
+impl<'a> UvJudge<'a> {
+    /// A judge for `input` with UVs `uv` per corner ([`corner_uvs`]).
+    pub fn new(input: &'a Mesh, uv: Vec<DVec2>) -> UvJudge<'a> {
+        let area = (0..input.faces.len())
+            .map(|f| uv_area(uv[3 * f], uv[3 * f + 1], uv[3 * f + 2]))
+            .collect();
+        UvJudge {
+            grid: UvGrid::new(&uv, input.faces.len()),
+            bvh: Bvh::build(&input.positions, &input.faces),
+            input,
+            uv,
+            area,
+        }
+    }
+
+    /// How a face with corner UVs `t` at 3-D corners `p` winds.
+    pub fn judge(&self, t: [DVec2; 3], p: [DVec3; 3]) -> UvWinding {
+        let area = uv_area(t[0], t[1], t[2]);
+        if area == 0.0 {
+            return UvWinding::Degenerate;
+        }
+        let centroid = (p[0] + p[1] + p[2]) / 3.0;
+        // The input face under the face's UV centroid, else the one nearest in 3-D.
+        let at = self
+            .grid
+            .locate((t[0] + t[1] + t[2]) / 3.0, centroid, self.input, &self.uv);
+        let reference = match at.inside {
+            true => Some(at.face),
+            false => self.bvh.closest_point(centroid).map(|n| n.face as usize),
+        };
+        match reference {
+            Some(r) if self.area[r] * area < 0.0 => UvWinding::Turned,
+            _ => UvWinding::Right,
+        }
+    }
 }
 
 /// Where a UV lands on the input: the point, its face, and whether a UV triangle holds it.

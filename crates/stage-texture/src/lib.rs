@@ -16,6 +16,13 @@
 //! The values are those of the input face's corners, weighted barycentrically (normals made
 //! unit again); a vertex's corners whose UVs agree to within 10⁻⁷ of the UV extent share one
 //! wedge. Without per-corner attributes on the run's input, the mesh passes unchanged.
+//!
+//! A coarse face over a stretch where the input's UVs bend faster than the face is wide
+//! can still be laid turned over in UV space (judged as the texture figures judge it,
+//! `coarsen_metrics::UvJudge`). With `mend` (the default) such faces are mended: a corner
+//! moved along the input, else one of the face's edges flipped, when that lays every face
+//! it touches right and keeps their shape (module `mend`); the figures say how many of
+//! each, and how many faces are left turned over.
 
 use coarsen_geom::{DVec2, DVec3};
 use coarsen_mesh::{AttrValues, Attributes, Index, Mesh, Wedges};
@@ -25,9 +32,15 @@ use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
+mod mend;
+
 params! {
-    /// Parameters of `texture` (none).
-    pub struct TextureParams {}
+    /// Parameters of `texture`.
+    pub struct TextureParams {
+        /// Flip an edge of each face laid turned over in UV space when that lays both of
+        /// its faces right and keeps their shape (`mend` module).
+        pub mend: bool = true,
+    }
 }
 
 impl Params for TextureParams {}
@@ -36,15 +49,17 @@ impl Params for TextureParams {}
 pub const MAX_WALK: usize = 4096;
 
 /// The `texture` stage.
-pub struct TextureStage;
+pub struct TextureStage {
+    params: TextureParams,
+}
 
 impl Stage for TextureStage {
     type Params = TextureParams;
     const KIND: &'static str = "texture";
-    const SUMMARY: &'static str = "The run input's UVs, normals and colours laid onto the current mesh, each face on one side of the input's UV seams.";
+    const SUMMARY: &'static str = "The run input's UVs, normals and colours laid onto the current mesh, each face on one side of the input's UV seams; faces laid turned over in UV space mended by a vertex move or an edge flip.";
 
-    fn new(_: TextureParams) -> Self {
-        TextureStage
+    fn new(params: TextureParams) -> Self {
+        TextureStage { params }
     }
 
     fn contract(&self) -> Contract {
@@ -64,7 +79,7 @@ impl Stage for TextureStage {
         let sides = Sides::of(input);
         let bvh = Bvh::build(&input.positions, &input.faces);
         let uv = input.wedges.attrs().vec2("uv");
-        let found: Vec<[Option<Found>; 3]> = mesh
+        let laid: Vec<(Index, [Option<Found>; 3])> = mesh
             .faces
             .par_iter()
             .map_init(
@@ -76,10 +91,10 @@ impl Stage for TextureStage {
                     };
                     let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
                     let Some(first) = bvh.closest_point(centroid).map(|n| n.face) else {
-                        return [None; 3];
+                        return (NONE, [None; 3]);
                     };
-                    let mut best = on_side(walk, first);
-                    if !turns_over(input, uv, first, &best) {
+                    let mut best = (first, on_side(walk, first));
+                    if !turns_over(input, uv, first, &best.1) {
                         return best;
                     }
                     let mut tried = vec![first];
@@ -93,7 +108,7 @@ impl Stage for TextureStage {
                         tried.push(start);
                         let other = on_side(walk, start);
                         if !turns_over(input, uv, start, &other) {
-                            best = other;
+                            best = (start, other);
                             break;
                         }
                     }
@@ -101,6 +116,34 @@ impl Stage for TextureStage {
                 },
             )
             .collect();
+        let (mut start, mut found): (Vec<Index>, Vec<[Option<Found>; 3]>) =
+            laid.into_iter().unzip();
+        let mut mesh = mesh;
+        let mended = match uv {
+            Some(uv) => {
+                let side_of = sides.labels();
+                let corner_uv = (0..3 * input.n_faces())
+                    .map(|c| uv[input.wedges.corners()[c] as usize])
+                    .collect();
+                let judge = coarsen_metrics::UvJudge::new(input, corner_uv);
+                let laid = mend::Laid {
+                    input,
+                    uv,
+                    sides: &sides,
+                    side_of: &side_of,
+                    mend: self.params.mend,
+                    judge: &judge,
+                };
+                mend::mend(
+                    &laid,
+                    &mut mesh.positions,
+                    &mut mesh.faces,
+                    &mut found,
+                    &mut start,
+                )
+            }
+            None => mend::Mended::default(),
+        };
         // A corner held to a seam: its side's nearest point is farther than the input's.
         let held = mesh
             .faces
@@ -129,6 +172,9 @@ impl Stage for TextureStage {
         cx.report
             .figure("seam_vertices", out.wedges.split_vertices());
         cx.report.figure("corners_held_to_a_seam", held);
+        cx.report.figure("uv_flips_mended", mended.flips);
+        cx.report.figure("uv_moves_mended", mended.moves);
+        cx.report.figure("uv_turned_over", mended.turned);
         Ok(out)
     }
 }
@@ -144,11 +190,7 @@ fn turns_over(
     let Some(uv) = uv else {
         return false;
     };
-    let at = |f: &Found| -> DVec2 {
-        (0..3)
-            .map(|k| f.bary[k] * uv[input.wedges.corner(f.face as usize, k) as usize])
-            .sum()
-    };
+    let at = |f: &Found| uv_at(input, uv, f);
     let wind = |t: [DVec2; 3]| (t[1] - t[0]).perp_dot(t[2] - t[0]);
     let [Some(a), Some(b), Some(c)] = found else {
         return false;
@@ -157,6 +199,13 @@ fn turns_over(
         uv[input.wedges.corner(start as usize, k) as usize]
     }));
     wind([at(a), at(b), at(c)]) * own < 0.0
+}
+
+/// The UV of the input at a found point.
+fn uv_at(input: &Mesh, uv: &[DVec2], f: &Found) -> DVec2 {
+    (0..3)
+        .map(|k| f.bary[k] * uv[input.wedges.corner(f.face as usize, k) as usize])
+        .sum()
 }
 
 /// The input's faces joined across the edges that are no seam.
@@ -188,6 +237,29 @@ impl Sides {
             }
         }
         Sides { next }
+    }
+
+    /// Each face's side: the smallest face index of the faces it reaches without crossing
+    /// a seam.
+    fn labels(&self) -> Vec<Index> {
+        let mut label = vec![NONE; self.next.len()];
+        let mut stack = Vec::new();
+        for f in 0..self.next.len() {
+            if label[f] != NONE {
+                continue;
+            }
+            label[f] = f as Index;
+            stack.push(f as Index);
+            while let Some(g) = stack.pop() {
+                for &h in &self.next[g as usize] {
+                    if h != NONE && label[h as usize] == NONE {
+                        label[h as usize] = f as Index;
+                        stack.push(h);
+                    }
+                }
+            }
+        }
+        label
     }
 }
 
@@ -352,7 +424,7 @@ mod tests {
     fn run(input: &Mesh, mesh: Mesh) -> (Mesh, StageReport) {
         let mut report = StageReport::default();
         let mut cx = Context::new(input, &mut report);
-        let out = TextureStage::new(TextureParams {})
+        let out = TextureStage::new(TextureParams::default())
             .run(mesh, &mut cx)
             .unwrap();
         (out, report)
@@ -396,6 +468,74 @@ mod tests {
             assert!(t.distortion_mean_pct < mean_pct, "turn {turn}: {t:?}");
             assert!(t.distortion_max_pct < max_pct, "turn {turn}: {t:?}");
         }
+    }
+
+    /// A plane grid with UVs swirled about its middle: each point's (x, y) turned by
+    /// `twist` radians per unit of its distance from the middle.
+    fn swirled(n: u32, twist: f64) -> Mesh {
+        let m = coarsen_shapes::plane_grid(n, n, 2.0).unwrap();
+        let mid = m.positions.iter().sum::<DVec3>() / m.n_vertices() as f64;
+        let uv = m
+            .faces
+            .iter()
+            .flatten()
+            .map(|&v| {
+                let p = m.positions[v as usize] - mid;
+                let (s, c) = (twist * p.truncate().length()).sin_cos();
+                DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y)
+            })
+            .collect();
+        let mut cols = coarsen_mesh::Attributes::default();
+        cols.insert("uv", AttrValues::Vec2(uv));
+        let wedges = Wedges::from_corners(&m.faces, cols);
+        Mesh { wedges, ..m }
+    }
+
+    #[test]
+    fn faces_laid_turned_over_where_the_uvs_swirl_are_mended() {
+        // Coarse faces over UVs that turn faster than the faces are wide: laid as they
+        // fall, some are turned over in UV space.
+        let input = swirled(80, 2.0);
+        let mesh = coarsen_shapes::plane_grid(8, 8, 2.0).unwrap();
+        let stage = |mend| {
+            let mut report = StageReport::default();
+            let mut cx = Context::new(&input, &mut report);
+            let out = TextureStage::new(TextureParams { mend })
+                .run(mesh.clone(), &mut cx)
+                .unwrap();
+            (out, report)
+        };
+        let count = |r: &StageReport, k: &str| r.get(k).and_then(|x| x.as_u64()).unwrap();
+        let texture = |m: &Mesh| {
+            let t = coarsen_metrics::texture(&input, m, 2.0 * 2f64.sqrt()).unwrap();
+            (t.uv_flipped + t.uv_degenerate) as u64
+        };
+        let (plain, before) = stage(false);
+        let turned = count(&before, "uv_turned_over");
+        assert!(turned > 0, "nothing to mend");
+        assert_eq!(texture(&plain), turned);
+        assert_eq!(plain.faces, mesh.faces);
+        let (out, after) = stage(true);
+        assert_eq!(count(&after, "uv_turned_over"), 0);
+        assert_eq!(texture(&out), 0);
+        assert!(count(&after, "uv_flips_mended") > 0 && count(&after, "uv_moves_mended") > 0);
+        // Still a manifold sheet with its boundary, its vertices on the input, facing up,
+        // no angle under the floor that was not there.
+        out.wedges.check(&out.faces).unwrap();
+        let v = coarsen_metrics::validity(Some(&mesh), &out).unwrap();
+        assert!(
+            v.manifold && v.n_boundary_loops == 1 && v.n_components == 1,
+            "{v:?}"
+        );
+        assert!(out.positions.iter().all(|p| p.z == 0.0));
+        assert!((0..out.n_faces()).all(|f| out.face_normal(f).z > 0.99));
+        let q = |m: &Mesh| coarsen_metrics::quality(m).unwrap().alpha_min_deg;
+        assert!(
+            q(&out) >= q(&plain).min(30.0) - 1e-9,
+            "{} {}",
+            q(&out),
+            q(&plain)
+        );
     }
 
     #[test]
