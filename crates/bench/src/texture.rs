@@ -21,23 +21,31 @@ const UV_WEIGHT: f32 = 1.0;
 /// The rows: who simplifies, and to what.
 const ROWS: &[(Method, Target)] = &[
     (Method::Meshopt, Target::Ratio(0.7)),
-    (Method::Pipeline("qem"), Target::Ratio(0.7)),
-    (Method::Pipeline("svec"), Target::Ratio(0.7)),
+    (Method::Pipeline("qem", &[]), Target::Ratio(0.7)),
+    (Method::Pipeline("qem", AT_VERTICES), Target::Ratio(0.7)),
+    (Method::Pipeline("svec", &[]), Target::Ratio(0.7)),
     (Method::Meshopt, Target::Ratio(0.95)),
-    (Method::Pipeline("qem"), Target::Ratio(0.95)),
-    (Method::Pipeline("svec"), Target::Ratio(0.95)),
-    (Method::Pipeline("adaptive-cvt"), Target::Vertices(1000)),
-    (Method::Pipeline("uniform-cvt"), Target::Vertices(1000)),
-    (Method::Pipeline("goal"), Target::Vertices(1000)),
+    (Method::Pipeline("qem", &[]), Target::Ratio(0.95)),
+    (Method::Pipeline("qem", AT_VERTICES), Target::Ratio(0.95)),
+    (Method::Pipeline("svec", &[]), Target::Ratio(0.95)),
+    (
+        Method::Pipeline("adaptive-cvt", &[]),
+        Target::Vertices(1000),
+    ),
+    (Method::Pipeline("uniform-cvt", &[]), Target::Vertices(1000)),
+    (Method::Pipeline("goal", &[]), Target::Vertices(1000)),
 ];
+
+/// `qem` keeping input vertices where they are, as meshoptimizer does.
+const AT_VERTICES: &[&str] = &["simplify.qem.placement=\"vertices\""];
 
 /// Who simplifies a row.
 #[derive(Clone, Copy)]
 enum Method {
     /// meshoptimizer's `simplifyWithAttributes`, the UVs weighted [`UV_WEIGHT`].
     Meshopt,
-    /// A shipped pipeline.
-    Pipeline(&'static str),
+    /// A shipped pipeline, with `--set`-style overrides.
+    Pipeline(&'static str, &'static [&'static str]),
 }
 
 /// `path` read and cleaned as a run cleans its input, its UVs and normals kept.
@@ -108,7 +116,9 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
          run. meshoptimizer: `simplifyWithAttributes` (the meshopt crate), the UVs weighted \
          {UV_WEIGHT} against positions it scales to unit extent, seams where it finds equal \
          positions with other UVs; it keeps input vertices where they are. The collapse \
-         pipelines hold seam vertices in place and merge along seams only; the CVT \
+         pipelines hold seam vertices in place and merge along seams only; `qem` with \
+         `simplify.qem.placement=\"vertices\"` keeps every vertex it keeps where it was, as \
+         meshoptimizer does; the CVT \
          pipelines lay the UVs back on with their `texture` stage, which mends faces laid \
          turned over in UV space. *seam v*: output vertices \
          on a seam. *flipped*: faces whose UV triangle winds against the input face under \
@@ -133,15 +143,18 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
     for &(method, target) in ROWS {
         let label = match method {
             Method::Meshopt => "meshoptimizer".to_string(),
-            Method::Pipeline(p) => format!("`{p}`"),
+            Method::Pipeline(p, sets) => {
+                let sets: Vec<String> = sets.iter().map(|x| format!(" `{x}`")).collect();
+                format!("`{p}`{}", sets.concat())
+            }
         };
         let shown = crate::target_text(&target);
         eprintln!("texture · {label} · {shown}");
         let t = Instant::now();
         let out = match method {
             Method::Meshopt => meshopt_textured(input, target.faces_for(input) as usize),
-            Method::Pipeline(p) => {
-                crate::run_shipped(registry, p, &[], input, target).map(|(m, _)| m)
+            Method::Pipeline(p, sets) => {
+                crate::run_shipped(registry, p, sets, input, target).map(|(m, _)| m)
             }
         };
         let seconds = t.elapsed().as_secs_f64();

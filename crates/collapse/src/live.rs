@@ -187,6 +187,9 @@ pub struct LiveMesh {
     /// The per-corner attributes tracked through the collapses, when asked for
     /// ([`LiveMesh::track_seams`]).
     seams: Option<seams::SeamState>,
+    /// Every edge collapse keeps one of its two vertices where it is
+    /// ([`LiveMesh::keep_input_positions`]).
+    subset: bool,
 }
 
 /// What [`LiveMesh::build`] derives from its mesh: per vertex its kind and the sums of
@@ -462,6 +465,14 @@ impl LiveMesh {
         self.original(v)
     }
 
+    /// Makes every edge collapse keep one of its two vertices where it is (the cheaper by
+    /// the model; "subset placement"), so that the output's vertices are input vertices at
+    /// their input positions. Triangle collapses still place their vertex where the model
+    /// likes. Call before any collapse.
+    pub fn keep_input_positions(&mut self) {
+        self.subset = true;
+    }
+
     /// Locks the vertices of the input (its indices) listed in `input`, before any
     /// collapse: like a non-manifold vertex, a locked vertex never moves and no collapse
     /// merges it (a sharp corner to keep). Returns how many were newly locked (indices out
@@ -608,6 +619,7 @@ impl LiveMesh {
             history: None,
             last_deleted: Vec::new(),
             seams: None,
+            subset: false,
             original_of,
             base_vertex: None,
             base_face: None,
@@ -1443,7 +1455,11 @@ impl LiveMesh {
     /// `seams.rs`): where the result is pinned, or why the merge is not allowed.
     fn rule(&self, verts: &[Index]) -> Result<seams::Pin, Refusal> {
         let pinned = self.boundary_rule(verts)?;
-        self.seam_rule(verts, pinned)
+        let pin = self.seam_rule(verts, pinned)?;
+        Ok(match (pin, verts) {
+            (seams::Pin::Free, &[a, b]) if self.subset => seams::Pin::Either(a, b),
+            (pin, _) => pin,
+        })
     }
 
     /// The model's plan under `pin`, and the vertex it keeps in place (of two allowed,

@@ -118,6 +118,13 @@ params! {
         /// An input edge is sharp when its two faces' normals differ by more than this
         /// (degrees), for `features`.
         pub feature_angle_deg: f64 = 40.0,
+        /// Where a collapse puts the vertex it keeps: `optimal` (the point of least quadric
+        /// error) or `vertices` (the cheaper of the edge's two vertices, where it is:
+        /// Garland–Heckbert's subset placement, as meshoptimizer's simplifier does), so
+        /// that every output vertex is an input vertex at its place — a level of detail
+        /// can share the input's vertex buffer, and its UVs are exact at the vertices.
+        /// `vertices` needs `unit = "edge"`.
+        pub placement: String = "optimal".to_string(),
     }
 }
 
@@ -148,6 +155,18 @@ impl Params for QemParams {
                 field: "unit",
                 message: format!("`{}` is neither `edge` nor `triangle`", self.unit),
             });
+        }
+        match self.placement.as_str() {
+            "optimal" => {}
+            "vertices" if self.unit == "edge" => {}
+            "vertices" => issues.push(ParamIssue {
+                field: "placement",
+                message: "`vertices` needs `unit = \"edge\"`".into(),
+            }),
+            other => issues.push(ParamIssue {
+                field: "placement",
+                message: format!("`{other}` is neither `optimal` nor `vertices`"),
+            }),
         }
         issues
     }
@@ -224,6 +243,9 @@ impl Simplifier for Qem<'_> {
     ) -> Collapsed {
         let p = self.0;
         let unit = Qem::unit(self);
+        if p.placement == "vertices" {
+            live.keep_input_positions();
+        }
         let mut model = QuadricModel::new(
             live,
             &QemOptions {
@@ -309,6 +331,50 @@ mod tests {
     }
 
     #[test]
+    fn placement_at_vertices_keeps_input_vertices_and_exact_uvs() {
+        // A sphere with a UV seam along a meridian, and a disk with holes (boundaries).
+        let sphere = coarsen_shapes::with_spherical_uvs(icosphere(1.0, 4).unwrap());
+        let disk = coarsen_shapes::with_uv_islands(disk_with_holes(3, 24, 1.0).unwrap(), 1, 1);
+        for (mesh, n, curved) in [(sphere, 300, true), (disk, 150, false)] {
+            let params = QemParams {
+                placement: "vertices".into(),
+                ..QemParams::default()
+            };
+            let (out, _) = run(&mesh, Some(Target::Vertices(n)), params);
+            let out = out.unwrap();
+            assert_eq!(out.n_vertices() as u64, n);
+            let mut input: Vec<[u64; 3]> = mesh
+                .positions
+                .iter()
+                .map(|p| p.to_array().map(f64::to_bits))
+                .collect();
+            input.sort_unstable();
+            for p in &out.positions {
+                let bits = p.to_array().map(f64::to_bits);
+                assert!(input.binary_search(&bits).is_ok(), "{p} is no input vertex");
+            }
+            let t = coarsen_metrics::texture(&mesh, &out, 2.0 * 3f64.sqrt()).unwrap();
+            assert_eq!(t.distortion_max_pct, 0.0, "{t:?}");
+            assert_eq!(t.uv_flipped + t.uv_degenerate, 0, "{t:?}");
+            // On the sphere the optimal placement moves vertices off the input surface.
+            let (moved, _) = run(&mesh, Some(Target::Vertices(n)), QemParams::default());
+            let t = coarsen_metrics::texture(&mesh, &moved.unwrap(), 2.0 * 3f64.sqrt()).unwrap();
+            assert_eq!(t.distortion_max_pct > 0.0, curved, "{t:?}");
+        }
+        let issues = QemParams {
+            placement: "vertices".into(),
+            unit: "triangle".into(),
+            ..QemParams::default()
+        }
+        .validate();
+        assert_eq!(issues.len(), 1, "{issues:?}");
+        assert_eq!(
+            issues[0].to_string(),
+            "placement: `vertices` needs `unit = \"edge\"`"
+        );
+    }
+
+    #[test]
     fn hands_back_its_progressive_record_only_when_asked() {
         let mesh = icosphere(1.0, 2).unwrap();
         let mut report = StageReport::default();
@@ -355,6 +421,7 @@ mod tests {
             sve_weighted: false,
             features: true,
             feature_angle_deg: 200.0,
+            placement: "nearest".into(),
         };
         let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
         assert_eq!(
@@ -364,7 +431,8 @@ mod tests {
                 "boundary_weight",
                 "min_quality",
                 "feature_angle_deg",
-                "unit"
+                "unit",
+                "placement"
             ]
         );
         assert!(QemParams::default().validate().is_empty());

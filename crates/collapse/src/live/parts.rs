@@ -576,6 +576,7 @@ impl LiveMesh {
             uv: None,
             source: None,
         });
+        mesh.subset = self.subset;
         Part {
             vertices_before: mesh.n_vertices,
             model: model.for_part(&mesh),
