@@ -17,7 +17,8 @@
 //! **Per-corner attributes** (UV seams, normals across hard edges): carried through the
 //! collapses with the seams as constraints ([`LiveMesh::track_seams`]); the report gives
 //! the vertices on seams before (`seam_vertices_in`: every vertex of a seam edge) and the
-//! output's vertices with two wedges or more (`seam_vertices`).
+//! output's vertices with two wedges or more (`seam_vertices`). The borders between faces
+//! of different materials (the face label column `material`) are seams too, UVs or not.
 //!
 //! **Squared volume error** (paper 2's, metrics.md `sve`): each collapse's Σ Vᵢ² over the
 //! faces around the merged vertices, Vᵢ the volume swept by face i; the report gives the
@@ -188,6 +189,7 @@ pub fn run(
         (corners.len(), live.lock(&corners))
     });
     let folded = fold_into_wedges(&mut mesh);
+    let materials = split_by_material(&mut mesh);
     let on_seams = live.track_seams(&mut mesh);
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
@@ -200,6 +202,12 @@ pub fn run(
     let (mut out, carry) = live
         .to_mesh_with_attributes(&attributes)
         .map_err(|e| StageError::Internal(e.to_string()))?;
+    if materials {
+        let mut columns = out.wedges.corner_values();
+        columns.remove(MATERIAL_SIDE);
+        out.wedges = coarsen_mesh::Wedges::default();
+        out = out.with_corner_attributes(columns);
+    }
     if folded {
         let per_vertex = out.wedges.take_per_vertex(&out.faces, out.n_vertices());
         for (name, values) in per_vertex.iter() {
@@ -259,6 +267,28 @@ fn fold_into_wedges(mesh: &mut Mesh) -> bool {
         mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
     }
     moved
+}
+
+/// The per-corner column that [`split_by_material`] adds for the collapses.
+const MATERIAL_SIDE: &str = "material side";
+
+/// Gives each corner of `mesh` its face's material as a per-corner value when its faces
+/// use more than one (the face label column `material`), so that the edges between two
+/// materials are seams to the collapses (`LiveMesh::track_seams`): their vertices stay,
+/// and merge along them only, as gltfpack keeps a primitive's borders. True when it did;
+/// the output drops the column again.
+fn split_by_material(mesh: &mut Mesh) -> bool {
+    let Some(material) = mesh.face_attrs.label(coarsen_mesh::material::MATERIAL) else {
+        return false;
+    };
+    if material.iter().all(|&m| m == material[0]) {
+        return false;
+    }
+    let side = material.iter().flat_map(|&m| [m; 3]).collect();
+    let mut columns = mesh.wedges.corner_values();
+    columns.insert(MATERIAL_SIDE, coarsen_mesh::AttrValues::Label(side));
+    mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
+    true
 }
 
 /// The corners of `mesh`'s sharp features at `angle_deg` (`coarsen_features`, boundary

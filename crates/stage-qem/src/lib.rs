@@ -374,6 +374,65 @@ mod tests {
         );
     }
 
+    /// The vertices of `m` where faces of two materials meet.
+    fn material_border(m: &Mesh) -> Vec<[u64; 3]> {
+        let material = m
+            .face_attrs
+            .label(coarsen_mesh::material::MATERIAL)
+            .unwrap();
+        let mut first = vec![u32::MAX; m.n_vertices()];
+        let mut border = vec![false; m.n_vertices()];
+        for (face, &k) in m.faces.iter().zip(material) {
+            for &v in face {
+                let f = &mut first[v as usize];
+                border[v as usize] |= *f != u32::MAX && *f != k;
+                *f = k;
+            }
+        }
+        let mut out: Vec<[u64; 3]> = (0..m.n_vertices())
+            .filter(|&v| border[v])
+            .map(|v| m.positions[v].to_array().map(f64::to_bits))
+            .collect();
+        out.sort_unstable();
+        out
+    }
+
+    #[test]
+    fn borders_between_materials_stay_where_they_were() {
+        // A sphere in three materials by latitude bands, without UVs.
+        let mut mesh = icosphere(1.0, 4).unwrap();
+        let material = (0..mesh.n_faces())
+            .map(|f| {
+                let z = mesh.faces[f]
+                    .iter()
+                    .map(|&v| mesh.positions[v as usize].z)
+                    .sum::<f64>();
+                u32::from(z > -0.6) + u32::from(z > 1.2)
+            })
+            .collect();
+        mesh.face_attrs.insert(
+            coarsen_mesh::material::MATERIAL,
+            coarsen_mesh::AttrValues::Label(material),
+        );
+        let border_in = material_border(&mesh);
+        assert!(border_in.len() > 40);
+        let (out, report) = run(&mesh, Some(Target::Vertices(150)), QemParams::default());
+        let out = out.unwrap();
+        assert_eq!(out.n_vertices(), 150);
+        assert!(out.wedges.is_empty(), "no column added to the output");
+        assert!(
+            report
+                .get("seam_vertices_in")
+                .is_some_and(|n| n.as_u64() > Some(40))
+        );
+        // Every border vertex of the output is one of the input's, where it was.
+        let border_out = material_border(&out);
+        assert!(border_out.len() >= 12, "{}", border_out.len());
+        for p in &border_out {
+            assert!(border_in.binary_search(p).is_ok(), "{p:?} left the border");
+        }
+    }
+
     #[test]
     fn hands_back_its_progressive_record_only_when_asked() {
         let mesh = icosphere(1.0, 2).unwrap();
