@@ -15,7 +15,12 @@
 //! corner that does not is taken instead.
 //! The values are those of the input face's corners, weighted barycentrically (normals made
 //! unit again); a vertex's corners whose UVs agree to within 10⁻⁷ of the UV extent share one
-//! wedge. Without per-corner attributes on the run's input, the mesh passes unchanged.
+//! wedge.
+//!
+//! When the run's input says which material each face uses (the face label column
+//! `material`, of more than one value) and the mesh lost that column, each face takes the
+//! material of the input face nearest its centroid. Without per-corner attributes or
+//! materials on the run's input, the mesh passes unchanged.
 //!
 //! A coarse face over a stretch where the input's UVs bend faster than the face is wide
 //! can still be laid turned over in UV space (judged as the texture figures judge it,
@@ -25,6 +30,7 @@
 //! each, and how many faces are left turned over.
 
 use coarsen_geom::{DVec2, DVec3};
+use coarsen_mesh::material::MATERIAL;
 use coarsen_mesh::{AttrValues, Attributes, Index, Mesh, Wedges};
 use coarsen_spatial::{Bvh, closest_point_on_triangle};
 use coarsen_stage::{Context, Contract, Params, Stage, StageError, params};
@@ -56,7 +62,7 @@ pub struct TextureStage {
 impl Stage for TextureStage {
     type Params = TextureParams;
     const KIND: &'static str = "texture";
-    const SUMMARY: &'static str = "The run input's UVs, normals and colours laid onto the current mesh, each face on one side of the input's UV seams; faces laid turned over in UV space mended by a vertex move or an edge flip.";
+    const SUMMARY: &'static str = "The run input's UVs, normals, colours and face materials laid onto the current mesh, each face on one side of the input's UV seams; faces laid turned over in UV space mended by a vertex move or an edge flip.";
 
     fn new(params: TextureParams) -> Self {
         TextureStage { params }
@@ -72,12 +78,26 @@ impl Stage for TextureStage {
 
     fn run(&self, mesh: Mesh, cx: &mut Context<'_>) -> Result<Mesh, StageError> {
         let input = cx.original;
-        if input.wedges.is_empty() || mesh.faces.is_empty() {
+        let materials = input
+            .face_attrs
+            .label(MATERIAL)
+            .filter(|m| m.iter().any(|&x| x != m[0]) && mesh.face_attrs.get(MATERIAL).is_none());
+        if (input.wedges.is_empty() && materials.is_none()) || mesh.faces.is_empty() {
+            cx.report.figure("textured", false);
+            return Ok(mesh);
+        }
+        let bvh = Bvh::build(&input.positions, &input.faces);
+        let mut mesh = mesh;
+        if let Some(labels) = materials {
+            let of_face = lay_materials(&mesh, &bvh, labels);
+            mesh.face_attrs.insert(MATERIAL, AttrValues::Label(of_face));
+            cx.report.figure("materials_laid", true);
+        }
+        if input.wedges.is_empty() {
             cx.report.figure("textured", false);
             return Ok(mesh);
         }
         let sides = Sides::of(input);
-        let bvh = Bvh::build(&input.positions, &input.faces);
         let uv = input.wedges.attrs().vec2("uv");
         let laid: Vec<(Index, [Option<Found>; 3])> = mesh
             .faces
@@ -118,7 +138,6 @@ impl Stage for TextureStage {
             .collect();
         let (mut start, mut found): (Vec<Index>, Vec<[Option<Found>; 3]>) =
             laid.into_iter().unzip();
-        let mut mesh = mesh;
         let mended = match uv {
             Some(uv) => {
                 let side_of = sides.labels();
@@ -177,6 +196,22 @@ impl Stage for TextureStage {
         cx.report.figure("uv_turned_over", mended.turned);
         Ok(out)
     }
+}
+
+/// Each face's material: that of the input face nearest its centroid.
+fn lay_materials(mesh: &Mesh, bvh: &Bvh, labels: &[u32]) -> Vec<u32> {
+    mesh.faces
+        .par_iter()
+        .map(|face| {
+            let c = face
+                .iter()
+                .map(|&v| mesh.positions[v as usize])
+                .sum::<DVec3>()
+                / 3.0;
+            bvh.closest_point(c)
+                .map_or(labels[0], |n| labels[n.face as usize])
+        })
+        .collect()
 }
 
 /// Whether a face's corners `found` on the side of input face `start` turn it over in UV
@@ -536,6 +571,48 @@ mod tests {
             q(&out),
             q(&plain)
         );
+    }
+
+    #[test]
+    fn each_face_takes_the_material_under_it() {
+        // Two materials by hemisphere, no UVs; the remeshed sphere lost the column.
+        let band = |z: f64| u32::from(z > 0.0);
+        let mut input = coarsen_shapes::icosphere(1.0, 4).unwrap();
+        let material = (0..input.n_faces())
+            .map(|f| {
+                band(
+                    input.faces[f]
+                        .iter()
+                        .map(|&v| input.positions[v as usize].z)
+                        .sum(),
+                )
+            })
+            .collect();
+        input
+            .face_attrs
+            .insert(MATERIAL, AttrValues::Label(material));
+        let mesh = turned_sphere(0.1);
+        let (out, report) = run(&input, mesh.clone());
+        assert_eq!(report.get("materials_laid"), Some(&true.into()));
+        assert_eq!(report.get("textured"), Some(&false.into()));
+        assert_eq!((&out.positions, &out.faces), (&mesh.positions, &mesh.faces));
+        let laid = out.face_attrs.label(MATERIAL).expect("materials laid");
+        let right = (0..out.n_faces())
+            .filter(|&f| {
+                let z: f64 = out.faces[f]
+                    .iter()
+                    .map(|&v| out.positions[v as usize].z)
+                    .sum();
+                laid[f] == band(z)
+            })
+            .count();
+        assert_eq!(right, out.n_faces());
+        // A mesh that kept its own column keeps it.
+        let mut own = mesh.clone();
+        own.face_attrs
+            .insert(MATERIAL, AttrValues::Label(vec![7; own.n_faces()]));
+        let (kept, _) = run(&input, own.clone());
+        assert_eq!(kept, own);
     }
 
     #[test]
