@@ -169,7 +169,11 @@ pub(crate) fn leaves_input(surface: &Surface<'_>, tris: &[[DVec3; 3]], bound: f6
             c.lerp(*a, 0.5),
         ]
         .into_iter()
-        .any(|x| surface.project(x).is_none_or(|y| y.distance(x) > bound))
+        .any(|x| {
+            surface
+                .project_within(x, bound)
+                .is_none_or(|y| y.distance(x) > bound)
+        })
     })
 }
 

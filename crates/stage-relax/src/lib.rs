@@ -291,6 +291,17 @@ impl<'a> Surface<'a> {
         self.facing.bvh().closest_point(p).map(|h| h.point)
     }
 
+    /// [`Surface::project`] when the nearest point lies within about `bound` of `p` (a
+    /// little farther, for rounding: the caller compares the distance itself), else
+    /// `None`; the same point, found faster.
+    fn project_within(&self, p: DVec3, bound: f64) -> Option<DVec3> {
+        let limit = bound * bound * (1.0 + 1e-9);
+        self.facing
+            .bvh()
+            .closest_point_within(p, limit)
+            .map(|h| h.point)
+    }
+
     /// The nearest point of the faces facing the side of `normal`.
     fn project_facing(&self, p: DVec3, normal: DVec3) -> Option<DVec3> {
         self.facing.project_facing(p, normal)
