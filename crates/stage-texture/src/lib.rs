@@ -646,10 +646,41 @@ mod tests {
                 stride,
             );
             let mesh = turned(coarsen_shapes::icosphere(1.1, levels).unwrap(), turn);
-            let (out, _) = run(&input, mesh);
+            let (out, _) = run(&input, mesh.clone());
             let uv = out.corner_column("uv");
             proptest::prop_assert!(uv.is_some());
             out.wedges.check(&out.faces).unwrap();
+            // Mending keeps the surface: the same vertices, still a closed sphere.
+            proptest::prop_assert_eq!(out.n_vertices(), mesh.n_vertices());
+            proptest::prop_assert_eq!(out.n_faces(), mesh.n_faces());
+            let v = coarsen_metrics::validity(None, &out).unwrap();
+            proptest::prop_assert!(v.manifold && v.genus == Some(0) && v.n_degenerate == 0);
+        }
+
+        /// Swirled UVs of any strength under a grid of any size: whatever mending does
+        /// leaves a manifold sheet facing up, and no more turned faces than it found.
+        #[test]
+        fn mending_keeps_the_sheet_and_never_adds_turned_faces(
+            twist in 0.0f64..16.0,
+            n in 2u32..14,
+            turn in 0.0f64..0.8,
+        ) {
+            let input = swirled(40, twist);
+            let mesh = turned(coarsen_shapes::plane_grid(n, n, 1.8).unwrap(), turn);
+            let mut report = StageReport::default();
+            let mut cx = Context::new(&input, &mut report);
+            let plain = TextureStage::new(TextureParams { mend: false })
+                .run(mesh.clone(), &mut cx)
+                .unwrap();
+            let before = report.get("uv_turned_over").and_then(|x| x.as_u64()).unwrap();
+            let (out, after) = run(&input, mesh.clone());
+            let left = after.get("uv_turned_over").and_then(|x| x.as_u64()).unwrap();
+            proptest::prop_assert!(left <= before, "{} > {}", left, before);
+            proptest::prop_assert_eq!(plain.faces.len(), out.faces.len());
+            out.wedges.check(&out.faces).unwrap();
+            let v = coarsen_metrics::validity(Some(&mesh), &out).unwrap();
+            proptest::prop_assert!(v.manifold && v.n_boundary_loops == 1 && v.n_degenerate == 0);
+            proptest::prop_assert!((0..out.n_faces()).all(|f| out.face_normal(f).z > 0.0));
         }
     }
 }
