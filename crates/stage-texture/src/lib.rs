@@ -99,59 +99,38 @@ impl Stage for TextureStage {
         }
         let sides = Sides::of(input);
         let uv = input.wedges.attrs().vec2("uv");
+        let layer = Layer {
+            input,
+            sides: &sides,
+            bvh: &bvh,
+            uv,
+        };
         let laid: Vec<(Index, [Option<Found>; 3])> = mesh
             .faces
             .par_iter()
             .map_init(
                 || Walk::new(input.n_faces()),
-                |walk, face| {
-                    let corners = face.map(|v| mesh.positions[v as usize]);
-                    let on_side = |walk: &mut Walk, start: Index| {
-                        corners.map(|p| walk.nearest(input, &sides, start, p))
-                    };
-                    let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
-                    let Some(first) = bvh.closest_point(centroid).map(|n| n.face) else {
-                        return (NONE, [None; 3]);
-                    };
-                    let mut best = (first, on_side(walk, first));
-                    if !turns_over(input, uv, first, &best.1) {
-                        return best;
-                    }
-                    let mut tried = vec![first];
-                    for p in corners {
-                        let Some(start) = bvh.closest_point(p).map(|n| n.face) else {
-                            continue;
-                        };
-                        if tried.contains(&start) {
-                            continue;
-                        }
-                        tried.push(start);
-                        let other = on_side(walk, start);
-                        if !turns_over(input, uv, start, &other) {
-                            best = (start, other);
-                            break;
-                        }
-                    }
-                    best
-                },
+                |walk, face| layer.lay(walk, face.map(|v| mesh.positions[v as usize])),
             )
             .collect();
+        let judge = uv.map(|uv| {
+            let corner_uv = (0..3 * input.n_faces())
+                .map(|c| uv[input.wedges.corners()[c] as usize])
+                .collect();
+            coarsen_metrics::UvJudge::new(input, corner_uv)
+        });
         let (mut start, mut found): (Vec<Index>, Vec<[Option<Found>; 3]>) =
             laid.into_iter().unzip();
-        let mended = match uv {
-            Some(uv) => {
+        let mended = match (uv, &judge) {
+            (Some(uv), Some(judge)) => {
                 let side_of = sides.labels();
-                let corner_uv = (0..3 * input.n_faces())
-                    .map(|c| uv[input.wedges.corners()[c] as usize])
-                    .collect();
-                let judge = coarsen_metrics::UvJudge::new(input, corner_uv);
                 let laid = mend::Laid {
                     input,
                     uv,
                     sides: &sides,
                     side_of: &side_of,
                     mend: self.params.mend,
-                    judge: &judge,
+                    judge,
                 };
                 mend::mend(
                     &laid,
@@ -161,7 +140,7 @@ impl Stage for TextureStage {
                     &mut start,
                 )
             }
-            None => mend::Mended::default(),
+            _ => mend::Mended::default(),
         };
         // A corner held to a seam: its side's nearest point is farther than the input's.
         let held = mesh
@@ -195,6 +174,49 @@ impl Stage for TextureStage {
         cx.report.figure("uv_moves_mended", mended.moves);
         cx.report.figure("uv_turned_over", mended.turned);
         Ok(out)
+    }
+}
+
+/// What laying a face on the input needs.
+struct Layer<'a> {
+    input: &'a Mesh,
+    sides: &'a Sides,
+    bvh: &'a Bvh,
+    uv: Option<&'a [DVec2]>,
+}
+
+impl Layer<'_> {
+    /// A face with corners `corners` laid on the input (module docs): the input face whose
+    /// side it takes, and each corner's point of that side.
+    fn lay(&self, walk: &mut Walk, corners: [DVec3; 3]) -> (Index, [Option<Found>; 3]) {
+        let (input, uv) = (self.input, self.uv);
+        let on_side = |walk: &mut Walk, start: Index| {
+            corners.map(|p| walk.nearest(input, self.sides, start, p))
+        };
+        let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+        let Some(first) = self.bvh.closest_point(centroid).map(|n| n.face) else {
+            return (NONE, [None; 3]);
+        };
+        let mut best = (first, on_side(walk, first));
+        if !turns_over(input, uv, first, &best.1) {
+            return best;
+        }
+        let mut tried = vec![first];
+        for p in corners {
+            let Some(start) = self.bvh.closest_point(p).map(|n| n.face) else {
+                continue;
+            };
+            if tried.contains(&start) {
+                continue;
+            }
+            tried.push(start);
+            let other = on_side(walk, start);
+            if !turns_over(input, uv, start, &other) {
+                best = (start, other);
+                break;
+            }
+        }
+        best
     }
 }
 
