@@ -119,6 +119,11 @@ fn min_angle_deg(p: [DVec3; 3]) -> f64 {
 }
 
 impl Laid<'_> {
+    /// The side of input face `f` (`None` for a face laid on none).
+    fn side(&self, f: Index) -> Option<Index> {
+        self.side_of.get(f as usize).copied()
+    }
+
     /// The UVs at a face's corners (`None` where a corner found nothing).
     fn uvs(&self, found: &[Option<Found>; 3]) -> Option<[DVec2; 3]> {
         let [Some(a), Some(b), Some(c)] = found else {
@@ -235,7 +240,7 @@ fn best_flip(
         };
         let d = faces[g][j];
         // One side of the input, the same UVs at the edge's ends in both faces.
-        if laid.side_of[start[f] as usize] != laid.side_of[start[g] as usize] {
+        if laid.side(start[f]).is_none() || laid.side(start[f]) != laid.side(start[g]) {
             continue;
         }
         let slot = |face: usize, v: Index| (0..3).find(|&i| faces[face][i] == v);
@@ -348,10 +353,10 @@ fn best_move(
             })
             .collect();
         // One side, one UV: no seam through the vertex.
-        let side = laid.side_of[start[f] as usize];
+        let side = laid.side(start[f]);
         if corners
             .iter()
-            .any(|&(h, _)| laid.side_of[start[h] as usize] != side)
+            .any(|&(h, _)| side.is_none() || laid.side(start[h]) != side)
         {
             continue;
         }
