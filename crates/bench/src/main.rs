@@ -340,10 +340,16 @@ fn pyacvd_section(data: &Path) -> Result<String> {
 fn texture_section(data: &Path, out: &Path) -> Result<()> {
     let registry = coarsen_builtin::registry();
     let section = texture::section(&registry, &texture::load(&data.join(texture::MESH))?)?;
+    rewrite_section(&section, out, "## Speed")
+}
+
+/// Prints `section` and puts it into the results file `out` in place of the section of
+/// its heading, or before the heading `before` (nothing written for "-").
+fn rewrite_section(section: &str, out: &Path, before: &str) -> Result<()> {
     print!("{section}");
     if out != Path::new("-") {
         let text = std::fs::read_to_string(out).with_context(|| out.display().to_string())?;
-        write_atomically(out, &splice(&text, &section, "## Speed"))?;
+        write_atomically(out, &splice(&text, section, before))?;
         eprintln!("wrote {}", out.display());
     }
     Ok(())
@@ -354,13 +360,7 @@ fn texture_section(data: &Path, out: &Path) -> Result<()> {
 fn readings_section(data: &Path, out: &Path) -> Result<()> {
     let registry = coarsen_builtin::registry();
     let section = readings::section(&registry, &|file: &str| load(&data.join(file)))?;
-    print!("{section}");
-    if out != Path::new("-") {
-        let text = std::fs::read_to_string(out).with_context(|| out.display().to_string())?;
-        write_atomically(out, &splice(&text, &section, "## Other tools"))?;
-        eprintln!("wrote {}", out.display());
-    }
-    Ok(())
+    rewrite_section(&section, out, "## Other tools")
 }
 
 /// The feature-edge section (issue #6) on the fandisk of `data`.
