@@ -600,20 +600,25 @@ pub fn with_uv_islands(mesh: Mesh, charts: u32, stride: u32) -> Mesh {
 /// The unit square in the z = 0 plane as two triangles (corners 0, x, x + y, y), with
 /// texture coordinates per corner equal to each corner's (x, y): the smallest textured mesh.
 pub fn uv_square() -> Mesh {
-    let m = Mesh::new(
+    with_planar_uvs(Mesh::new(
         vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
         vec![[0, 1, 2], [0, 2, 3]],
-    );
-    let uv = m
+    ))
+}
+
+/// `mesh` with texture coordinates per corner equal to each corner's (x, y): a projection
+/// along z, no seam.
+pub fn with_planar_uvs(mesh: Mesh) -> Mesh {
+    let uv = mesh
         .faces
         .iter()
         .flatten()
-        .map(|&v| m.positions[v as usize].truncate())
+        .map(|&v| mesh.positions[v as usize].truncate())
         .collect();
     let mut cols = coarsen_mesh::Attributes::default();
     cols.insert("uv", coarsen_mesh::AttrValues::Vec2(uv));
-    let wedges = coarsen_mesh::Wedges::from_corners(&m.faces, cols);
-    Mesh { wedges, ..m }
+    let wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, cols);
+    Mesh { wedges, ..mesh }
 }
 
 /// Flat grid in the z = 0 plane, normal +z: `nx × ny` square cells, `size` wide along x

@@ -166,7 +166,6 @@ coarsen_stage::export_stage!(Normals);
 #[cfg(test)]
 mod tests {
     use super::*;
-    use coarsen_mesh::Wedges;
     use coarsen_stage::StageReport;
 
     fn run(mesh: &Mesh, params: NormalsParams) -> (Mesh, StageReport) {
@@ -220,7 +219,7 @@ mod tests {
             let a = deg.to_radians();
             DVec3::new(a.cos(), -a.sin(), -a.sin() * t)
         };
-        let mut m = Mesh::new(
+        let m = coarsen_shapes::with_planar_uvs(Mesh::new(
             vec![
                 DVec3::ZERO,
                 DVec3::X,
@@ -230,16 +229,10 @@ mod tests {
                 side(20.0),
             ],
             vec![[0, 1, 2], [0, 3, 4], [0, 4, 5], [0, 5, 1]],
-        );
-        let uv: Vec<_> = m
-            .faces
-            .iter()
-            .flatten()
-            .map(|&v| m.positions[v as usize].truncate())
-            .collect();
-        let mut cols = coarsen_mesh::Attributes::default();
-        cols.insert("uv", AttrValues::Vec2(uv.clone()));
-        m.wedges = Wedges::from_corners(&m.faces, cols);
+        ));
+        let Some(AttrValues::Vec2(uv)) = m.corner_column("uv") else {
+            unreachable!("planar UVs")
+        };
         let at_ridge = |weighting: &str| {
             let p = NormalsParams {
                 crease_deg: 180.0,
