@@ -28,6 +28,7 @@ use coarsen_geom::{DVec2, DVec3};
 use coarsen_mesh::{AttrValues, Mesh};
 use coarsen_spatial::Bvh;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 /// The column the texture figures read.
 pub const UV: &str = "uv";
@@ -188,18 +189,28 @@ pub struct UvJudge<'a> {
     uv: Vec<DVec2>,
     area: Vec<f64>,
     grid: UvGrid,
-    bvh: Bvh,
+    bvh: Cow<'a, Bvh>,
 }
 
 impl<'a> UvJudge<'a> {
     /// A judge for `input` with UVs `uv` per corner ([`corner_uvs`]).
     pub fn new(input: &'a Mesh, uv: Vec<DVec2>) -> UvJudge<'a> {
+        let bvh = Bvh::build(&input.positions, &input.faces);
+        UvJudge::judging(input, uv, Cow::Owned(bvh))
+    }
+
+    /// [`UvJudge::new`] with `bvh`, an index of `input`'s faces the caller built already.
+    pub fn with_index(input: &'a Mesh, uv: Vec<DVec2>, bvh: &'a Bvh) -> UvJudge<'a> {
+        UvJudge::judging(input, uv, Cow::Borrowed(bvh))
+    }
+
+    fn judging(input: &'a Mesh, uv: Vec<DVec2>, bvh: Cow<'a, Bvh>) -> UvJudge<'a> {
         let area = (0..input.faces.len())
             .map(|f| uv_area(uv[3 * f], uv[3 * f + 1], uv[3 * f + 2]))
             .collect();
         UvJudge {
             grid: UvGrid::new(&uv, input.faces.len()),
-            bvh: Bvh::build(&input.positions, &input.faces),
+            bvh,
             input,
             uv,
             area,

@@ -117,7 +117,7 @@ impl Stage for TextureStage {
             let corner_uv = (0..3 * input.n_faces())
                 .map(|c| uv[input.wedges.corners()[c] as usize])
                 .collect();
-            coarsen_metrics::UvJudge::new(input, corner_uv)
+            coarsen_metrics::UvJudge::with_index(input, corner_uv, &bvh)
         });
         let (mut start, mut found): (Vec<Index>, Vec<[Option<Found>; 3]>) =
             laid.into_iter().unzip();
