@@ -215,11 +215,25 @@ fn a_charted_cube_round_trips_through_glb_and_validates() {
     );
 }
 
-#[test]
-fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
+/// spot with flat normals (hard edges everywhere) beside its UVs, written as OBJ, and
+/// the same textured (a material whose base colour is an embedded PNG, a picture of spot)
+/// as GLB, in a folder of their own; `None` without `../shared/data`.
+struct TexturedSpot {
+    dir: tempfile::TempDir,
+    /// spot with its UVs and flat normals.
+    mesh: Mesh,
+    /// The embedded picture.
+    png: Vec<u8>,
+    /// `spot.obj` in `dir`.
+    obj: PathBuf,
+    /// `spot-textured.glb` in `dir`.
+    glb: PathBuf,
+}
+
+fn textured_spot() -> Option<TexturedSpot> {
     let Some(data) = shared_data() else {
         eprintln!("skipped: ../shared/data is absent (set COARSEN_DATA)");
-        return;
+        return None;
     };
     let spot = data.join("spot.obj");
     let dir = tempfile::tempdir().unwrap();
@@ -236,7 +250,6 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
     m = Mesh::new(m.positions, m.faces).with_corner_attributes(cols);
     let input = dir.path().join("spot.obj");
     coarsen_io::write_path(&m, &input, &Default::default()).unwrap();
-    let glb = round_trip(&input, dir.path());
     // Textured: a material whose base colour is an embedded PNG (a picture of spot).
     let opts = coarsen_render::RenderOptions {
         width: 64,
@@ -263,10 +276,37 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
     };
     let textured = dir.path().join("spot-textured.glb");
     coarsen_io::write_path(&m, &textured, &Default::default()).unwrap();
-    let back = read_mesh(&textured);
-    assert_eq!(back.materials.images[0].bytes.as_deref(), Some(&png[..]));
-    let mut written = vec![glb, textured.clone()];
-    let t = textured.to_string_lossy().into_owned();
+    Some(TexturedSpot {
+        dir,
+        mesh: m,
+        png,
+        obj: input,
+        glb: textured,
+    })
+}
+
+#[test]
+fn spot_round_trips_through_glb_with_its_uvs_normals_and_texture() {
+    let Some(spot) = textured_spot() else {
+        return;
+    };
+    let glb = round_trip(&spot.obj, spot.dir.path());
+    let back = read_mesh(&spot.glb);
+    assert_eq!(
+        back.materials.images[0].bytes.as_deref(),
+        Some(&spot.png[..])
+    );
+    validate(&[glb, spot.glb.clone()]);
+}
+
+#[test]
+fn qem_and_lod_keep_spots_uvs_seams_normals_and_texture() {
+    let Some(spot) = textured_spot() else {
+        return;
+    };
+    let (dir, m, png) = (&spot.dir, &spot.mesh, &spot.png);
+    let t = spot.glb.to_string_lossy().into_owned();
+    let mut written = Vec::new();
     for ratio in ["0.7", "0.95"] {
         let out_glb = dir.path().join(format!("spot-qem-{ratio}.glb"));
         let o = out_glb.to_string_lossy();
@@ -293,7 +333,7 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
         assert!(out.corner_column("normal").is_some());
         // Seams kept, no face turned over in UV space, each UV within the geometric error
         // of its vertex's place.
-        let report = coarsen_metrics::measure(Some(&m), &out, &Default::default()).unwrap();
+        let report = coarsen_metrics::measure(Some(m), &out, &Default::default()).unwrap();
         let tex = report.texture.expect("both carry UVs");
         let hausdorff = report.fidelity.unwrap().hausdorff_pct;
         assert!(tex.seam_vertices > 40, "{ratio}: {tex:?}");
@@ -331,6 +371,17 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
         / n.len() as f64;
     assert!(agree > 0.9, "mean cosine to the face normal {agree}");
     written.push(lod);
+    validate(&written);
+}
+
+#[test]
+fn cvt_pipelines_lay_spots_uvs_back_on_and_render_draws_them() {
+    let Some(spot) = textured_spot() else {
+        return;
+    };
+    let (dir, m) = (&spot.dir, &spot.mesh);
+    let t = spot.glb.to_string_lossy().into_owned();
+    let mut written = Vec::new();
     // The CVT pipelines lay the input's UVs onto their output (the `texture` stage): seams
     // kept, no face turned over in UV space (the stage mends those it lays so), and files
     // that validate.
@@ -345,7 +396,7 @@ fn spot_round_trips_through_glb_and_qem_keeps_its_uvs_seams_and_texture() {
         let said = format!("{}{}", stdout(&run), stderr(&run));
         assert!(!said.contains("per-corner"), "{said}");
         let out = read_mesh(&out_glb);
-        let report = coarsen_metrics::measure(Some(&m), &out, &Default::default()).unwrap();
+        let report = coarsen_metrics::measure(Some(m), &out, &Default::default()).unwrap();
         let tex = report.texture.expect("UVs laid on");
         assert!(tex.seam_vertices > 40, "{pipeline}: {tex:?}");
         assert_eq!(tex.uv_flipped + tex.uv_degenerate, 0, "{pipeline}: {tex:?}");
