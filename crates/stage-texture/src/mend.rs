@@ -30,16 +30,16 @@ use coarsen_metrics::{UvJudge, UvWinding};
 /// The most passes over the faces.
 pub const PASSES: usize = 4;
 
-/// Smallest angle (degrees) a flip may leave when the pair had none smaller.
+/// Smallest angle (degrees) a mend may leave when the faces it changes had none smaller.
 const ANGLE_FLOOR_DEG: f64 = 30.0;
 
-/// Smallest shape quality (Frey–Borouchaki Q) a mend may leave when none was smaller.
+/// Smallest shape quality (Frey–Borouchaki Q) a mend may leave, likewise.
 const Q_FLOOR: f64 = 0.5;
 
 /// Two laid UVs closer than this are one (a vertex no seam runs through).
 const SAME_UV: f64 = 1e-12;
 
-/// Largest turn (degrees) of a new face from the pair's mean normal.
+/// Largest turn (degrees) of a face a mend changes (module docs).
 const MAX_TURN_DEG: f64 = 60.0;
 
 /// What mending did.
