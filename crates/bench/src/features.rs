@@ -91,8 +91,9 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
          (`coarsen-features`) that have an output vertex on them. The CVT pipelines run to \
          `qem`'s vertex count. Distances in % of the bounding-box diagonal; *Hausdorff* is the \
          whole surface's, as in the tables above. `features=true` (off by default) captures the \
-         input's corners and sharp curves in `relax` (see its docs), and locks the corners in \
-         `simplify.qem` and `simplify.svec`; the `cad` pipeline is `uniform-cvt` with it and \
+         input's corners and sharp curves in `relax` (see its docs), and in `simplify.qem` and \
+         `simplify.svec` keeps the corners and the vertices of sharp curves where they are \
+         (merged along their curve only); the `cad` pipeline is `uniform-cvt` with it and \
          `subdivide.max_edge=1`.\n",
         opts.angle_deg, opts.spacing
     );

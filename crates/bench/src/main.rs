@@ -68,11 +68,15 @@ enum Command {
         #[arg(long)]
         no_readings: bool,
     },
-    /// Print only the feature-edge section (fandisk at 70 % removed).
+    /// The feature-edge section (fandisk at 70 % removed, the CAD parts): printed, or put in
+    /// place of its section in the results file `--out`.
     Features {
         /// Folder of the test meshes.
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))]
         data: PathBuf,
+        /// The results file whose section is rewritten ("-" for standard output only).
+        #[arg(long, default_value = "-")]
+        out: PathBuf,
     },
     /// Run paper 2's readings (issue #53) and rewrite only that section of the results.
     Readings {
@@ -186,7 +190,9 @@ fn main() -> ExitCode {
                 readings: !no_readings,
             },
         ),
-        Command::Features { data } => feature_section(&data).map(|s| print!("{s}")),
+        Command::Features { data, out } => {
+            feature_section(&data).and_then(|s| rewrite_section(&s, &out, "## Levers"))
+        }
         Command::Readings { data, out } => readings_section(&data, &out),
         Command::Texture { data, out } => texture_section(&data, &out),
         Command::Fingerprints {

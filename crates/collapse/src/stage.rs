@@ -18,7 +18,9 @@
 //! collapses with the seams as constraints ([`LiveMesh::track_seams`]); the report gives
 //! the vertices on seams before (`seam_vertices_in`: every vertex of a seam edge) and the
 //! output's vertices with two wedges or more (`seam_vertices`). The borders between faces
-//! of different materials (the face label column `material`) are seams too, UVs or not.
+//! of different materials (the face label column `material`) are seams too, UVs or not,
+//! and so are, when the stage keeps sharp features ([`Simplifier::kept_corners`]), the
+//! sharp curves between two surface patches.
 //!
 //! **Squared volume error** (paper 2's, metrics.md `sve`): each collapse's Σ Vᵢ² over the
 //! faces around the merged vertices, Vᵢ the volume swept by face i; the report gives the
@@ -184,12 +186,13 @@ pub fn run(
     let goal = stage.goal(count);
     let mut live =
         LiveMesh::new_renumbered(&mesh).map_err(|e| StageError::Input(format!("`{kind}`: {e}")))?;
-    let corners = stage.kept_corners().map(|angle| {
-        let corners = corners_of(&mesh, angle);
-        (corners.len(), live.lock(&corners))
-    });
+    let features = stage.kept_corners().map(|angle| features_of(&mesh, angle));
+    let corners = features
+        .as_ref()
+        .map(|(corners, _)| (corners.len(), live.lock(corners)));
     let folded = fold_into_wedges(&mut mesh);
-    let materials = split_by_material(&mut mesh);
+    let patches = features.map(|(_, patch)| patch);
+    let sides = split_sides(&mut mesh, patches);
     let on_seams = live.track_seams(&mut mesh);
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
@@ -202,9 +205,10 @@ pub fn run(
     let (mut out, carry) = live
         .to_mesh_with_attributes(&attributes)
         .map_err(|e| StageError::Internal(e.to_string()))?;
-    if materials {
+    if sides {
         let mut columns = out.wedges.corner_values();
         columns.remove(MATERIAL_SIDE);
+        columns.remove(FEATURE_SIDE);
         out.wedges = coarsen_mesh::Wedges::default();
         out = out.with_corner_attributes(columns);
     }
@@ -269,39 +273,81 @@ fn fold_into_wedges(mesh: &mut Mesh) -> bool {
     moved
 }
 
-/// The per-corner column that [`split_by_material`] adds for the collapses.
+/// The per-corner columns that [`split_sides`] adds for the collapses: each corner's
+/// face's material, and its face's feature patch.
 const MATERIAL_SIDE: &str = "material side";
+const FEATURE_SIDE: &str = "feature side";
 
 /// Gives each corner of `mesh` its face's material as a per-corner value when its faces
-/// use more than one (the face label column `material`), so that the edges between two
-/// materials are seams to the collapses (`LiveMesh::track_seams`): their vertices stay,
-/// and merge along them only, as gltfpack keeps a primitive's borders. True when it did;
-/// the output drops the column again.
-fn split_by_material(mesh: &mut Mesh) -> bool {
-    let Some(material) = mesh.face_attrs.label(coarsen_mesh::material::MATERIAL) else {
-        return false;
+/// use more than one (the face label column `material`), and its face's feature patch when
+/// `patches` are given, so that the edges between two materials or two patches are seams
+/// to the collapses (`LiveMesh::track_seams`): their vertices stay, and merge along them
+/// only (as gltfpack keeps a primitive's borders). True when it added any; the output
+/// drops them again.
+fn split_sides(mesh: &mut Mesh, patches: Option<Vec<u32>>) -> bool {
+    let per_corner = |labels: &[u32]| {
+        let side = labels.iter().flat_map(|&m| [m; 3]).collect();
+        coarsen_mesh::AttrValues::Label(side)
     };
-    if material.iter().all(|&m| m == material[0]) {
-        return false;
-    }
-    let side = material.iter().flat_map(|&m| [m; 3]).collect();
     let mut columns = mesh.wedges.corner_values();
-    columns.insert(MATERIAL_SIDE, coarsen_mesh::AttrValues::Label(side));
-    mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
-    true
+    let mut added = false;
+    if let Some(material) = mesh.face_attrs.label(coarsen_mesh::material::MATERIAL)
+        && material.iter().any(|&m| m != material[0])
+    {
+        columns.insert(MATERIAL_SIDE, per_corner(material));
+        added = true;
+    }
+    if let Some(patch) = patches
+        && patch.iter().any(|&p| p != patch[0])
+    {
+        columns.insert(FEATURE_SIDE, per_corner(&patch));
+        added = true;
+    }
+    if added {
+        mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
+    }
+    added
 }
 
 /// The corners of `mesh`'s sharp features at `angle_deg` (`coarsen_features`, boundary
-/// edges included); none when its adjacency cannot be built.
-fn corners_of(mesh: &Mesh, angle_deg: f64) -> Vec<u32> {
+/// edges included), and each face's patch: the smallest face it reaches without crossing
+/// a sharp edge. No corners and one patch when its adjacency cannot be built.
+fn features_of(mesh: &Mesh, angle_deg: f64) -> (Vec<u32>, Vec<u32>) {
     let Ok(topo) = coarsen_mesh::Topology::try_build(mesh) else {
-        return Vec::new();
+        return (Vec::new(), vec![0; mesh.n_faces()]);
     };
     let opts = coarsen_features::FeatureOptions {
         angle_deg,
         ..Default::default()
     };
-    coarsen_features::Features::detect(mesh, &topo, &opts).corners
+    let features = coarsen_features::Features::detect(mesh, &topo, &opts);
+    let mut sharp = vec![false; topo.n_edges()];
+    for &(e, _) in &features.edges {
+        sharp[e as usize] = true;
+    }
+    let mut patch = vec![u32::MAX; mesh.n_faces()];
+    let mut stack = Vec::new();
+    for f in 0..mesh.n_faces() as u32 {
+        if patch[f as usize] != u32::MAX {
+            continue;
+        }
+        patch[f as usize] = f;
+        stack.push(f);
+        while let Some(g) = stack.pop() {
+            for e in topo.face_edges(g) {
+                if sharp[e as usize] {
+                    continue;
+                }
+                for &h in topo.edge_faces(e) {
+                    if patch[h as usize] == u32::MAX {
+                        patch[h as usize] = f;
+                        stack.push(h);
+                    }
+                }
+            }
+        }
+    }
+    (features.corners, patch)
 }
 
 /// `stage`'s collapses, behind the facing guard when it asks for one, told to the run's

@@ -111,9 +111,10 @@ params! {
         /// Also report `sve_weighted`: each collapse's squared volume weighted as paper 2's
         /// Eq. (4) quadrics (Wᵢ·Nᵢ per face), to compare with `simplify.svec` runs.
         pub sve_weighted: bool = false,
-        /// Keep the corners of the input's sharp features (where three or more sharp or
-        /// boundary curves meet or one turns sharply, `coarsen-features`) as they are: no
-        /// collapse merges or moves them.
+        /// Keep the input's sharp features (`coarsen-features`): its corners (where three or
+        /// more sharp or boundary curves meet or one turns sharply) as they are, no collapse
+        /// merging or moving them; the vertices of sharp curves between two surface patches
+        /// where they are, merged along their curve only.
         pub features: bool = false,
         /// An input edge is sharp when its two faces' normals differ by more than this
         /// (degrees), for `features`.

@@ -585,3 +585,42 @@ fn a_deferred_model_has_the_full_models_threshold_and_once_prepared_its_plans() 
         assert_eq!(from_deferred, run(SvecModel::new(&live, &opts)));
     }
 }
+
+#[test]
+fn with_features_the_vertices_of_sharp_curves_stay_on_them() {
+    // A cube whose sides are slightly bent outwards: the cube's edges are sharp curves
+    // (90°), and a vertex that leaves one is off the lattice of the input's edge vertices.
+    let mut mesh = coarsen_shapes::cube(2.0, 10).unwrap();
+    for p in &mut mesh.positions {
+        let bulge = 0.02 * (1.0 - p.x * p.x) * (1.0 - p.y * p.y) * (1.0 - p.z * p.z);
+        *p += *p * bulge;
+    }
+    let on_edge = |p: DVec3| p.to_array().iter().filter(|c| c.abs() == 1.0).count() >= 2;
+    let params = SvecParams {
+        features: true,
+        ..SvecParams::default()
+    };
+    let (out, report) = run(&mesh, Some(Target::Vertices(100)), params);
+    let out = out.unwrap();
+    assert_eq!(out.n_vertices(), 100);
+    assert_eq!(report.get("corners_locked"), Some(&8.into()));
+    // Every vertex of an output edge whose faces meet at more than 45° lies on a cube edge.
+    let mut sharp_ends = 0;
+    for f in 0..out.n_faces() {
+        for g in f + 1..out.n_faces() {
+            let shared: Vec<u32> = out.faces[f]
+                .iter()
+                .copied()
+                .filter(|v| out.faces[g].contains(v))
+                .collect();
+            if shared.len() == 2 && out.face_normal(f).dot(out.face_normal(g)) < 0.7 {
+                for v in shared {
+                    let p = out.positions[v as usize];
+                    assert!(on_edge(p), "{p} ends a sharp edge off the cube's edges");
+                    sharp_ends += 1;
+                }
+            }
+        }
+    }
+    assert!(sharp_ends >= 24, "{sharp_ends}");
+}
