@@ -190,9 +190,8 @@ pub fn run(
     let corners = features
         .as_ref()
         .map(|(corners, _)| (corners.len(), live.lock(corners)));
-    let folded = fold_into_wedges(&mut mesh);
     let patches = features.map(|(_, patch)| patch);
-    let sides = split_sides(&mut mesh, patches);
+    let Folded { folded, sides } = fold_into_wedges(&mut mesh, patches);
     let on_seams = live.track_seams(&mut mesh);
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
@@ -245,13 +244,32 @@ pub fn run(
 /// input, as a wedge's does.
 const AS_WEDGES: [&str; 3] = ["uv", "normal", "color"];
 
-/// Moves `mesh`'s vertex columns [`AS_WEDGES`] into its wedges (one wedge per vertex where
-/// it had none); true when it moved any. The output's wedges that agree at every vertex
-/// become vertex columns again.
-fn fold_into_wedges(mesh: &mut Mesh) -> bool {
+/// What [`fold_into_wedges`] put into the wedges.
+struct Folded {
+    /// Vertex columns of [`AS_WEDGES`]: the output's wedges that agree at every vertex
+    /// become vertex columns again.
+    folded: bool,
+    /// The columns [`MATERIAL_SIDE`] and [`FEATURE_SIDE`]: the output drops them.
+    sides: bool,
+}
+
+/// The per-corner columns added for the collapses: each corner's face's material, and its
+/// face's feature patch.
+const MATERIAL_SIDE: &str = "material side";
+const FEATURE_SIDE: &str = "feature side";
+
+/// Rebuilds `mesh`'s wedges, once, with what the collapses should track besides them:
+///
+/// * its vertex columns [`AS_WEDGES`] (one wedge per vertex where it had none);
+/// * each corner's face's material when its faces use more than one (the face label
+///   column `material`), and its face's feature patch when `patches` are given, so that
+///   the edges between two materials or two patches are seams to the collapses
+///   (`LiveMesh::track_seams`): their vertices stay, and merge along them only (as
+///   gltfpack keeps a primitive's borders).
+fn fold_into_wedges(mesh: &mut Mesh, patches: Option<Vec<u32>>) -> Folded {
     let corners: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
     let mut columns = mesh.wedges.corner_values();
-    let mut moved = false;
+    let mut folded = false;
     for name in AS_WEDGES {
         let fits = matches!(
             (name, mesh.vertex_attrs.get(name)),
@@ -264,49 +282,30 @@ fn fold_into_wedges(mesh: &mut Mesh) -> bool {
             && let Some(values) = mesh.vertex_attrs.remove(name)
         {
             columns.insert(name, values.gather(&corners));
-            moved = true;
+            folded = true;
         }
     }
-    if moved {
-        mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
-    }
-    moved
-}
-
-/// The per-corner columns that [`split_sides`] adds for the collapses: each corner's
-/// face's material, and its face's feature patch.
-const MATERIAL_SIDE: &str = "material side";
-const FEATURE_SIDE: &str = "feature side";
-
-/// Gives each corner of `mesh` its face's material as a per-corner value when its faces
-/// use more than one (the face label column `material`), and its face's feature patch when
-/// `patches` are given, so that the edges between two materials or two patches are seams
-/// to the collapses (`LiveMesh::track_seams`): their vertices stay, and merge along them
-/// only (as gltfpack keeps a primitive's borders). True when it added any; the output
-/// drops them again.
-fn split_sides(mesh: &mut Mesh, patches: Option<Vec<u32>>) -> bool {
     let per_corner = |labels: &[u32]| {
         let side = labels.iter().flat_map(|&m| [m; 3]).collect();
         coarsen_mesh::AttrValues::Label(side)
     };
-    let mut columns = mesh.wedges.corner_values();
-    let mut added = false;
+    let mut sides = false;
     if let Some(material) = mesh.face_attrs.label(coarsen_mesh::material::MATERIAL)
         && material.iter().any(|&m| m != material[0])
     {
         columns.insert(MATERIAL_SIDE, per_corner(material));
-        added = true;
+        sides = true;
     }
     if let Some(patch) = patches
         && patch.iter().any(|&p| p != patch[0])
     {
         columns.insert(FEATURE_SIDE, per_corner(&patch));
-        added = true;
+        sides = true;
     }
-    if added {
+    if folded || sides {
         mesh.wedges = coarsen_mesh::Wedges::from_corners(&mesh.faces, columns);
     }
-    added
+    Folded { folded, sides }
 }
 
 /// The corners of `mesh`'s sharp features at `angle_deg` (`coarsen_features`, boundary

@@ -431,14 +431,9 @@ mod tests {
     use super::*;
     use coarsen_mesh::{Attributes, Wedges};
 
-    /// A unit square of two faces in the plane z = 0 with UV = (x, y), per corner.
-    fn square() -> Mesh {
-        coarsen_shapes::uv_square()
-    }
-
     #[test]
     fn the_input_against_itself_scores_nothing() {
-        let m = square();
+        let m = coarsen_shapes::uv_square();
         let t = texture(&m, &m, 2f64.sqrt()).unwrap();
         assert_eq!(t.uv_flipped, 0);
         assert_eq!(t.uv_degenerate, 0);
@@ -448,8 +443,8 @@ mod tests {
 
     #[test]
     fn a_moved_vertex_and_a_mirrored_face_are_measured() {
-        let input = square();
-        let mut out = square();
+        let input = coarsen_shapes::uv_square();
+        let mut out = coarsen_shapes::uv_square();
         // Vertex 2 moves by 0.1 along x while its UV stays: 0.1 of distortion there.
         out.positions[2].x += 0.1;
         let t = texture(&input, &out, 1.0).unwrap();
@@ -496,7 +491,7 @@ mod tests {
 
     #[test]
     fn meshes_without_uvs_have_no_texture_figures() {
-        let m = square();
+        let m = coarsen_shapes::uv_square();
         let plain = Mesh::new(m.positions.clone(), m.faces.clone());
         assert!(texture(&m, &plain, 1.0).is_none());
         assert!(texture(&plain, &m, 1.0).is_none());

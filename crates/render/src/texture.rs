@@ -115,14 +115,9 @@ mod tests {
     use super::*;
     use coarsen_mesh::Image;
 
-    /// A unit square in the plane z = 0 with UV = (x, y).
-    fn square() -> Mesh {
-        coarsen_shapes::uv_square()
-    }
-
     #[test]
     fn the_checkerboard_alternates_and_no_uvs_draw_nothing() {
-        let m = square();
+        let m = coarsen_shapes::uv_square();
         let s = Surface::of(&m, Texturing::Checker).unwrap();
         let step = 1.0 / CHECKER_SQUARES;
         // Barycentric weights of face 0 ([0,0], [1,0], [1,1]) for a UV point (u, v), v ≤ u.
@@ -145,7 +140,7 @@ mod tests {
         w.write_image_data(&[255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255])
             .unwrap();
         w.finish().unwrap();
-        let mut m = square();
+        let mut m = coarsen_shapes::uv_square();
         m.materials.images.push(Image {
             bytes: Some(bytes),
             ..Default::default()
