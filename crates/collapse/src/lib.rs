@@ -167,7 +167,7 @@ mod volume;
 mod fixtures;
 
 pub use guard::{FaceGuard, GATE_COHERENCE, GATE_TURN_DEG, Gated, GuardCounts, NoGuard, Reshape};
-pub use live::{LiveMesh, MAX_FACES, PartOptions, Parted, Summary, attributes_only};
+pub use live::{LiveMesh, MAX_FACES, PartOptions, Parted, Settled, Summary, attributes_only};
 pub use progressive::{ChangedFace, DeletedFace, Fnv, Progressive, Step, fingerprint};
 pub use qem::{QemOptions, QuadricModel, edge_plane};
 pub use volume::weighted_sve;

@@ -14,6 +14,9 @@ use rayon::prelude::*;
 
 mod parts;
 mod seams;
+mod surface;
+
+pub use surface::Settled;
 
 pub use parts::{PartOptions, Parted};
 
@@ -190,6 +193,14 @@ pub struct LiveMesh {
     /// Every edge collapse keeps one of its two vertices where it is
     /// ([`LiveMesh::keep_input_positions`]).
     subset: bool,
+    /// The input's positions and faces, when the output takes anything from them
+    /// (the seams' values, settling).
+    input: Option<Box<surface::InputSurface>>,
+    /// Whether the output's moved vertices go onto the input surface
+    /// ([`LiveMesh::settle_on_input`]).
+    settle: bool,
+    /// What settling did, once the output was made.
+    settled: std::sync::OnceLock<Settled>,
 }
 
 /// What [`LiveMesh::build`] derives from its mesh: per vertex its kind and the sums of
@@ -620,6 +631,9 @@ impl LiveMesh {
             last_deleted: Vec::new(),
             seams: None,
             subset: false,
+            input: None,
+            settle: false,
+            settled: std::sync::OnceLock::new(),
             original_of,
             base_vertex: None,
             base_face: None,
@@ -1007,15 +1021,31 @@ impl LiveMesh {
         Ok(self.compact(attributes))
     }
 
-    /// The compacted mesh with the attributes of `attributes` (fitting the input) carried.
-    fn compact(&self, attributes: &Mesh) -> (Mesh, CarryReport) {
-        // The surviving vertices in the input's order (internal order unless renumbered).
+    /// The vertices the output keeps, in its order (the input's order of the vertices
+    /// they were).
+    fn survivors(&self) -> Vec<Index> {
         let mut survivors: Vec<Index> = (0..self.pos.len() as Index)
             .filter(|&v| self.alive[v as usize] && self.kind[v as usize] != VertexKind::Isolated)
             .collect();
         if self.original_of.is_some() {
             survivors.sort_unstable_by_key(|&v| self.original(v));
         }
+        survivors
+    }
+
+    /// The input vertices merged into `v` (itself first), in `members`.
+    fn members_into(&self, v: Index, members: &mut Vec<Index>) {
+        members.clear();
+        let mut m = self.base(v);
+        while m != NONE {
+            members.push(self.original_of_base(m));
+            m = self.cluster_next[m as usize];
+        }
+    }
+
+    /// The compacted mesh with the attributes of `attributes` (fitting the input) carried.
+    fn compact(&self, attributes: &Mesh) -> (Mesh, CarryReport) {
+        let survivors = self.survivors();
         let mut new_index = vec![NONE; self.pos.len()];
         let mut positions = Vec::with_capacity(survivors.len());
         // Every input vertex is a source of the survivor it went to.
@@ -1026,18 +1056,13 @@ impl LiveMesh {
         for &v in &survivors {
             new_index[v as usize] = positions.len() as Index;
             positions.push(self.pos[v as usize]);
-            members.clear();
-            let mut m = self.base(v);
-            while m != NONE {
-                members.push(self.original_of_base(m));
-                m = self.cluster_next[m as usize];
-            }
+            self.members_into(v, &mut members);
             if members.len() == 1 {
                 vo.push_copy(members[0]);
             } else {
                 vo.push_blend(members.iter().map(|&m| (m, 1.0)));
             }
-            if self.seams.is_some() {
+            if self.seams.is_some() || self.settle {
                 clusters.push(members.clone());
             }
         }
@@ -1048,12 +1073,18 @@ impl LiveMesh {
             if self.face_state[f] != DEAD {
                 faces.push(face.map(|v| new_index[v as usize]));
                 fo.push_parent(self.base_face.as_ref().map_or(f as Index, |b| b[f]));
-                if self.seams.is_some() {
+                if self.seams.is_some() || self.settle {
                     slots.push(f as Index);
                 }
             }
         }
-        match self.output_wedges(&slots, &faces, &positions, &clusters) {
+        // Where each moved vertex's values come from, and where it settles.
+        let nearest = self.nearest_points(&positions, &clusters);
+        if self.settle {
+            let settled = self.settle(&mut positions, &faces, &slots, &nearest);
+            let _ = self.settled.set(settled);
+        }
+        match self.output_wedges(&slots, &faces, &positions, &clusters, &nearest) {
             // The wedges are this engine's: the rest is carried as always.
             Some(wedges) => {
                 let plain = Mesh {

@@ -22,6 +22,12 @@
 //! and so are, when the stage keeps sharp features ([`Simplifier::kept_corners`]), the
 //! sharp curves between two surface patches.
 //!
+//! **Settling** ([`Simplifier::settles`]; the stages' `placement = "surface"`, their
+//! `auto` default on a mesh with UVs): after the collapses, each vertex that moved goes to
+//! the nearest point of the input faces it stands for, where its per-corner values are
+//! taken ([`LiveMesh::settle`]); the report gives `settled_vertices` and `settle_refused`
+//! (moves left out because they would spoil a face).
+//!
 //! **Squared volume error** (paper 2's, metrics.md `sve`): each collapse's Σ Vᵢ² over the
 //! faces around the merged vertices, Vᵢ the volume swept by face i; the report gives the
 //! sum (`sve`), the largest (`sve_max`) and, when the stage asks for it, the sum weighted
@@ -58,6 +64,12 @@ pub trait Simplifier {
     /// features as they are (locked: [`LiveMesh::lock`]), else `None`. Default `None`.
     fn kept_corners(&self) -> Option<f64> {
         None
+    }
+    /// Whether the output's moved vertices go onto the input surface of `mesh` after the
+    /// collapses ([`LiveMesh::settle_on_input`]). Default `false`.
+    fn settles(&self, mesh: &Mesh) -> bool {
+        let _ = mesh;
+        false
     }
     /// The target in words, for the warning when it is not reached.
     fn target_words(&self, target: &Target) -> String {
@@ -184,6 +196,7 @@ pub fn run(
 ) -> Result<Mesh, StageError> {
     let (target, count) = cx.target_count(kind)?;
     let goal = stage.goal(count);
+    let settles = stage.settles(&mesh);
     let mut live =
         LiveMesh::new_renumbered(&mesh).map_err(|e| StageError::Input(format!("`{kind}`: {e}")))?;
     let features = stage.kept_corners().map(|angle| features_of(&mesh, angle));
@@ -193,6 +206,9 @@ pub fn run(
     let patches = features.map(|(_, patch)| patch);
     let Folded { folded, sides } = fold_into_wedges(&mut mesh, patches);
     let on_seams = live.track_seams(&mut mesh);
+    if settles {
+        live.settle_on_input(&mut mesh);
+    }
     // The live mesh holds the input's arrays now: keep only its attributes to carry.
     let attributes = attributes_only(mesh);
     if cx.progressive.is_some() {
@@ -204,6 +220,7 @@ pub fn run(
     let (mut out, carry) = live
         .to_mesh_with_attributes(&attributes)
         .map_err(|e| StageError::Internal(e.to_string()))?;
+    let settled = settles.then(|| live.settled().unwrap_or_default());
     if sides {
         let mut columns = out.wedges.corner_values();
         columns.remove(MATERIAL_SIDE);
@@ -226,6 +243,10 @@ pub fn run(
         cx.report
             .figure("seam_vertices", out.wedges.split_vertices());
     }
+    if let Some(settled) = settled {
+        cx.report.figure("settled_vertices", settled.moved);
+        cx.report.figure("settle_refused", settled.refused);
+    }
     if let Some((found, locked)) = corners {
         cx.report.figure("corners", found);
         cx.report.figure("corners_locked", locked);
@@ -237,6 +258,12 @@ pub fn run(
         cx.report.warn(w);
     }
     Ok(out)
+}
+
+/// Whether `mesh` carries texture coordinates (a `uv` column, per corner or per vertex):
+/// what the collapse stages' `auto` placement settles the output on the input surface for.
+pub fn has_uvs(mesh: &Mesh) -> bool {
+    mesh.wedges.attrs().vec2("uv").is_some() || mesh.vertex_attrs.vec2("uv").is_some()
 }
 
 /// The vertex columns that [`LiveMesh::track_seams`] carries better than a blend of the

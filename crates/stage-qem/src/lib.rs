@@ -124,8 +124,13 @@ params! {
         /// Garland–Heckbert's subset placement, as meshoptimizer's simplifier does), so
         /// that every output vertex is an input vertex at its place — a level of detail
         /// can share the input's vertex buffer, and its UVs are exact at the vertices.
-        /// `vertices` needs `unit = "edge"`.
-        pub placement: String = "optimal".to_string(),
+        /// `vertices` needs `unit = "edge"`. `surface`: the point of least error, then,
+        /// after the last collapse, the nearest point of the input faces the vertex stands
+        /// for, where that spoils no face — every output vertex on the input surface, its
+        /// UVs exact there as at an input vertex (`coarsen_collapse`'s settling; the report
+        /// gives `settled_vertices` and `settle_refused`). `auto`: `surface` when the mesh
+        /// has texture coordinates, else `optimal`.
+        pub placement: String = "auto".to_string(),
     }
 }
 
@@ -158,7 +163,7 @@ impl Params for QemParams {
             });
         }
         match self.placement.as_str() {
-            "optimal" => {}
+            "optimal" | "surface" | "auto" => {}
             "vertices" if self.unit == "edge" => {}
             "vertices" => issues.push(ParamIssue {
                 field: "placement",
@@ -166,7 +171,9 @@ impl Params for QemParams {
             }),
             other => issues.push(ParamIssue {
                 field: "placement",
-                message: format!("`{other}` is neither `optimal` nor `vertices`"),
+                message: format!(
+                    "`{other}` is none of `optimal`, `vertices`, `surface` and `auto`"
+                ),
             }),
         }
         issues
@@ -229,6 +236,14 @@ impl Simplifier for Qem<'_> {
 
     fn max_error(&self) -> f64 {
         self.0.max_error
+    }
+
+    fn settles(&self, mesh: &Mesh) -> bool {
+        match self.0.placement.as_str() {
+            "surface" => true,
+            "auto" => coarsen_collapse::stage::has_uvs(mesh),
+            _ => false,
+        }
     }
 
     fn weighted_sve(&self) -> bool {
@@ -358,7 +373,11 @@ mod tests {
             assert_eq!(t.distortion_max_pct, 0.0, "{t:?}");
             assert_eq!(t.uv_flipped + t.uv_degenerate, 0, "{t:?}");
             // On the sphere the optimal placement moves vertices off the input surface.
-            let (moved, _) = run(&mesh, Some(Target::Vertices(n)), QemParams::default());
+            let optimal = QemParams {
+                placement: "optimal".into(),
+                ..QemParams::default()
+            };
+            let (moved, _) = run(&mesh, Some(Target::Vertices(n)), optimal);
             let t = coarsen_metrics::texture(&mesh, &moved.unwrap(), 2.0 * 3f64.sqrt()).unwrap();
             assert_eq!(t.distortion_max_pct > 0.0, curved, "{t:?}");
         }
@@ -376,6 +395,39 @@ mod tests {
     }
 
     /// The vertices of `m` where faces of two materials meet.
+    #[test]
+    fn automatic_placement_settles_textured_meshes_on_the_input() {
+        let bare = icosphere(1.0, 4).unwrap();
+        let textured = coarsen_shapes::with_spherical_uvs(bare.clone());
+        let target = Some(Target::Vertices(300));
+        let with = |placement: &str| QemParams {
+            placement: placement.into(),
+            ..QemParams::default()
+        };
+        // With UVs: every moved vertex on the input, its UVs exact there.
+        let (out, report) = run(&textured, target, QemParams::default());
+        let out = out.unwrap();
+        let settled = report
+            .get("settled_vertices")
+            .and_then(|v| v.as_u64())
+            .unwrap();
+        assert!(settled > 250, "{settled}");
+        assert_eq!(report.get("settle_refused"), Some(&0.into()));
+        let t = coarsen_metrics::texture(&textured, &out, 2.0 * 3f64.sqrt()).unwrap();
+        assert!(t.distortion_max_pct < 1e-9, "{t:?}");
+        assert_eq!(t.uv_flipped + t.uv_degenerate, 0, "{t:?}");
+        // The same collapses as the optimal placement, the vertices moved after them.
+        let (optimal, _) = run(&textured, target, with("optimal"));
+        assert_eq!(out.faces, optimal.unwrap().faces);
+        let (surface, _) = run(&textured, target, with("surface"));
+        assert_eq!(surface.unwrap().positions, out.positions);
+        // Without UVs: the optimal placement, to the bit.
+        let (auto, report) = run(&bare, target, QemParams::default());
+        let (optimal, _) = run(&bare, target, with("optimal"));
+        assert_eq!(auto.unwrap().positions, optimal.unwrap().positions);
+        assert!(report.get("settled_vertices").is_none());
+    }
+
     fn material_border(m: &Mesh) -> Vec<[u64; 3]> {
         let material = m
             .face_attrs

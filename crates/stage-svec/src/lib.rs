@@ -263,6 +263,12 @@ params! {
         /// An input edge is sharp when its two faces' normals differ by more than this
         /// (degrees), for `features`.
         pub feature_angle_deg: f64 = 40.0,
+        /// Where a collapse's vertex ends: `paper` (the placement rules above) or `surface`
+        /// (those, then after the last collapse the nearest point of the input faces the
+        /// vertex stands for, where that spoils no face: every output vertex on the input
+        /// surface, its UVs exact there; the report gives `settled_vertices` and
+        /// `settle_refused`). `auto`: `surface` when the mesh has texture coordinates.
+        pub placement: String = "auto".to_string(),
     }
 }
 
@@ -305,6 +311,12 @@ impl Params for SvecParams {
             &["plan", "dequeue"],
         );
         check_choice(&mut issues, "reach", &self.reach, &["kept", "two_rings"]);
+        check_choice(
+            &mut issues,
+            "placement",
+            &self.placement,
+            &["paper", "surface", "auto"],
+        );
         issues
     }
 }
@@ -388,6 +400,14 @@ impl Simplifier for Svec<'_> {
 
     fn max_error(&self) -> f64 {
         self.p.max_error
+    }
+
+    fn settles(&self, mesh: &Mesh) -> bool {
+        match self.p.placement.as_str() {
+            "surface" => true,
+            "auto" => coarsen_collapse::stage::has_uvs(mesh),
+            _ => false,
+        }
     }
 
     fn weighted_sve(&self) -> bool {

@@ -100,6 +100,7 @@ fn needs_a_target_and_checks_its_parameters() {
         sve_weighted: false,
         features: true,
         feature_angle_deg: -1.0,
+        placement: "optimal".into(),
     };
     let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
     assert_eq!(
@@ -114,7 +115,8 @@ fn needs_a_target_and_checks_its_parameters() {
             "feature_angle_deg",
             "factors",
             "feature_rule",
-            "reach"
+            "reach",
+            "placement"
         ]
     );
     assert!(SvecParams::default().validate().is_empty());

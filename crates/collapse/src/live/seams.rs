@@ -64,11 +64,10 @@ pub(crate) struct SeamState {
     pub(crate) source: Option<Box<Source>>,
 }
 
-/// The input's geometry and wedges, in the input's numbering.
+/// The input's wedges, in the input's numbering (its geometry is the live mesh's
+/// [`InputSurface`]).
 #[derive(Clone, Debug)]
 pub(crate) struct Source {
-    positions: Vec<DVec3>,
-    faces: Vec<[Index; 3]>,
     wedges: Wedges,
 }
 
@@ -140,10 +139,9 @@ impl LiveMesh {
             .collect();
         let on_seams = state.class.iter().filter(|&&c| c != FREE).count();
         state.source = Some(Box::new(Source {
-            positions: std::mem::take(&mut mesh.positions),
-            faces: std::mem::take(&mut mesh.faces),
             wedges: std::mem::take(&mut mesh.wedges),
         }));
+        self.keep_input_surface(mesh);
         self.seams = Some(state);
         on_seams
     }
@@ -427,17 +425,20 @@ impl LiveMesh {
     }
 
     /// The output's wedges for its `faces` (the live face slots `slots`, in order) and
-    /// vertices (`positions`, each standing for the input vertices `members[v]`), or
-    /// `None` when no seams are tracked.
+    /// vertices (`positions`, each standing for the input vertices `members[v]`; the input
+    /// points nearest the moved ones found already in `nearest`:
+    /// [`LiveMesh::nearest_points`]), or `None` when no seams are tracked.
     pub(super) fn output_wedges(
         &self,
         slots: &[Index],
         faces: &[[Index; 3]],
         positions: &[DVec3],
         members: &[Vec<Index>],
+        nearest: &[Option<(Index, [f64; 3])>],
     ) -> Option<Wedges> {
         let state = self.seams.as_ref()?;
         let source = state.source.as_ref()?;
+        let surface = self.input.as_deref()?;
         let input = &source.wedges;
         // Each output corner's wedge, keyed by (input wedge, output vertex): a wedge is one
         // vertex's, even should a corner keep a wedge of another vertex.
@@ -454,7 +455,7 @@ impl LiveMesh {
                 corner_key.push(i);
             }
         }
-        let around = vertex_faces(&source.positions, &source.faces);
+        let around = surface.around();
         // Per output wedge, where its values come from: an input wedge as it is, or a
         // point in an input face (barycentric weights).
         let from: Vec<From> = keys
@@ -462,10 +463,11 @@ impl LiveMesh {
             .map(|&(w, v)| {
                 let p = positions[v as usize];
                 let own = input.vertices()[w as usize];
-                if source.positions[own as usize] == p {
+                if surface.positions[own as usize] == p {
                     return From::Wedge(w);
                 }
-                nearest_around(source, &around, &members[v as usize], p)
+                nearest[v as usize]
+                    .or_else(|| surface.nearest_around(around, &members[v as usize], p))
                     .map_or(From::Wedge(w), |(f, bary)| From::Point(f, bary))
             })
             .collect();
@@ -545,91 +547,6 @@ enum From {
     Wedge(Index),
     /// The point of input face `.0` with barycentric weights `.1`.
     Point(Index, [f64; 3]),
-}
-
-/// Each input vertex's faces (CSR: offsets, then faces) and the longest edge of those
-/// faces.
-struct Around {
-    start: Vec<usize>,
-    list: Vec<Index>,
-    reach: Vec<f64>,
-}
-
-/// Each input vertex's faces and their longest edge.
-fn vertex_faces(positions: &[DVec3], faces: &[[Index; 3]]) -> Around {
-    let (start, list) = vertex_face_lists(faces, positions.len());
-    let mut reach = vec![0.0f64; positions.len()];
-    for face in faces {
-        let [a, b, c] = face.map(|v| positions[v as usize]);
-        let longest = a.distance(b).max(b.distance(c)).max(c.distance(a));
-        for &v in face {
-            reach[v as usize] = reach[v as usize].max(longest);
-        }
-    }
-    Around { start, list, reach }
-}
-
-/// Each input vertex's faces (CSR: offsets, then faces).
-fn vertex_face_lists(faces: &[[Index; 3]], n: usize) -> (Vec<usize>, Vec<Index>) {
-    let mut start = vec![0usize; n + 1];
-    for &v in faces.iter().flatten() {
-        start[v as usize + 1] += 1;
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut list = vec![0; start[n]];
-    for (f, face) in faces.iter().enumerate() {
-        for &v in face {
-            list[fill[v as usize]] = f as Index;
-            fill[v as usize] += 1;
-        }
-    }
-    (start, list)
-}
-
-/// The input face around `members` nearest `p`, with the barycentric weights of the
-/// nearest point (the first face of the least distance).
-///
-/// A member farther from `p` than the best distance so far and its faces' longest edge
-/// cannot hold a nearer point on its faces (every point of a face lies within its longest
-/// edge of each corner): the nearest member's faces first, then only the members near
-/// enough.
-fn nearest_around(
-    source: &Source,
-    around: &Around,
-    members: &[Index],
-    p: DVec3,
-) -> Option<(Index, [f64; 3])> {
-    let Around { start, list, reach } = around;
-    let gap = |m: Index| source.positions[m as usize].distance(p);
-    let first = members
-        .iter()
-        .copied()
-        .min_by(|&a, &b| gap(a).total_cmp(&gap(b)))?;
-    let mut best: Option<(f64, Index, [f64; 3])> = None;
-    let order = std::iter::once(first).chain(members.iter().copied().filter(|&m| m != first));
-    for m in order {
-        if let Some((d2, _, _)) = best
-            && gap(m) - reach[m as usize] > d2.sqrt()
-        {
-            continue;
-        }
-        let m = m as usize;
-        for &f in &list[start[m]..start[m + 1]] {
-            let [a, b, c] = source.faces[f as usize].map(|v| source.positions[v as usize]);
-            if a == b || b == c || a == c {
-                continue;
-            }
-            let (q, bary) = closest_point_on_triangle(p, a, b, c);
-            let d = q.distance_squared(p);
-            if best.is_none_or(|(bd, bf, _)| d < bd || (d == bd && f < bf)) {
-                best = Some((d, f, bary));
-            }
-        }
-    }
-    best.map(|(_, f, bary)| (f, bary))
 }
 
 /// One value per output wedge of the input wedge column `values`: copied, or blended from
