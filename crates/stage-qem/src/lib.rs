@@ -131,6 +131,11 @@ params! {
         /// gives `settled_vertices` and `settle_refused`). `auto`: `surface` when the mesh
         /// has texture coordinates, else `optimal`.
         pub placement: String = "auto".to_string(),
+        /// Weight of the texture coordinates in the cost: Hoppe's (1999) attribute terms,
+        /// how far the merged faces' UV fields are from one linear map, UVs scaled so that
+        /// the texture's width weighs as the bounding-box diagonal (`coarsen_collapse`'s
+        /// `QuadricModel`). 0: a geometric cost; only on meshes with UVs.
+        pub uv_weight: f64 = 0.0,
     }
 }
 
@@ -148,6 +153,7 @@ impl Params for QemParams {
         let mut issues = Vec::new();
         check_finite_min(&mut issues, "max_error", self.max_error, 0.0);
         check_finite_min(&mut issues, "boundary_weight", self.boundary_weight, 0.0);
+        check_finite_min(&mut issues, "uv_weight", self.uv_weight, 0.0);
         check_range(&mut issues, "min_quality", self.min_quality, 0.0, 1.0);
         check_range(
             &mut issues,
@@ -268,6 +274,7 @@ impl Simplifier for Qem<'_> {
                 area_weighted: p.area_weighted,
                 boundary_weight: p.boundary_weight,
                 unit,
+                uv_weight: p.uv_weight,
             },
         );
         let opts = Options {
@@ -534,6 +541,7 @@ mod tests {
             features: true,
             feature_angle_deg: 200.0,
             placement: "nearest".into(),
+            uv_weight: -1.0,
         };
         let fields: Vec<_> = bad.validate().iter().map(|i| i.field).collect();
         assert_eq!(
@@ -541,6 +549,7 @@ mod tests {
             [
                 "max_error",
                 "boundary_weight",
+                "uv_weight",
                 "min_quality",
                 "feature_angle_deg",
                 "unit",

@@ -151,6 +151,14 @@ impl LiveMesh {
         self.seams.is_some()
     }
 
+    /// The UVs of face `f`'s corners as the collapses left them, when seams and UVs are
+    /// tracked (the whole mesh only: parts track none).
+    pub fn face_uvs(&self, f: Index) -> Option<[DVec2; 3]> {
+        let state = self.seams.as_ref()?;
+        let uv = state.uv.as_ref()?;
+        Some(state.wedge.get(f as usize)?.map(|w| uv[w as usize]))
+    }
+
     /// The class of vertex `v` by its faces' corner wedges (module docs).
     fn seam_class(&self, state: &SeamState, v: Index) -> u8 {
         match self.kind[v as usize] {
