@@ -24,12 +24,14 @@ const ROWS: &[(Method, Target)] = &[
     (Method::Pipeline("qem", &[]), Target::Ratio(0.7)),
     (Method::Pipeline("qem", OPTIMAL), Target::Ratio(0.7)),
     (Method::Pipeline("qem", AT_VERTICES), Target::Ratio(0.7)),
+    (Method::Pipeline("qem", UV_TERMS), Target::Ratio(0.7)),
     (Method::Pipeline("svec", &[]), Target::Ratio(0.7)),
     (Method::Pipeline("svec", PAPER), Target::Ratio(0.7)),
     (Method::Meshopt, Target::Ratio(0.95)),
     (Method::Pipeline("qem", &[]), Target::Ratio(0.95)),
     (Method::Pipeline("qem", OPTIMAL), Target::Ratio(0.95)),
     (Method::Pipeline("qem", AT_VERTICES), Target::Ratio(0.95)),
+    (Method::Pipeline("qem", UV_TERMS), Target::Ratio(0.95)),
     (Method::Pipeline("svec", &[]), Target::Ratio(0.95)),
     (Method::Pipeline("svec", PAPER), Target::Ratio(0.95)),
     // The CVT rows' face count: 1000 vertices on a closed genus-0 surface.
@@ -47,6 +49,8 @@ const AT_VERTICES: &[&str] = &["simplify.qem.placement=\"vertices\""];
 /// `qem` with its vertices where the quadric is least, off the input surface (the
 /// default settles them on it when the mesh has UVs).
 const OPTIMAL: &[&str] = &["simplify.qem.placement=\"optimal\""];
+/// `qem` with the UV fields' terms in its cost (Hoppe 1999).
+const UV_TERMS: &[&str] = &["simplify.qem.uv_weight=0.01"];
 /// `svec` with paper 2's placement alone (the default settles the vertices on the input
 /// surface when the mesh has UVs).
 const PAPER: &[&str] = &["simplify.svec.placement=\"paper\""];
@@ -132,7 +136,8 @@ pub fn section(registry: &Registry, input: &Mesh) -> Result<String> {
          UVs they settle each vertex they moved on the nearest point of the input it stands \
          for, where its UVs are taken, so that they are exact there (their `placement` \
          `auto`; `optimal` for `qem` and `paper` for `svec` leave the vertices where the cost \
-         put them); `qem` with \
+         put them); `simplify.qem.uv_weight` adds Hoppe's (1999) terms of the UV fields to \
+         the cost; `qem` with \
          `simplify.qem.placement=\"vertices\"` keeps every vertex it keeps where it was, as \
          meshoptimizer does; the CVT \
          pipelines lay the UVs back on with their `texture` stage, which mends faces laid \
