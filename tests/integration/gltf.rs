@@ -332,13 +332,16 @@ fn qem_and_lod_keep_spots_uvs_seams_normals_and_texture() {
         assert_eq!(out.materials.images[0].bytes.as_deref(), Some(&png[..]));
         assert!(out.corner_column("normal").is_some());
         // Seams kept, no face turned over in UV space, each UV within the geometric error
-        // of its vertex's place.
+        // of its vertex's place, and on the whole naming it: the moved vertices settle on
+        // the input where their UVs are taken, but where that would spoil a face (one at
+        // 95 % here: 1.0 %). Mean at 70 % 4e-6 % (glTF's f32), unsettled 0.044 %.
         let report = coarsen_metrics::measure(Some(m), &out, &Default::default()).unwrap();
         let tex = report.texture.expect("both carry UVs");
         let hausdorff = report.fidelity.unwrap().hausdorff_pct;
         assert!(tex.seam_vertices > 40, "{ratio}: {tex:?}");
         assert_eq!(tex.uv_flipped + tex.uv_degenerate, 0, "{ratio}: {tex:?}");
         assert!(tex.distortion_max_pct <= hausdorff, "{ratio}: {tex:?}");
+        assert!(tex.distortion_mean_pct < 0.01, "{ratio}: {tex:?}");
         written.push(out_glb);
     }
     // `lod`: the same, with normals recomputed for the coarse faces (unit, near their
