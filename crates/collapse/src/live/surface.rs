@@ -272,9 +272,9 @@ mod tests {
     use crate::{Goal, NoGuard, Options, QemOptions, QuadricModel};
     use coarsen_spatial::Bvh;
 
-    /// QEM on `mesh` to `goal` (in parts first, cut small), its seams tracked and, with
-    /// `settle`, its moved vertices settled: the output and what settling did.
-    fn qem(mesh: &Mesh, goal: Goal, settle: bool) -> (Mesh, Settled) {
+    /// QEM on `mesh` to `goal` with `parts`, its seams tracked and its moved vertices
+    /// settled or not.
+    fn qem_with(mesh: &Mesh, goal: Goal, parts: &PartOptions, settle: bool) -> (Mesh, Settled) {
         let mut live = LiveMesh::new_renumbered(mesh).unwrap();
         let mut input = mesh.clone();
         live.track_seams(&mut input);
@@ -282,20 +282,66 @@ mod tests {
             live.settle_on_input(&mut input);
         }
         let mut model = QuadricModel::new(&live, &QemOptions::default());
-        let parts = PartOptions {
-            min_faces: 0,
-            faces_per_part: 256,
-            ..PartOptions::default()
-        };
         live.collapse_parted(
             &mut model,
             || NoGuard,
             &Options::new(goal),
-            &parts,
+            parts,
             &mut |_| {},
         );
         let out = live.to_mesh(mesh).unwrap().0;
         (out, live.settled().unwrap_or_default())
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 24,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x5E77_1E00_0000_0050),
+            ..proptest::test_runner::Config::default()
+        })]
+
+        /// Settling changes positions only: the same faces, every moved vertex on the
+        /// input or left where it was, no face flattened by it.
+        #[test]
+        fn settling_moves_vertices_onto_the_input_and_nothing_else(
+            kind in 0u8..3,
+            seed in 1u64..u64::MAX,
+            charts in 1u32..40,
+            stride in 1u32..97,
+            frac in 0.02f64..0.6,
+            parted in proptest::bool::ANY,
+        ) {
+            let shape = crate::live::parts::properties::shape(kind, seed, 0.002);
+            let mesh = coarsen_shapes::with_uv_islands(shape, charts, stride);
+            let goal = Goal::Vertices(((mesh.n_vertices() as f64 * frac) as usize).max(20));
+            let parts = if parted {
+                PartOptions { min_faces: 0, faces_per_part: 512, ..PartOptions::default() }
+            } else {
+                PartOptions::off()
+            };
+            let (free, _) = qem_with(&mesh, goal, &parts, false);
+            let (settled, did) = qem_with(&mesh, goal, &parts, true);
+            proptest::prop_assert_eq!(&settled.faces, &free.faces);
+            let diagonal = mesh.bbox().diagonal();
+            let bvh = Bvh::build(&mesh.positions, &mesh.faces);
+            let (mut moved, mut on_input) = (0, 0);
+            for (p, q) in free.positions.iter().zip(&settled.positions) {
+                if p != q {
+                    moved += 1;
+                    let d = bvh.closest_point(*q).map_or(f64::INFINITY, |n| n.distance_squared.sqrt());
+                    on_input += usize::from(d <= 1e-9 * diagonal);
+                }
+            }
+            proptest::prop_assert_eq!(moved, did.moved);
+            proptest::prop_assert_eq!(on_input, moved);
+            let min_cross = 2.0 * 1e-12 * diagonal * diagonal;
+            for face in &settled.faces {
+                let [a, b, c] = face.map(|v| settled.positions[v as usize]);
+                let [x, y, z] = face.map(|v| free.positions[v as usize]);
+                let flat = |a: DVec3, b: DVec3, c: DVec3| triangle::cross(a, b, c).length() <= min_cross;
+                proptest::prop_assert!(!flat(a, b, c) || flat(x, y, z));
+            }
+        }
     }
 
     /// The largest distance from a vertex of `out` to the surface of `input`.
@@ -311,8 +357,14 @@ mod tests {
     fn settled_vertices_lie_on_the_input_with_exact_uvs() {
         let input = coarsen_shapes::with_spherical_uvs(crate::live::parts::tests::bumpy(4));
         let goal = Goal::Vertices(300);
-        let (free, none) = qem(&input, goal, false);
-        let (settled, did) = qem(&input, goal, true);
+        // In parts first, cut small.
+        let parts = PartOptions {
+            min_faces: 0,
+            faces_per_part: 256,
+            ..PartOptions::default()
+        };
+        let (free, none) = qem_with(&input, goal, &parts, false);
+        let (settled, did) = qem_with(&input, goal, &parts, true);
         assert_eq!(none, Settled::default());
         // The same collapses: only the moved vertices' positions (and values) differ.
         assert_eq!(settled.faces, free.faces);
