@@ -992,6 +992,35 @@ pub(super) mod properties {
     use coarsen_mesh::Mesh;
     use proptest::prelude::*;
 
+    /// The cases of the properties of per-corner attributes: a [`shape`] (lightly noised)
+    /// with random UV islands, a vertex goal between 2 and 60 % of its vertices (at least
+    /// 20), and parts cut small, or none.
+    pub(in crate::live) fn charted_cases() -> impl Strategy<Value = (Mesh, crate::Goal, PartOptions)>
+    {
+        let charts = (1u32..40, 1u32..97);
+        (
+            0u8..3,
+            1u64..u64::MAX,
+            charts,
+            0.02f64..0.6,
+            proptest::bool::ANY,
+        )
+            .prop_map(|(kind, seed, (charts, stride), frac, parted)| {
+                let mesh =
+                    coarsen_shapes::with_uv_islands(shape(kind, seed, 0.002), charts, stride);
+                let n = ((mesh.n_vertices() as f64 * frac) as usize).max(20);
+                let parts = match parted {
+                    true => PartOptions {
+                        min_faces: 0,
+                        faces_per_part: 512,
+                        ..PartOptions::default()
+                    },
+                    false => PartOptions::off(),
+                };
+                (mesh, crate::Goal::Vertices(n), parts)
+            })
+    }
+
     /// A sphere, a torus or a disc with two holes, each vertex moved by up to `noise`.
     pub(in crate::live) fn shape(kind: u8, seed: u64, noise: f64) -> Mesh {
         let mut m = match kind % 3 {

@@ -729,21 +729,9 @@ mod tests {
         /// vertex sat, and no face is flat in UV space.
         #[test]
         fn random_seams_keep_the_mesh_and_its_wedges_sound(
-            kind in 0u8..3,
-            seed in 1u64..u64::MAX,
-            charts in 1u32..40,
-            stride in 1u32..97,
-            frac in 0.02f64..0.6,
-            parted in proptest::bool::ANY,
+            (mesh, goal, parts) in crate::live::parts::properties::charted_cases(),
         ) {
-            let mesh = coarsen_shapes::with_uv_islands(crate::live::parts::properties::shape(kind, seed, 0.002), charts, stride);
-            let target = ((mesh.n_vertices() as f64 * frac) as usize).max(20);
-            let parts = if parted {
-                PartOptions { min_faces: 0, faces_per_part: 512, ..PartOptions::default() }
-            } else {
-                PartOptions::off()
-            };
-            let (out, _) = qem(&mesh, Goal::Vertices(target), &parts);
+            let (out, _) = qem(&mesh, goal, &parts);
             out.wedges.check(&out.faces).unwrap();
             proptest::prop_assert_eq!(moved_seam_vertex(&mesh, &out), None);
             let t = coarsen_metrics::texture(&mesh, &out, 1.0).unwrap();

@@ -304,21 +304,8 @@ mod tests {
         /// input or left where it was, no face flattened by it.
         #[test]
         fn settling_moves_vertices_onto_the_input_and_nothing_else(
-            kind in 0u8..3,
-            seed in 1u64..u64::MAX,
-            charts in 1u32..40,
-            stride in 1u32..97,
-            frac in 0.02f64..0.6,
-            parted in proptest::bool::ANY,
+            (mesh, goal, parts) in crate::live::parts::properties::charted_cases(),
         ) {
-            let shape = crate::live::parts::properties::shape(kind, seed, 0.002);
-            let mesh = coarsen_shapes::with_uv_islands(shape, charts, stride);
-            let goal = Goal::Vertices(((mesh.n_vertices() as f64 * frac) as usize).max(20));
-            let parts = if parted {
-                PartOptions { min_faces: 0, faces_per_part: 512, ..PartOptions::default() }
-            } else {
-                PartOptions::off()
-            };
             let (free, _) = qem_with(&mesh, goal, &parts, false);
             let (settled, did) = qem_with(&mesh, goal, &parts, true);
             proptest::prop_assert_eq!(&settled.faces, &free.faces);
