@@ -25,7 +25,7 @@
 //! **Settling** ([`Simplifier::settles`]; the stages' `placement = "surface"`, their
 //! `auto` default on a mesh with UVs): after the collapses, each vertex that moved goes to
 //! the nearest point of the input faces it stands for, where its per-corner values are
-//! taken ([`LiveMesh::settle`]); the report gives `settled_vertices` and `settle_refused`
+//! taken ([`LiveMesh::settled`]); the report gives `settled_vertices` and `settle_refused`
 //! (moves left out because they would spoil a face).
 //!
 //! **Squared volume error** (paper 2's, metrics.md `sve`): each collapse's Σ Vᵢ² over the

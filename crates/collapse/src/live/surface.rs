@@ -1,6 +1,6 @@
 //! The input surface a live mesh keeps for its output: the faces a moved vertex's
-//! per-corner values come from ([`super::seams`]), and the points [`LiveMesh::settle`]
-//! puts the moved vertices on.
+//! per-corner values come from ([`super::seams`]), and the points the moved vertices
+//! settle on ([`LiveMesh::settle_on_input`]).
 //!
 //! **Settling.** A collapse puts the vertex it keeps where the cost model likes, which for
 //! the quadric is off the input surface by up to the error it measures. With
@@ -29,7 +29,7 @@ pub(crate) struct InputSurface {
     around: OnceLock<Around>,
 }
 
-/// What [`LiveMesh::settle`] did.
+/// What settling did ([`LiveMesh::settled`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Settled {
     /// Vertices moved onto the input surface.
