@@ -29,11 +29,11 @@ pub const MESHES: [&str; 5] = [
 /// The two ratios of faces removed.
 const RATIOS: [f64; 2] = [0.7, 0.95];
 
-/// Paper 2's Hausdorff distance of SVEC over its QEM [3]'s, its own bar for fidelity: at
+/// Paper 2's Hausdorff distance of SVEC over its QEM \[3\]'s, its own bar for fidelity: at
 /// 70 % and at 95 % removed (Table 1: 2.556e-3 / 1.013e-3, 8.732e-2 / 5.823e-2).
 const PAPER_HAUSDORFF_RATIO: [f64; 2] = [2.524, 1.500];
 
-/// Table 1's SVE growth from 70 % to 95 % removed: [3], [8], SVEC.
+/// Table 1's SVE growth from 70 % to 95 % removed: \[3\], \[8\], SVEC.
 const PAPER_GROWTH: [(&str, f64); 3] = [
     ("[3]", 5.668615e-5 / 1.157243e-5),
     ("[8]", 2.452733e-5 / 9.226872e-6),
@@ -229,7 +229,7 @@ fn measure_all(registry: &Registry, meshes: &[(&str, Mesh, Validity)], combos: &
     }
 }
 
-/// The claims counted per method, against the baselines (`b3`: [3], `b8`: [8]) on one
+/// The claims counted per method, against the baselines (`b3`: \[3\], `b8`: \[8\]) on one
 /// row at ratio index `r`.
 fn claims(f: &Figures, b3: &Figures, b8: &Figures, r: usize) -> [bool; 8] {
     [

@@ -123,7 +123,7 @@ pub fn write(path: impl AsRef<Path>, mesh: &Mesh) -> Result<(), Error> {
     write_with(path, mesh, &WriteOptions::default())
 }
 
-/// [`write`] with the encoding and attribute choices of `opts`.
+/// [`write()`] with the encoding and attribute choices of `opts`.
 ///
 /// ```no_run
 /// # let mesh = coarsen::demo();

@@ -5,8 +5,8 @@
 //! needs: the kept and removed vertices' positions before it, the faces it deleted (with
 //! their corners) and the faces it renamed (see [`Progressive`]). This crate
 //!
-//! * writes and reads that record as a versioned binary file ([`write`], [`read`]; format
-//!   in the [`format`] module), refusing with a typed error anything that is not exactly
+//! * writes and reads that record as a versioned binary file ([`write()`], [`read()`]; format
+//!   in the [`format`](mod@format) module), refusing with a typed error anything that is not exactly
 //!   such a file — wrong magic or version, truncation, a size that disagrees with the
 //!   header, a checksum mismatch, or records that contradict each other ([`check`]);
 //! * rebuilds **level K** from the coarse mesh ([`rebuild`]): level 0 is the coarse mesh,

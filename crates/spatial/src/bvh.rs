@@ -8,7 +8,7 @@
 //! any is measured, so that their loads overlap.
 //!
 //! Build: top-down binned surface-area heuristic (16 bins on each axis of the centroid
-//! box; a range of more than 2 × [`SAMPLE`] triangles bins an even sample of them), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
+//! box; a range of more than 2 × `SAMPLE` (1024) triangles bins an even sample of them), leaves of at most [`MAX_LEAF`] triangles; a range of at most [`MEDIAN_MAX`]
 //! triangles, one whose centroids all coincide, or one deeper than [`MAX_SAH_DEPTH`] is
 //! split at the median of its widest axis instead, which bounds the depth. Ranges of at
 //! least 2¹⁴ triangles are split and their halves built in parallel (`rayon::join`), each

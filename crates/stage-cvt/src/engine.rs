@@ -314,7 +314,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
 
     /// [`Clusterer::new`] in the mesh's own order at every size: for a few passes from a
     /// clustering at hand (a warm start, a local repair), where the curve layout would
-    /// cost about what it saves. Without a density and above [`DERIVE_MIN_FACES`] faces,
+    /// cost about what it saves. Without a density and above `DERIVE_MIN_FACES` faces,
     /// each face's mass and centroid are worked out from its corners when asked instead of
     /// kept in a table (32 bytes a face, read only by the few faces a pass prices).
     pub fn for_few_passes(
@@ -541,7 +541,7 @@ impl<'a, E: Energy + ?Sized> Clusterer<'a, E> {
     /// component's equal-mass stretches, at a point jittered by a [`SplitMix64`] from
     /// `seed` — so the seeds start evenly spread and the minimisation has little to move.
     /// A mesh laid out along the curve (big) grows in blocks of the layout at once
-    /// ([`grow_in_blocks`]).
+    /// (`grow_in_blocks`).
     pub fn seed(&mut self, n: usize, seed: u64) -> Result<(), ClusterError> {
         let nf = self.nbr.len();
         if n > nf {

@@ -16,7 +16,7 @@
 //! | `area_weighted` | `true` | weight each face plane by its area |
 //! | `facing_guard` | `true` | refuse collapses turning a face away from the run input's surface nearest it (see below) |
 //! | `parallel` | `true` | on meshes of 2¹⁹ faces or more, make most collapses in parts of the mesh side by side (see below) |
-//! | `unit` | `"edge"` | `edge`, or `triangle`: triangle collapses (the three vertex quadrics summed), then a few edge collapses to meet the target — paper 2's baseline [8] with `area_weighted = false` (its [3] is the edge unit with `area_weighted = false`) |
+//! | `unit` | `"edge"` | `edge`, or `triangle`: triangle collapses (the three vertex quadrics summed), then a few edge collapses to meet the target — paper 2's baseline \[8\] with `area_weighted = false` (its \[3\] is the edge unit with `area_weighted = false`) |
 //! | `sve_weighted` | `false` | also report `sve_weighted`, the swept squared volumes weighted as paper 2's Eq. (4) (to compare with `simplify.svec`) |
 //!
 //! The run is the collapse stages' shared skeleton (`coarsen_collapse::stage`): the target

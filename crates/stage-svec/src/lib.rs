@@ -79,7 +79,7 @@
 //!    re-costs every triangle within two edges.
 //!
 //! Readings 6 (the paper's baselines) and 7 (what its Table 1's SVE is) are not SVEC's:
-//! `simplify.qem` has `area_weighted = false` (its [3]) and `unit = "triangle"` (its [8]),
+//! `simplify.qem` has `area_weighted = false` (its \[3\]) and `unit = "triangle"` (its \[8\]),
 //! and both stages report `sve`, `sve_max` and, with `sve_weighted = true`, the sum
 //! weighted as Eq. (4) (`coarsen_collapse::stage`).
 //!
